@@ -1,0 +1,361 @@
+//! The scene file grammar of MODEL.md ("A scene file, spelled out"): TOML → [`Scene`].
+
+use super::reader::{Sink, Table};
+use super::*;
+use toml::de::DeTable;
+
+const TOP_KEYS: &[&str] = &["camera", "render", "sky", "materials", "sphere", "quad", "box"];
+const CAMERA_KEYS: &[&str] = &[
+    "look_from",
+    "look_at",
+    "up",
+    "vfov",
+    "aperture",
+    "focus_distance",
+];
+const RENDER_KEYS: &[&str] = &["width", "height", "spp", "max_bounces", "seed"];
+const SKY_KEYS: &[&str] = &["bottom", "top", "uniform", "sun"];
+const SUN_KEYS: &[&str] = &["direction", "color", "intensity", "size"];
+const MATERIAL_KEYS: &[&str] = &[
+    "color",
+    "smoothness",
+    "absorption",
+    "specular",
+    "light",
+    "ior",
+    "specular_color",
+];
+const SPHERE_KEYS: &[&str] = &["center", "radius"];
+const QUAD_KEYS: &[&str] = &["q", "u", "v"];
+const BOX_KEYS: &[&str] = &["center", "half_extents", "rotation"];
+/// Keys every object table takes besides its shape and material keys.
+const OBJECT_KEYS: &[&str] = &["name", "material"];
+
+/// Parses and validates a scene; every problem found is reported, not just the first.
+pub(super) fn parse(src: &str, origin: &str) -> Result<Scene, SceneError> {
+    let sink = Sink::new(origin, src);
+    let doc = match DeTable::parse(src) {
+        Ok(d) => d,
+        Err(e) => {
+            let span = e.span().unwrap_or(0..0);
+            sink.error(
+                span,
+                String::new(),
+                format!("TOML syntax error: {}", e.message().trim()),
+                None,
+            );
+            return Err(SceneError::Invalid(sink.into_diagnostics()));
+        }
+    };
+    let root = Table::new(
+        &sink,
+        doc.get_ref(),
+        0..0,
+        "scene".to_string(),
+        TOP_KEYS,
+    );
+    let scene = read_scene(&root, origin);
+    let diags = sink.into_diagnostics();
+    if diags.is_empty() {
+        Ok(scene)
+    } else {
+        Err(SceneError::Invalid(diags))
+    }
+}
+
+fn read_scene(root: &Table, origin: &str) -> Scene {
+    let camera = root
+        .table("camera", "[camera]".into(), CAMERA_KEYS)
+        .map(|t| read_camera(&t))
+        .unwrap_or_default();
+    let render = root
+        .table("render", "[render]".into(), RENDER_KEYS)
+        .map(|t| read_render(&t))
+        .unwrap_or_default();
+    let sky = root
+        .table("sky", "[sky]".into(), SKY_KEYS)
+        .map(|t| read_sky(&t))
+        .unwrap_or_default();
+
+    let materials: Vec<(String, MaterialPatch)> = root
+        .named_tables("materials", MATERIAL_KEYS)
+        .into_iter()
+        .map(|(name, t)| (name, MaterialPatch::read(&t)))
+        .collect();
+
+    let with = |extra: &[&'static str]| -> Vec<&'static str> {
+        [extra, MATERIAL_KEYS, OBJECT_KEYS].concat()
+    };
+    let mut objects = Vec::new();
+    for t in root.array_of_tables("sphere", &with(SPHERE_KEYS)) {
+        objects.push(read_object(&t, &materials, read_sphere(&t)));
+    }
+    for t in root.array_of_tables("quad", &with(QUAD_KEYS)) {
+        objects.push(read_object(&t, &materials, read_quad(&t)));
+    }
+    for t in root.array_of_tables("box", &with(BOX_KEYS)) {
+        objects.push(read_object(&t, &materials, read_box(&t)));
+    }
+    let objects = objects.into_iter().flatten().collect();
+
+    Scene {
+        origin: origin.to_string(),
+        camera,
+        render,
+        sky,
+        materials: materials
+            .into_iter()
+            .map(|(n, p)| (n, p.resolve()))
+            .collect(),
+        objects,
+    }
+}
+
+fn read_camera(t: &Table) -> Camera {
+    let d = Camera::default();
+    let cam = Camera {
+        look_from: t.vec3("look_from").unwrap_or(d.look_from),
+        look_at: t.vec3("look_at").unwrap_or(d.look_at),
+        up: t.vec3("up").unwrap_or(d.up),
+        vfov: t.f64_in("vfov", 0.0, 180.0).unwrap_or(d.vfov),
+        aperture: t.f64_in("aperture", 0.0, f64::MAX).unwrap_or(d.aperture),
+        focus_distance: t.f64_above("focus_distance", 0.0),
+    };
+    let view = cam.look_at - cam.look_from;
+    if view.length() == 0.0 {
+        t.error(
+            "look_at",
+            "`look_at` is the same point as `look_from`",
+            Some("the camera needs a direction to look in".into()),
+        );
+    } else if cam.up.cross(view).length() <= 1e-9 * cam.up.length() * view.length() {
+        t.error(
+            "up",
+            "`up` is zero or parallel to the viewing direction",
+            Some("choose an `up` that is not along look_at - look_from, e.g. [0, 1, 0]".into()),
+        );
+    }
+    if cam.vfov <= 0.0 || cam.vfov >= 180.0 {
+        t.error(
+            "vfov",
+            format!("vfov {} is out of range", cam.vfov),
+            Some("`vfov` must be strictly between 0 and 180 degrees".into()),
+        );
+    }
+    cam
+}
+
+fn read_render(t: &Table) -> RenderSettings {
+    let d = RenderSettings::default();
+    RenderSettings {
+        width: t.u32_in("width", 1, MAX_IMAGE_SIDE).unwrap_or(d.width),
+        height: t.u32_in("height", 1, MAX_IMAGE_SIDE).unwrap_or(d.height),
+        spp: t.u32_in("spp", 1, u32::MAX).unwrap_or(d.spp),
+        max_bounces: t.u32_in("max_bounces", 0, MAX_BOUNCES).unwrap_or(d.max_bounces),
+        seed: t.u32_in("seed", 0, u32::MAX).unwrap_or(d.seed),
+    }
+}
+
+fn read_sky(t: &Table) -> Sky {
+    if let Some(u) = t.color("uniform") {
+        for k in ["bottom", "top", "sun"] {
+            if t.has(k) {
+                t.error(
+                    k,
+                    format!("`{k}` cannot be combined with `uniform`"),
+                    Some("a uniform sky is one constant radiance; remove one of them".into()),
+                );
+            }
+        }
+        return Sky::Uniform(u);
+    }
+    let Sky::Gradient {
+        bottom: db,
+        top: dt,
+        ..
+    } = Sky::default()
+    else {
+        unreachable!("the default sky is a gradient")
+    };
+    let sun = t
+        .table("sun", "[sky] sun".into(), SUN_KEYS)
+        .and_then(|s| read_sun(&s));
+    Sky::Gradient {
+        bottom: t.color("bottom").unwrap_or(db),
+        top: t.color("top").unwrap_or(dt),
+        sun,
+    }
+}
+
+fn read_sun(t: &Table) -> Option<Sun> {
+    let direction = t.vec3("direction").unwrap_or(DVec3::new(-0.4, 0.7, -0.6));
+    if direction.length() == 0.0 {
+        t.error("direction", "the sun direction is zero", None);
+        return None;
+    }
+    Some(Sun {
+        direction: direction.normalize(),
+        color: t.color("color").unwrap_or(Vec3::ONE),
+        intensity: t.f64_in("intensity", 0.0, f64::MAX).unwrap_or(0.0) as f32,
+        size: t.f64_in("size", 0.0, f64::MAX).unwrap_or(100.0) as f32,
+    })
+}
+
+/// Material keys as given in one table; `None` where the table is silent.
+#[derive(Clone, Default)]
+struct MaterialPatch {
+    color: Option<Vec3>,
+    smoothness: Option<f32>,
+    absorption: Option<f32>,
+    specular: Option<f32>,
+    light: Option<f32>,
+    ior: Option<f32>,
+    specular_color: Option<Vec3>,
+}
+
+impl MaterialPatch {
+    fn read(t: &Table) -> MaterialPatch {
+        MaterialPatch {
+            color: t.color("color"),
+            smoothness: t.f64_in("smoothness", -1.0, 1.0).map(|x| x as f32),
+            absorption: t.f64_in("absorption", 0.0, 1.0).map(|x| x as f32),
+            specular: t.f64_in("specular", 0.0, 1.0).map(|x| x as f32),
+            light: t.f64_in("light", 0.0, f64::MAX).map(|x| x as f32),
+            ior: t.f64_above("ior", 0.0).map(|x| x as f32),
+            specular_color: t.color("specular_color"),
+        }
+    }
+
+    /// `self` over `base`: keys given here win.
+    fn over(&self, base: &MaterialPatch) -> MaterialPatch {
+        MaterialPatch {
+            color: self.color.or(base.color),
+            smoothness: self.smoothness.or(base.smoothness),
+            absorption: self.absorption.or(base.absorption),
+            specular: self.specular.or(base.specular),
+            light: self.light.or(base.light),
+            ior: self.ior.or(base.ior),
+            specular_color: self.specular_color.or(base.specular_color),
+        }
+    }
+
+    /// Fills the defaults of MODEL.md; a dielectric's default colour is white.
+    fn resolve(&self) -> Material {
+        let d = Material::default();
+        let smoothness = self.smoothness.unwrap_or(d.smoothness);
+        let default_color = if smoothness < 0.0 {
+            DEFAULT_GLASS_COLOR
+        } else {
+            DEFAULT_COLOR
+        };
+        Material {
+            color: self.color.unwrap_or(default_color),
+            smoothness,
+            absorption: self.absorption.unwrap_or(d.absorption),
+            specular: self.specular.unwrap_or(d.specular),
+            light: self.light.unwrap_or(d.light),
+            ior: self.ior.unwrap_or(d.ior),
+            specular_color: self.specular_color,
+        }
+    }
+}
+
+fn read_object(
+    t: &Table,
+    named: &[(String, MaterialPatch)],
+    shape: Option<Shape>,
+) -> Option<Object> {
+    let inline = MaterialPatch::read(t);
+    let material_name = t.string("material");
+    let base = match &material_name {
+        None => MaterialPatch::default(),
+        Some(n) => match named.iter().find(|(k, _)| k == n) {
+            Some((_, p)) => p.clone(),
+            None => {
+                let names: Vec<&str> = named.iter().map(|(k, _)| k.as_str()).collect();
+                let help = match super::reader::suggest(n, &names) {
+                    Some(s) => format!("did you mean `{s}`?"),
+                    None if names.is_empty() => {
+                        "define it in a [materials.NAME] table".to_string()
+                    }
+                    None => format!("defined materials: {}", names.join(", ")),
+                };
+                t.error(
+                    "material",
+                    format!("no material named `{n}`"),
+                    Some(help),
+                );
+                MaterialPatch::default()
+            }
+        },
+    };
+    Some(Object {
+        name: t.string("name"),
+        shape: shape?,
+        material: inline.over(&base).resolve(),
+        material_name,
+    })
+}
+
+/// A required key: reports its absence.
+fn required<T>(t: &Table, key: &str, v: Option<T>) -> Option<T> {
+    if v.is_none() && !t.has(key) {
+        t.error_table(format!("missing key `{key}`"), None);
+    }
+    v
+}
+
+fn read_sphere(t: &Table) -> Option<Shape> {
+    let center = required(t, "center", t.vec3("center"));
+    let radius = required(t, "radius", t.f64("radius"));
+    if radius == Some(0.0) {
+        t.error(
+            "radius",
+            "a sphere of radius 0 has no surface",
+            Some("use a positive radius, or a negative one for an inward normal".into()),
+        );
+        return None;
+    }
+    Some(Shape::Sphere {
+        center: center?,
+        radius: radius?,
+    })
+}
+
+fn read_quad(t: &Table) -> Option<Shape> {
+    let q = required(t, "q", t.vec3("q"));
+    let u = required(t, "u", t.vec3("u"));
+    let v = required(t, "v", t.vec3("v"));
+    let (q, u, v) = (q?, u?, v?);
+    let area = u.cross(v).length();
+    if area <= 1e-12 * u.length_squared().max(v.length_squared()) || area == 0.0 {
+        t.error(
+            "v",
+            "the quad has zero area: `u` and `v` are zero or parallel",
+            Some("`u` and `v` are the two edges from corner `q`; they must span a plane".into()),
+        );
+        return None;
+    }
+    Some(Shape::Quad { q, u, v })
+}
+
+fn read_box(t: &Table) -> Option<Shape> {
+    let center = required(t, "center", t.vec3("center"));
+    let half = required(t, "half_extents", t.vec3("half_extents"));
+    let rotation = t.vec3("rotation").unwrap_or(DVec3::ZERO);
+    if let Some(h) = half
+        && h.min_element() <= 0.0
+    {
+        t.error(
+            "half_extents",
+            "every half extent of a box must be greater than 0",
+            None,
+        );
+        return None;
+    }
+    Some(Shape::Box {
+        center: center?,
+        half_extents: half?,
+        rotation,
+    })
+}

@@ -1,0 +1,136 @@
+//! [`Scene`] → TOML text in the grammar of MODEL.md, so that an edited scene can be saved and
+//! loaded back to the same scene.
+
+use super::color::to_hex_exact;
+use super::*;
+use std::fmt::Write;
+
+fn num(x: f64) -> String {
+    format!("{x}")
+}
+
+fn v3(v: DVec3) -> String {
+    format!("[{}, {}, {}]", num(v.x), num(v.y), num(v.z))
+}
+
+fn col(c: Vec3) -> String {
+    to_hex_exact(c)
+        .map(|h| format!("\"{h}\""))
+        .unwrap_or_else(|| format!("[{}, {}, {}]", c.x, c.y, c.z))
+}
+
+/// The material keys of `m` that differ from what `base` already gives.
+fn material_lines(out: &mut String, m: &Material, base: &Material) {
+    let default_color = if m.is_dielectric() {
+        DEFAULT_GLASS_COLOR
+    } else {
+        DEFAULT_COLOR
+    };
+    // A base without a name resolves its colour by the dielectric rule too.
+    let base_color = if base == &Material::default() {
+        default_color
+    } else {
+        base.color
+    };
+    if m.color != base_color {
+        let _ = writeln!(out, "color = {}", col(m.color));
+    }
+    let scalars = [
+        ("smoothness", m.smoothness, base.smoothness),
+        ("absorption", m.absorption, base.absorption),
+        ("specular", m.specular, base.specular),
+        ("light", m.light, base.light),
+        ("ior", m.ior, base.ior),
+    ];
+    for (k, v, b) in scalars {
+        if v != b {
+            let _ = writeln!(out, "{k} = {v}");
+        }
+    }
+    if m.specular_color != base.specular_color
+        && let Some(s) = m.specular_color
+    {
+        let _ = writeln!(out, "specular_color = {}", col(s));
+    }
+}
+
+/// Writes `scene` as a scene file.
+pub fn to_toml(scene: &Scene) -> String {
+    let mut o = String::new();
+    let c = &scene.camera;
+    let _ = writeln!(o, "# termtrace scene (written from {})\n", scene.origin);
+    let _ = writeln!(o, "[camera]");
+    let _ = writeln!(o, "look_from = {}", v3(c.look_from));
+    let _ = writeln!(o, "look_at = {}", v3(c.look_at));
+    let _ = writeln!(o, "up = {}", v3(c.up));
+    let _ = writeln!(o, "vfov = {}", num(c.vfov));
+    let _ = writeln!(o, "aperture = {}", num(c.aperture));
+    if let Some(f) = c.focus_distance {
+        let _ = writeln!(o, "focus_distance = {}", num(f));
+    }
+    let r = &scene.render;
+    let _ = writeln!(o, "\n[render]");
+    let _ = writeln!(o, "width = {}\nheight = {}", r.width, r.height);
+    let _ = writeln!(o, "spp = {}\nmax_bounces = {}\nseed = {}", r.spp, r.max_bounces, r.seed);
+    let _ = writeln!(o, "\n[sky]");
+    match &scene.sky {
+        Sky::Uniform(u) => {
+            let _ = writeln!(o, "uniform = {}", col(*u));
+        }
+        Sky::Gradient { bottom, top, sun } => {
+            let _ = writeln!(o, "bottom = {}\ntop = {}", col(*bottom), col(*top));
+            if let Some(s) = sun {
+                let _ = writeln!(
+                    o,
+                    "sun = {{ direction = {}, color = {}, intensity = {}, size = {} }}",
+                    v3(s.direction),
+                    col(s.color),
+                    s.intensity,
+                    s.size
+                );
+            }
+        }
+    }
+    for (name, m) in &scene.materials {
+        let _ = writeln!(o, "\n[materials.{name}]");
+        material_lines(&mut o, m, &Material::default());
+    }
+    let named = |n: &Option<String>| -> Material {
+        n.as_ref()
+            .and_then(|n| scene.materials.iter().find(|(k, _)| k == n))
+            .map(|(_, m)| m.clone())
+            .unwrap_or_default()
+    };
+    for obj in &scene.objects {
+        let _ = writeln!(o, "\n[[{}]]", obj.shape.kind());
+        if let Some(n) = &obj.name {
+            let _ = writeln!(o, "name = {n:?}");
+        }
+        match &obj.shape {
+            Shape::Sphere { center, radius } => {
+                let _ = writeln!(o, "center = {}\nradius = {}", v3(*center), num(*radius));
+            }
+            Shape::Quad { q, u, v } => {
+                let _ = writeln!(o, "q = {}\nu = {}\nv = {}", v3(*q), v3(*u), v3(*v));
+            }
+            Shape::Box {
+                center,
+                half_extents,
+                rotation,
+            } => {
+                let _ = writeln!(
+                    o,
+                    "center = {}\nhalf_extents = {}\nrotation = {}",
+                    v3(*center),
+                    v3(*half_extents),
+                    v3(*rotation)
+                );
+            }
+        }
+        if let Some(n) = &obj.material_name {
+            let _ = writeln!(o, "material = {n:?}");
+        }
+        material_lines(&mut o, &obj.material, &named(&obj.material_name));
+    }
+    o
+}
