@@ -1,0 +1,61 @@
+// #include "common/types.wgsl"
+// #include "common/sampling.wgsl"
+// Scattering by the material rules of MODEL.md ("Materials", steps 2 and 3).
+
+struct Scatter {
+    dir: vec3f,
+    attenuation: vec3f,
+    absorbed: bool,   // the path ends here (a bounce below the surface)
+}
+
+// Schlick, "An Inexpensive BRDF Model for Physically-based Rendering", 1994.
+fn schlick(cosine: f32, ratio: f32) -> f32 {
+    var r0 = (1.0 - ratio) / (1.0 + ratio);
+    r0 = r0 * r0;
+    return r0 + (1.0 - r0) * pow(1.0 - cosine, 5.0);
+}
+
+// A dielectric: reflect by total internal reflection or with Schlick's probability, else
+// refract by Snell's law (r_perp, r_par as in the lecture). An index-matched interface
+// (ratio exactly 1) has no reflectance, so the ray goes straight on: Schlick's formula would
+// still give (1 - cos)^5 there, an artefact of the approximation (docs/MODEL-NOTES.md).
+fn scatter_dielectric(m: Material, d: vec3f, n_out: vec3f, state: ptr<function, u32>) -> Scatter {
+    let front = dot(d, n_out) < 0.0;
+    let n = select(-n_out, n_out, front);
+    let ratio = select(m.ior, 1.0 / m.ior, front);
+    let cos_theta = min(dot(-d, n), 1.0);
+    let sin_theta = sqrt(max(0.0, 1.0 - cos_theta * cos_theta));
+    var dir = d;
+    if ratio != 1.0 {
+        let u = rand(state);
+        if ratio * sin_theta > 1.0 || schlick(cos_theta, ratio) > u {
+            dir = reflect(d, n);
+        } else {
+            let r_perp = ratio * (d + cos_theta * n);
+            let r_par = -sqrt(abs(1.0 - dot(r_perp, r_perp))) * n;
+            dir = r_perp + r_par;
+        }
+    }
+    if m.absorption > 0.0 {
+        dir = normalize_or(dir + m.absorption * random_unit_vector(state), dir);
+    }
+    return Scatter(normalize(dir), m.color, false);
+}
+
+// Lambertian, smoothness blend, fuzz and the specular-probability lobe of the lecture.
+fn scatter_surface(m: Material, d: vec3f, n_out: vec3f, state: ptr<function, u32>) -> Scatter {
+    let n = select(-n_out, n_out, dot(d, n_out) < 0.0);
+    let is_spec = rand(state) < m.specular;
+    let diffuse = normalize_or(n + random_unit_vector(state), n);
+    var dir = diffuse;
+    var tint = m.color;
+    if is_spec {
+        var mirror = reflect(d, n);
+        if m.absorption > 0.0 {
+            mirror = normalize_or(mirror + m.absorption * random_unit_vector(state), n);
+        }
+        dir = normalize_or(mix(diffuse, mirror, m.smoothness), n);
+        tint = m.specular_color;
+    }
+    return Scatter(dir, tint, dot(dir, n) <= 0.0);
+}

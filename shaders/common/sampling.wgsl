@@ -1,0 +1,28 @@
+// #include "common/rng.wgsl"
+// Directions and points drawn from the random streams.
+
+const PI: f32 = 3.14159265358979;
+
+// Uniform on the unit sphere (Archimedes: z uniform in [-1, 1], azimuth uniform).
+fn random_unit_vector(state: ptr<function, u32>) -> vec3f {
+    let z = 1.0 - 2.0 * rand(state);
+    let phi = 2.0 * PI * rand(state);
+    let r = sqrt(max(0.0, 1.0 - z * z));
+    return vec3f(r * cos(phi), r * sin(phi), z);
+}
+
+// Uniform in the unit disk (polar mapping, r = sqrt(u)).
+fn random_in_disk(state: ptr<function, u32>) -> vec2f {
+    let r = sqrt(rand(state));
+    let phi = 2.0 * PI * rand(state);
+    return vec2f(r * cos(phi), r * sin(phi));
+}
+
+// normalize(v), or `fallback` when v is too short to have a direction.
+fn normalize_or(v: vec3f, fallback: vec3f) -> vec3f {
+    let l2 = dot(v, v);
+    if l2 < 1e-12 {
+        return fallback;
+    }
+    return v * inverseSqrt(l2);
+}

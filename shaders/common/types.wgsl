@@ -1,0 +1,94 @@
+// Scene data as the tracer sees it. Mirrored field by field by `src/gpu/layout.rs`
+// (byte offsets in the comments; a test checks both against naga's layout).
+
+struct SceneUniforms {
+    cam_origin: vec3f,      //   0  look_from
+    lens_radius: f32,       //  12  aperture / 2
+    cam_to_corner: vec3f,   //  16  upper-left corner of the focus plane, relative to cam_origin
+    _pad0: f32,             //  28
+    cam_horizontal: vec3f,  //  32  full width of the focus plane
+    _pad1: f32,             //  44
+    cam_vertical: vec3f,    //  48  full height of the focus plane, pointing up
+    _pad2: f32,             //  60
+    cam_u: vec3f,           //  64  lens basis (right)
+    _pad3: f32,             //  76
+    cam_v: vec3f,           //  80  lens basis (up)
+    _pad4: f32,             //  92
+    sky_bottom: vec3f,      //  96  radiance of a uniform sky, or the gradient's bottom
+    sky_uniform: u32,       // 108  1: one constant radiance (sky_bottom)
+    sky_top: vec3f,         // 112
+    _pad5: f32,             // 124
+    sun_dir: vec3f,         // 128  unit vector towards the sun
+    sun_size: f32,          // 140  exponent of max(dot(sun_dir, dir), 0)
+    sun_radiance: vec3f,    // 144  colour * intensity; zero without a sun
+    _pad6: f32,             // 156
+    width: u32,             // 160
+    height: u32,            // 164
+    max_bounces: u32,       // 168
+    seed: u32,              // 172
+    n_spheres: u32,         // 176
+    n_quads: u32,           // 180
+    n_boxes: u32,           // 184
+    _pad7: u32,             // 188
+}                           // 192
+
+// What one submission traces: rows [row_offset, row_offset + row_count) of the image,
+// samples [sample_base, sample_base + sample_count) of every pixel in them.
+struct DispatchUniforms {
+    sample_base: u32,       //   0
+    sample_count: u32,      //   4
+    row_offset: u32,        //   8
+    row_count: u32,         //  12
+    accumulate: u32,        //  16  the lecture's should_accumulate: 0 starts the sums afresh
+    _pad0: u32,             //  20
+    _pad1: u32,             //  24
+    _pad2: u32,             //  28
+}                           //  32
+
+struct Material {
+    color: vec3f,           //   0  albedo, emission colour or glass tint (linear)
+    smoothness: f32,        //  12  0 Lambertian … 1 mirror; < 0 dielectric
+    specular_color: vec3f,  //  16  tint of specular bounces
+    absorption: f32,        //  28  fuzz radius
+    specular: f32,          //  32  probability of the specular lobe
+    light: f32,             //  36  emission strength
+    ior: f32,               //  40  index of refraction
+    _pad0: f32,             //  44
+}                           //  48
+
+// A sphere stored by a point on its surface (the anchor, chosen near the part of the scene
+// the camera looks at) and the outward normal there, so that ray/sphere terms are computed
+// relative to the anchor: precise even for a radius of 1e6 (see intersect.wgsl).
+struct Sphere {
+    anchor: vec3f,          //   0
+    radius: f32,            //  12  signed: negative flips the normal inward
+    anchor_normal: vec3f,   //  16  outward unit normal at the anchor
+    material: u32,          //  28
+}                           //  32
+
+struct Quad {
+    q: vec3f,               //   0  corner
+    material: u32,          //  12
+    u: vec3f,               //  16  first edge
+    _pad0: f32,             //  28
+    v: vec3f,               //  32  second edge
+    _pad1: f32,             //  44
+    normal: vec3f,          //  48  unit normal of cross(u, v)
+    _pad2: f32,             //  60
+    w: vec3f,               //  64  cross(u, v) / |cross(u, v)|², for planar coordinates
+    _pad3: f32,             //  76
+}                           //  80
+
+// An oriented box: centre, half extents, and the world-from-local rotation as three axes.
+struct Cuboid {
+    center: vec3f,          //   0
+    material: u32,          //  12
+    half_extents: vec3f,    //  16
+    _pad0: f32,             //  28
+    axis_x: vec3f,          //  32
+    _pad1: f32,             //  44
+    axis_y: vec3f,          //  48
+    _pad2: f32,             //  60
+    axis_z: vec3f,          //  64
+    _pad3: f32,             //  76
+}                           //  80

@@ -1,0 +1,253 @@
+// #include "common/types.wgsl"
+// #include "common/rng.wgsl"
+// #include "common/sampling.wgsl"
+// #include "common/intersect.wgsl"
+// #include "common/material.wgsl"
+// The path tracer: one invocation traces `sample_count` paths through one pixel and adds them
+// to that pixel's running sums (src/gpu/trace.rs drives it).
+
+// Per-scene specialization (src/gpu/features.rs): what a scene does not use is compiled out.
+override HAS_SPHERES: bool = true;
+override HAS_QUADS: bool = true;
+override HAS_BOXES: bool = true;
+override HAS_DIELECTRICS: bool = true;
+override HAS_EMITTERS: bool = true;
+override HAS_DOF: bool = true;
+override HAS_SUN: bool = true;
+// Counting path segments costs an atomic per workgroup; only `bench` turns it on.
+override COUNT_SEGMENTS: bool = false;
+
+@group(0) @binding(0) var<uniform> scene: SceneUniforms;
+@group(0) @binding(1) var<uniform> batch: DispatchUniforms;
+@group(0) @binding(2) var<storage, read> materials: array<Material>;
+@group(0) @binding(3) var<storage, read> spheres: array<Sphere>;
+@group(0) @binding(4) var<storage, read> quads: array<Quad>;
+@group(0) @binding(5) var<storage, read> boxes: array<Cuboid>;
+// Running sums of the even and odd samples of each pixel, as unevaluated pairs (hi, lo):
+// [2p] = hi, [2p + 1] = lo; rgb is radiance, w the number of samples.
+@group(0) @binding(6) var<storage, read_write> accum_even: array<vec4f>;
+@group(0) @binding(7) var<storage, read_write> accum_odd: array<vec4f>;
+// [0, 1]: invalid (NaN/inf) samples discarded, as lo/hi words of a u64;
+// [2, 3]: path segments traced (only with COUNT_SEGMENTS).
+@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 4>;
+
+const KIND_NONE: u32 = 0u;
+const KIND_SPHERE: u32 = 1u;
+const KIND_QUAD: u32 = 2u;
+const KIND_BOX: u32 = 3u;
+const T_FAR: f32 = 3.0e38;
+
+struct Hit {
+    t: f32,
+    kind: u32,
+    index: u32,
+}
+
+fn intersect_scene(ray: Ray) -> Hit {
+    var hit = Hit(T_FAR, KIND_NONE, 0u);
+    if HAS_SPHERES {
+        for (var i = 0u; i < scene.n_spheres; i++) {
+            let t = hit_sphere(spheres[i], ray, hit.t);
+            if t > 0.0 {
+                hit = Hit(t, KIND_SPHERE, i);
+            }
+        }
+    }
+    if HAS_QUADS {
+        for (var i = 0u; i < scene.n_quads; i++) {
+            let t = hit_quad(quads[i], ray, hit.t);
+            if t > 0.0 {
+                hit = Hit(t, KIND_QUAD, i);
+            }
+        }
+    }
+    if HAS_BOXES {
+        for (var i = 0u; i < scene.n_boxes; i++) {
+            let t = hit_box(boxes[i], ray, hit.t);
+            if t > 0.0 {
+                hit = Hit(t, KIND_BOX, i);
+            }
+        }
+    }
+    return hit;
+}
+
+// Geometric normal (as the primitive defines "outward") and material of a hit.
+struct Surface {
+    normal: vec3f,
+    material: u32,
+}
+
+fn surface_at(hit: Hit, ray: Ray) -> Surface {
+    if hit.kind == KIND_SPHERE {
+        let s = spheres[hit.index];
+        return Surface(sphere_normal(s, ray, hit.t), s.material);
+    }
+    if hit.kind == KIND_QUAD {
+        let q = quads[hit.index];
+        return Surface(q.normal, q.material);
+    }
+    let b = boxes[hit.index];
+    return Surface(box_normal(b, ray, hit.t), b.material);
+}
+
+// The gradient sky with optional sun, or a uniform sky (MODEL.md "Sky").
+fn sky(dir: vec3f) -> vec3f {
+    if scene.sky_uniform != 0u {
+        return scene.sky_bottom;
+    }
+    let t = 0.5 * (dir.y + 1.0);
+    var c = (1.0 - t) * scene.sky_bottom + t * scene.sky_top;
+    if HAS_SUN {
+        let cz = max(dot(scene.sun_dir, dir), 0.0);
+        if cz > 0.0 {
+            c += scene.sun_radiance * pow(cz, scene.sun_size);
+        }
+    }
+    return c;
+}
+
+// Thin-lens camera (the lecture's "Desfocando"; Shirley, Ray Tracing in One Weekend §13):
+// the ray starts on the lens disk and passes through the jittered pixel's point on the focus
+// plane. Directions are built relative to the camera so that a far-away camera loses nothing.
+fn camera_ray(px: vec2u, state: ptr<function, u32>) -> Ray {
+    let jx = rand(state);
+    let jy = rand(state);
+    let s = (f32(px.x) + jx) / f32(scene.width);
+    let t = (f32(px.y) + jy) / f32(scene.height);
+    let target_rel = scene.cam_to_corner + s * scene.cam_horizontal - t * scene.cam_vertical;
+    var lens = vec3f(0.0);
+    if HAS_DOF && scene.lens_radius > 0.0 {
+        let p = random_in_disk(state) * scene.lens_radius;
+        lens = p.x * scene.cam_u + p.y * scene.cam_v;
+    }
+    return Ray(scene.cam_origin + lens, normalize(target_rel - lens));
+}
+
+struct PathResult {
+    radiance: vec3f,
+    segments: u32,
+}
+
+// One path (MODEL.md "Scattering"): at most max_bounces scatterings, and the ray leaving the
+// last one is still traced, so at most max_bounces + 1 segments.
+fn trace_path(primary: Ray, state: ptr<function, u32>) -> PathResult {
+    var ray = primary;
+    var throughput = vec3f(1.0);
+    var radiance = vec3f(0.0);
+    var segments = 0u;
+    for (var bounce = 0u; bounce <= scene.max_bounces; bounce++) {
+        segments += 1u;
+        let hit = intersect_scene(ray);
+        if hit.kind == KIND_NONE {
+            radiance += throughput * sky(ray.dir);
+            break;
+        }
+        let surf = surface_at(hit, ray);
+        let m = materials[surf.material];
+        if HAS_EMITTERS && m.light > 0.0 {
+            radiance += throughput * m.color * m.light;
+            break;
+        }
+        if bounce == scene.max_bounces {
+            break;
+        }
+        var sc: Scatter;
+        if HAS_DIELECTRICS && m.smoothness < 0.0 {
+            sc = scatter_dielectric(m, ray.dir, surf.normal, state);
+        } else {
+            sc = scatter_surface(m, ray.dir, surf.normal, state);
+        }
+        if sc.absorbed {
+            break;
+        }
+        throughput *= sc.attenuation;
+        let p = ray.origin + hit.t * ray.dir;
+        let side = select(-surf.normal, surf.normal, dot(sc.dir, surf.normal) > 0.0);
+        ray = Ray(offset_ray(p, side), sc.dir);
+    }
+    return PathResult(radiance, segments);
+}
+
+// Adds x to the unevaluated sum hi + lo without losing x's low bits: Knuth's TwoSum gives
+// the exact rounding error of hi + x, which lo collects. The sum stays exact to about two
+// ulps after millions of samples, where a plain f32 sum drifts (MODEL.md "Accumulation").
+fn two_sum_add(hi: ptr<function, vec4f>, lo: ptr<function, vec4f>, x: vec4f) {
+    let s = *hi + x;
+    let bp = s - *hi;
+    let err = (*hi - (s - bp)) + (x - bp);
+    *hi = s;
+    *lo += err;
+}
+
+// True if any component is NaN or infinite, by the exponent bits: WGSL lets compilers assume
+// floats are finite, so `x != x` may be folded away.
+fn not_finite(v: vec3f) -> bool {
+    let e = bitcast<vec3u>(v) & vec3u(0x7f800000u);
+    return any(e == vec3u(0x7f800000u));
+}
+
+fn add_u64(lo_index: u32, n: u32) {
+    if n == 0u {
+        return;
+    }
+    let old = atomicAdd(&counters[lo_index], n);
+    if old > 0xffffffffu - n {
+        atomicAdd(&counters[lo_index + 1u], 1u);
+    }
+}
+
+var<workgroup> wg_segments: atomic<u32>;
+
+@compute @workgroup_size(8, 8, 1)
+fn trace(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_index) lid: u32) {
+    let px = vec2u(gid.x, gid.y + batch.row_offset);
+    let in_image = gid.x < scene.width && gid.y < batch.row_count && px.y < scene.height;
+    var segments = 0u;
+    if in_image {
+        let pixel = px.y * scene.width + px.x;
+        var even_hi = vec4f(0.0);
+        var even_lo = vec4f(0.0);
+        var odd_hi = vec4f(0.0);
+        var odd_lo = vec4f(0.0);
+        if batch.accumulate != 0u {
+            even_hi = accum_even[2u * pixel];
+            even_lo = accum_even[2u * pixel + 1u];
+            odd_hi = accum_odd[2u * pixel];
+            odd_lo = accum_odd[2u * pixel + 1u];
+        }
+        var invalid = 0u;
+        for (var i = 0u; i < batch.sample_count; i++) {
+            let sample = batch.sample_base + i;
+            var state = rng_init(pixel, sample, scene.seed);
+            let path = trace_path(camera_ray(px, &state), &state);
+            segments += path.segments;
+            if not_finite(path.radiance) {
+                invalid += 1u;
+                continue;
+            }
+            let x = vec4f(path.radiance, 1.0);
+            if (sample & 1u) == 0u {
+                two_sum_add(&even_hi, &even_lo, x);
+            } else {
+                two_sum_add(&odd_hi, &odd_lo, x);
+            }
+        }
+        accum_even[2u * pixel] = even_hi;
+        accum_even[2u * pixel + 1u] = even_lo;
+        accum_odd[2u * pixel] = odd_hi;
+        accum_odd[2u * pixel + 1u] = odd_lo;
+        add_u64(0u, invalid);
+    }
+    if COUNT_SEGMENTS {
+        if lid == 0u {
+            atomicStore(&wg_segments, 0u);
+        }
+        workgroupBarrier();
+        atomicAdd(&wg_segments, segments);
+        workgroupBarrier();
+        if lid == 0u {
+            add_u64(2u, atomicLoad(&wg_segments));
+        }
+    }
+}

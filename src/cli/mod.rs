@@ -1,0 +1,129 @@
+//! The command line: `termtrace [SCENE]` (the live preview) and its subcommands.
+
+mod adapters;
+mod bench;
+mod check;
+mod render;
+
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// A GPU path tracer whose live preview is drawn in the terminal.
+#[derive(Parser, Debug)]
+#[command(name = "termtrace", version, about, args_conflicts_with_subcommands = true)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Option<Command>,
+    #[command(flatten)]
+    view: ViewArgs,
+    #[command(flatten)]
+    global: GlobalArgs,
+}
+
+/// Options every command takes.
+#[derive(Args, Debug, Clone)]
+pub struct GlobalArgs {
+    /// GPU adapter to use: part of its name, a backend (vulkan, gl, metal, dx12), a type
+    /// (cpu, discrete, integrated) or its number in `termtrace adapters`.
+    #[arg(long, global = true, env = "TERMTRACE_ADAPTER", value_name = "NAME")]
+    pub adapter: Option<String>,
+    /// Write logs to this file.
+    #[arg(long, global = true, value_name = "FILE")]
+    pub log: Option<PathBuf>,
+    /// More detail in the logs (-v info, -vv debug).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub verbose: u8,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Open the live preview (the default command).
+    View(ViewArgs),
+    /// Render a scene to PNG (and linear EXR) headless.
+    Render(render::RenderArgs),
+    /// Validate scene files and print a summary of each.
+    Check(check::CheckArgs),
+    /// List the GPU adapters this machine offers, best first.
+    Adapters,
+    /// Measure samples/s and path segments/s on the chosen adapter.
+    Bench(bench::BenchArgs),
+}
+
+/// `termtrace [SCENE]` and `termtrace view [SCENE]`.
+#[derive(Args, Debug, Clone, Default)]
+pub struct ViewArgs {
+    /// Scene file, or the name of a built-in scene; the built-in showcase when omitted.
+    pub scene: Option<String>,
+}
+
+fn init_logging(g: &GlobalArgs, to_stderr: bool) -> anyhow::Result<()> {
+    let level = match g.verbose {
+        0 => tracing::Level::WARN,
+        1 => tracing::Level::INFO,
+        _ => tracing::Level::DEBUG,
+    };
+    let builder = tracing_subscriber::fmt().with_max_level(level);
+    if let Some(path) = &g.log {
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+            .map_err(|e| anyhow::anyhow!("cannot open log file {}: {e}", path.display()))?;
+        builder
+            .with_ansi(false)
+            .with_writer(std::sync::Mutex::new(file))
+            .init();
+    } else if to_stderr {
+        builder.with_writer(std::io::stderr).init();
+    }
+    Ok(())
+}
+
+/// Mesa's implicit `VK_LAYER_MESA_device_select` layer only reorders devices for programs
+/// that take the first one (termtrace ranks adapters itself), and on a machine without a
+/// display it prints `XDG_RUNTIME_DIR is invalid` on stderr, over the preview. Disable it
+/// unless the user set `NODEVICE_SELECT` themselves. Call before any thread starts.
+pub fn quiet_vulkan_layers() {
+    if std::env::var_os("NODEVICE_SELECT").is_none() {
+        // SAFETY: called first thing in `main`, before any other thread exists.
+        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
+    }
+}
+
+/// Runs the command line; the binary's `main` is this.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let is_view = matches!(cli.command, None | Some(Command::View(_)));
+    if let Err(e) = init_logging(&cli.global, !is_view) {
+        eprintln!("error: {e:#}");
+        return ExitCode::FAILURE;
+    }
+    let result = match cli.command {
+        None => view(cli.view, &cli.global),
+        Some(Command::View(v)) => view(v, &cli.global),
+        Some(Command::Render(a)) => render::run(a, &cli.global),
+        Some(Command::Check(a)) => check::run(a),
+        Some(Command::Adapters) => adapters::run(),
+        Some(Command::Bench(a)) => bench::run(a, &cli.global),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn view(_args: ViewArgs, _g: &GlobalArgs) -> anyhow::Result<ExitCode> {
+    anyhow::bail!("the live preview is not built yet")
+}
+
+/// Loads the scene a command names (a file, or a built-in name).
+pub(crate) fn load_scene(name: &str) -> anyhow::Result<crate::scene::Scene> {
+    crate::scene::Scene::load(name).map_err(|e| match e {
+        crate::scene::SceneError::Invalid(_) => anyhow::anyhow!("invalid scene\n{e}"),
+        other => other.into(),
+    })
+}

@@ -1,0 +1,235 @@
+//! `termtrace render`: a headless render to PNG (and linear EXR), with a progress bar,
+//! Ctrl-C that stops early and still saves, and atomic output files.
+
+use super::{GlobalArgs, load_scene};
+use crate::gpu::{FrameSettings, GpuContext};
+use crate::output::{LinearImage, Transfer, check_writable, write_exr, write_png};
+use crate::render::{RenderOptions, Renderer};
+use crate::scene::MAX_IMAGE_SIDE;
+use anyhow::Context;
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// Scene file, or the name of a built-in scene (weekend, cornell, …).
+    pub scene: String,
+    /// Output PNG [default: SCENE.png in the current directory].
+    #[arg(short, long, value_name = "PNG")]
+    pub output: Option<PathBuf>,
+    /// Samples per pixel [default: the scene's `spp`].
+    #[arg(long, conflicts_with = "time", value_parser = clap::value_parser!(u32).range(1..))]
+    pub spp: Option<u32>,
+    /// Render for this many seconds instead of a fixed sample count.
+    #[arg(long, value_name = "SECONDS", value_parser = positive_seconds)]
+    pub time: Option<f64>,
+    /// Image width [default: the scene's].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
+    pub width: Option<u32>,
+    /// Image height [default: the scene's].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
+    pub height: Option<u32>,
+    /// Random seed [default: the scene's]; the same seed gives the same image on one adapter.
+    #[arg(long)]
+    pub seed: Option<u32>,
+    /// Maximum scatterings per path [default: the scene's].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(..=crate::scene::MAX_BOUNCES as i64))]
+    pub max_bounces: Option<u32>,
+    /// Also write the linear radiance as 32-bit float OpenEXR.
+    #[arg(long, value_name = "EXR")]
+    pub exr: Option<PathBuf>,
+    /// Write a 16-bit PNG.
+    #[arg(long)]
+    pub png16: bool,
+    /// Transfer function of the PNG.
+    #[arg(long, value_enum, default_value_t = Transfer::Srgb)]
+    pub transfer: Transfer,
+    /// Use the generic tracer instead of one specialized for the scene.
+    #[arg(long)]
+    pub generic: bool,
+    /// No progress bar.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+fn positive_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        _ => Err(format!("`{s}` is not a positive number of seconds")),
+    }
+}
+
+/// Set by the first Ctrl-C; a second one exits at once.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+fn install_ctrlc() {
+    let _ = ctrlc::set_handler(|| {
+        if INTERRUPTED.swap(true, Ordering::SeqCst) {
+            eprintln!("\ninterrupted twice: exiting without saving");
+            std::process::exit(130);
+        }
+    });
+}
+
+/// The frame settings of a scene with the command line's overrides.
+pub(crate) fn frame_settings(
+    scene: &crate::scene::Scene,
+    width: Option<u32>,
+    height: Option<u32>,
+    max_bounces: Option<u32>,
+    seed: Option<u32>,
+) -> FrameSettings {
+    FrameSettings {
+        width: width.unwrap_or(scene.render.width),
+        height: height.unwrap_or(scene.render.height),
+        max_bounces: max_bounces.unwrap_or(scene.render.max_bounces),
+        seed: seed.unwrap_or(scene.render.seed),
+    }
+}
+
+pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
+    let scene = load_scene(&a.scene)?;
+    let png = a
+        .output
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("{}.png", scene.short_name())));
+    check_writable(&png)?;
+    if let Some(exr) = &a.exr {
+        check_writable(exr)?;
+    }
+    let settings = frame_settings(&scene, a.width, a.height, a.max_bounces, a.seed);
+    let ctx = Arc::new(GpuContext::new(g.adapter.as_deref())?);
+    let options = RenderOptions {
+        generic: a.generic,
+        ..Default::default()
+    };
+    let mut r = Renderer::new(ctx.clone(), &scene, settings, options);
+    install_ctrlc();
+
+    let time_limit = a.time.map(Duration::from_secs_f64);
+    let spp = match time_limit {
+        Some(_) => u32::MAX,
+        None => a.spp.unwrap_or(scene.render.spp),
+    };
+    let pb = progress_bar(a.quiet, time_limit, spp);
+    pb.set_prefix(format!("{} {}x{}", scene.short_name(), settings.width, settings.height));
+    let start = Instant::now();
+    let mut paths = 0u64;
+    let mut interrupted = false;
+    while r.samples() < spp {
+        let budget = match time_limit {
+            Some(t) => t.saturating_sub(start.elapsed()).min(Duration::from_millis(250)),
+            None => Duration::from_millis(250),
+        };
+        paths += r.step(budget, spp).paths;
+        let elapsed = start.elapsed().as_secs_f64();
+        let rate = paths as f64 / elapsed.max(1e-9);
+        match time_limit {
+            Some(t) => {
+                pb.set_message(format!("{} spp  {}", r.samples(), rate_text(rate)));
+                pb.set_position(start.elapsed().min(t).as_millis() as u64);
+            }
+            None => {
+                pb.set_message(rate_text(rate));
+                pb.set_position(r.samples() as u64);
+            }
+        }
+        if INTERRUPTED.load(Ordering::SeqCst) {
+            interrupted = true;
+            break;
+        }
+        if time_limit.is_some_and(|t| start.elapsed() >= t) {
+            break;
+        }
+    }
+    pb.finish_and_clear();
+    let elapsed = start.elapsed();
+    let snap = r.snapshot();
+    let image = snap.image();
+    let png_written = save(&png, &image, |p| write_png(p, &image, a.transfer, a.png16))?;
+    let mut outputs = vec![png_written.display().to_string()];
+    if let Some(exr) = &a.exr {
+        outputs.push(save(exr, &image, |p| write_exr(p, &image))?.display().to_string());
+    }
+    let rate = paths as f64 / elapsed.as_secs_f64().max(1e-9);
+    eprintln!(
+        "{}{} ({}x{}, {} spp, {:.1} s, {} on {}, {} invalid samples)",
+        if interrupted { "interrupted; wrote " } else { "wrote " },
+        outputs.join(" and "),
+        settings.width,
+        settings.height,
+        snap.min_samples(),
+        elapsed.as_secs_f64(),
+        rate_text(rate),
+        ctx.adapter_name(),
+        snap.invalid_samples(),
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Writes with `write`; if that fails, saves the image to the temporary directory instead so
+/// that the render is not lost, and reports both.
+fn save(
+    path: &Path,
+    image: &LinearImage,
+    write: impl Fn(&Path) -> Result<(), crate::output::OutputError>,
+) -> anyhow::Result<PathBuf> {
+    match write(path) {
+        Ok(()) => Ok(path.to_path_buf()),
+        Err(e) => {
+            let name = path
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "render.png".into());
+            let rescue = std::env::temp_dir().join(format!("termtrace-rescued-{name}"));
+            write(&rescue).with_context(|| {
+                format!("{e}; saving the {}x{} image elsewhere failed too", image.width, image.height)
+            })?;
+            eprintln!("error: {e}; the image was saved to {} instead", rescue.display());
+            Ok(rescue)
+        }
+    }
+}
+
+fn progress_bar(quiet: bool, time: Option<Duration>, spp: u32) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let (len, template) = match time {
+        Some(t) => (
+            t.as_millis() as u64,
+            "{prefix} {elapsed_precise} [{wide_bar:.cyan/blue}] {msg}  ETA {eta}",
+        ),
+        None => (
+            spp as u64,
+            "{prefix} {elapsed_precise} [{wide_bar:.cyan/blue}] {pos}/{len} spp  {msg}  ETA {eta}",
+        ),
+    };
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template(template)
+            .expect("valid progress template")
+            .progress_chars("=> "),
+    );
+    pb.enable_steady_tick(Duration::from_millis(200));
+    pb
+}
+
+/// `12.3 Msamples/s`.
+pub(crate) fn rate_text(samples_per_second: f64) -> String {
+    let (v, unit) = if samples_per_second >= 1e9 {
+        (samples_per_second / 1e9, "G")
+    } else if samples_per_second >= 1e6 {
+        (samples_per_second / 1e6, "M")
+    } else if samples_per_second >= 1e3 {
+        (samples_per_second / 1e3, "k")
+    } else {
+        (samples_per_second, "")
+    };
+    format!("{v:.2} {unit}samples/s")
+}

@@ -1,0 +1,120 @@
+//! The accumulation buffers (running sums of the even and odd samples of every pixel, as
+//! hi/lo pairs), the invalid-sample and segment counters, and their readback.
+
+use super::GpuContext;
+
+/// Bytes of one pixel in one half: a hi and a lo `vec4f`.
+const PIXEL_BYTES: u64 = 32;
+/// Four u32 counters: invalid samples (lo, hi) and path segments (lo, hi).
+const COUNTER_BYTES: u64 = 16;
+
+/// The per-pixel sums read back from the GPU, each `[r, g, b, samples]`.
+#[derive(Clone, Debug)]
+pub struct AccumData {
+    pub even: Vec<[f32; 4]>,
+    pub odd: Vec<[f32; 4]>,
+    /// Samples discarded because they were NaN or infinite, since the last reset.
+    pub invalid: u64,
+    /// Path segments traced since the last reset (counted only when asked for).
+    pub segments: u64,
+}
+
+pub struct Accumulation {
+    pub even: wgpu::Buffer,
+    pub odd: wgpu::Buffer,
+    pub counters: wgpu::Buffer,
+    staging: wgpu::Buffer,
+    pixels: u64,
+}
+
+impl Accumulation {
+    pub fn new(device: &wgpu::Device, width: u32, height: u32) -> Accumulation {
+        let pixels = width as u64 * height as u64;
+        let half = |label| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: pixels * PIXEL_BYTES,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        Accumulation {
+            even: half("accum.even"),
+            odd: half("accum.odd"),
+            counters: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("accum.counters"),
+                size: COUNTER_BYTES,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            staging: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("accum.staging"),
+                size: 2 * pixels * PIXEL_BYTES + COUNTER_BYTES,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            pixels,
+        }
+    }
+
+    /// Bytes the accumulation holds on the GPU (sums, counters and the readback copy).
+    pub fn gpu_bytes(&self) -> u64 {
+        2 * (2 * self.pixels * PIXEL_BYTES + COUNTER_BYTES)
+    }
+
+    /// Zeroes the counters (the sums are restarted by the tracer's `accumulate = 0`).
+    pub fn reset_counters(&self, queue: &wgpu::Queue) {
+        queue.write_buffer(&self.counters, 0, &[0u8; COUNTER_BYTES as usize]);
+    }
+
+    /// Copies everything back to the host, hi + lo folded into one value per channel.
+    pub fn read(&self, ctx: &GpuContext) -> AccumData {
+        let half = self.pixels * PIXEL_BYTES;
+        let mut enc = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("accum.readback"),
+            });
+        enc.copy_buffer_to_buffer(&self.even, 0, &self.staging, 0, half);
+        enc.copy_buffer_to_buffer(&self.odd, 0, &self.staging, half, half);
+        enc.copy_buffer_to_buffer(&self.counters, 0, &self.staging, 2 * half, COUNTER_BYTES);
+        ctx.queue.submit([enc.finish()]);
+        let slice = self.staging.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        ctx.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("the GPU stopped answering while reading back the image");
+        rx.recv()
+            .expect("map callback")
+            .expect("mapping the readback buffer failed");
+        let data = slice
+            .get_mapped_range()
+            .expect("the readback buffer is mapped");
+        let vec4s: &[[f32; 4]] = bytemuck::cast_slice(&data[..(2 * half) as usize]);
+        let fold = |pairs: &[[f32; 4]]| -> Vec<[f32; 4]> {
+            pairs
+                .chunks_exact(2)
+                .map(|p| std::array::from_fn(|c| (p[0][c] as f64 + p[1][c] as f64) as f32))
+                .collect()
+        };
+        let n = self.pixels as usize;
+        let even = fold(&vec4s[..2 * n]);
+        let odd = fold(&vec4s[2 * n..]);
+        let c: &[u32] = bytemuck::cast_slice(&data[(2 * half) as usize..]);
+        let u64_of = |lo: u32, hi: u32| lo as u64 | (hi as u64) << 32;
+        let out = AccumData {
+            even,
+            odd,
+            invalid: u64_of(c[0], c[1]),
+            segments: u64_of(c[2], c[3]),
+        };
+        drop(data);
+        self.staging.unmap();
+        out
+    }
+}

@@ -1,0 +1,115 @@
+//! Per-scene specialization. The tracer's WGSL declares one pipeline-overridable boolean per
+//! optional feature (`override HAS_DIELECTRICS: bool = true;`, …) and guards that feature's
+//! code with it. A scene's pipeline is created with the constants of the features it uses;
+//! naga substitutes them before the driver compiles, so `if HAS_DIELECTRICS { … }` becomes
+//! `if false { … }` and the driver's dead-code elimination leaves the glass code out of the
+//! pipeline. The generic pipeline (`--generic`) sets every feature.
+
+use crate::scene::{Scene, Shape, Sky};
+
+/// The optional parts of the tracer a scene needs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Features {
+    pub spheres: bool,
+    pub quads: bool,
+    pub boxes: bool,
+    pub dielectrics: bool,
+    pub emitters: bool,
+    pub dof: bool,
+    pub sun: bool,
+    /// Counts path segments (benchmarks only); not a scene feature.
+    pub count_segments: bool,
+}
+
+impl Features {
+    /// Everything on: the generic tracer.
+    pub fn generic() -> Features {
+        Features {
+            spheres: true,
+            quads: true,
+            boxes: true,
+            dielectrics: true,
+            emitters: true,
+            dof: true,
+            sun: true,
+            count_segments: false,
+        }
+    }
+
+    /// Exactly what `scene` uses.
+    pub fn of(scene: &Scene) -> Features {
+        let mut f = Features {
+            spheres: false,
+            quads: false,
+            boxes: false,
+            dielectrics: false,
+            emitters: false,
+            dof: scene.camera.aperture > 0.0,
+            sun: matches!(&scene.sky, Sky::Gradient { sun: Some(s), .. } if s.intensity > 0.0),
+            count_segments: false,
+        };
+        for o in &scene.objects {
+            match o.shape {
+                Shape::Sphere { .. } => f.spheres = true,
+                Shape::Quad { .. } => f.quads = true,
+                Shape::Box { .. } => f.boxes = true,
+            }
+            f.dielectrics |= o.material.is_dielectric();
+            f.emitters |= o.material.is_emitter();
+        }
+        f
+    }
+
+    /// `self` with everything `other` has as well.
+    pub fn union(self, other: Features) -> Features {
+        Features {
+            spheres: self.spheres | other.spheres,
+            quads: self.quads | other.quads,
+            boxes: self.boxes | other.boxes,
+            dielectrics: self.dielectrics | other.dielectrics,
+            emitters: self.emitters | other.emitters,
+            dof: self.dof | other.dof,
+            sun: self.sun | other.sun,
+            count_segments: self.count_segments | other.count_segments,
+        }
+    }
+
+    /// True if `self` has every feature `needed` has.
+    pub fn covers(&self, needed: &Features) -> bool {
+        self.union(*needed) == *self
+    }
+
+    /// The pipeline-overridable constants of `shaders/trace.wgsl`.
+    pub fn constants(&self) -> Vec<(&'static str, f64)> {
+        let b = |x: bool| if x { 1.0 } else { 0.0 };
+        vec![
+            ("HAS_SPHERES", b(self.spheres)),
+            ("HAS_QUADS", b(self.quads)),
+            ("HAS_BOXES", b(self.boxes)),
+            ("HAS_DIELECTRICS", b(self.dielectrics)),
+            ("HAS_EMITTERS", b(self.emitters)),
+            ("HAS_DOF", b(self.dof)),
+            ("HAS_SUN", b(self.sun)),
+            ("COUNT_SEGMENTS", b(self.count_segments)),
+        ]
+    }
+
+    /// Short list for logs and benchmarks: `spheres+dielectrics+dof`.
+    pub fn summary(&self) -> String {
+        let names = [
+            (self.spheres, "spheres"),
+            (self.quads, "quads"),
+            (self.boxes, "boxes"),
+            (self.dielectrics, "dielectrics"),
+            (self.emitters, "emitters"),
+            (self.dof, "dof"),
+            (self.sun, "sun"),
+        ];
+        let on: Vec<&str> = names.iter().filter(|(b, _)| *b).map(|(_, n)| *n).collect();
+        if on.is_empty() {
+            "sky only".into()
+        } else {
+            on.join("+")
+        }
+    }
+}

@@ -1,0 +1,135 @@
+//! `#[repr(C)]` mirrors of the WGSL structs in `shaders/common/types.wgsl`, padding spelled
+//! out; `tests/shaders.rs` checks every size and offset against naga's layout of the WGSL.
+
+use bytemuck::{Pod, Zeroable};
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct SceneUniforms {
+    pub cam_origin: [f32; 3],
+    pub lens_radius: f32,
+    pub cam_to_corner: [f32; 3],
+    pub _pad0: f32,
+    pub cam_horizontal: [f32; 3],
+    pub _pad1: f32,
+    pub cam_vertical: [f32; 3],
+    pub _pad2: f32,
+    pub cam_u: [f32; 3],
+    pub _pad3: f32,
+    pub cam_v: [f32; 3],
+    pub _pad4: f32,
+    pub sky_bottom: [f32; 3],
+    pub sky_uniform: u32,
+    pub sky_top: [f32; 3],
+    pub _pad5: f32,
+    pub sun_dir: [f32; 3],
+    pub sun_size: f32,
+    pub sun_radiance: [f32; 3],
+    pub _pad6: f32,
+    pub width: u32,
+    pub height: u32,
+    pub max_bounces: u32,
+    pub seed: u32,
+    pub n_spheres: u32,
+    pub n_quads: u32,
+    pub n_boxes: u32,
+    pub _pad7: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct DispatchUniforms {
+    pub sample_base: u32,
+    pub sample_count: u32,
+    pub row_offset: u32,
+    pub row_count: u32,
+    pub accumulate: u32,
+    pub _pad: [u32; 3],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuMaterial {
+    pub color: [f32; 3],
+    pub smoothness: f32,
+    pub specular_color: [f32; 3],
+    pub absorption: f32,
+    pub specular: f32,
+    pub light: f32,
+    pub ior: f32,
+    pub _pad0: f32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuSphere {
+    pub anchor: [f32; 3],
+    pub radius: f32,
+    pub anchor_normal: [f32; 3],
+    pub material: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuQuad {
+    pub q: [f32; 3],
+    pub material: u32,
+    pub u: [f32; 3],
+    pub _pad0: f32,
+    pub v: [f32; 3],
+    pub _pad1: f32,
+    pub normal: [f32; 3],
+    pub _pad2: f32,
+    pub w: [f32; 3],
+    pub _pad3: f32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuCuboid {
+    pub center: [f32; 3],
+    pub material: u32,
+    pub half_extents: [f32; 3],
+    pub _pad0: f32,
+    pub axis_x: [f32; 3],
+    pub _pad1: f32,
+    pub axis_y: [f32; 3],
+    pub _pad2: f32,
+    pub axis_z: [f32; 3],
+    pub _pad3: f32,
+}
+
+/// `(WGSL name, size, [(field, offset)])` of every mirror, for the layout test.
+pub fn mirrors() -> Vec<(&'static str, usize, Vec<(&'static str, usize)>)> {
+    use std::mem::{offset_of, size_of};
+    macro_rules! m {
+        ($wgsl:literal, $t:ty, [$($f:ident),* $(,)?]) => {
+            ($wgsl, size_of::<$t>(), vec![$((stringify!($f), offset_of!($t, $f))),*])
+        };
+    }
+    vec![
+        m!("SceneUniforms", SceneUniforms, [
+            cam_origin, lens_radius, cam_to_corner, cam_horizontal, cam_vertical, cam_u, cam_v,
+            sky_bottom, sky_uniform, sky_top, sun_dir, sun_size, sun_radiance, width, height,
+            max_bounces, seed, n_spheres, n_quads, n_boxes,
+        ]),
+        m!("DispatchUniforms", DispatchUniforms, [
+            sample_base, sample_count, row_offset, row_count, accumulate,
+        ]),
+        m!("Material", GpuMaterial, [
+            color, smoothness, specular_color, absorption, specular, light, ior,
+        ]),
+        m!("Sphere", GpuSphere, [anchor, radius, anchor_normal, material]),
+        m!("Quad", GpuQuad, [q, material, u, v, normal, w]),
+        m!("Cuboid", GpuCuboid, [center, material, half_extents, axis_x, axis_y, axis_z]),
+    ]
+}
+
+const _: () = {
+    assert!(std::mem::size_of::<SceneUniforms>() == 192);
+    assert!(std::mem::size_of::<DispatchUniforms>() == 32);
+    assert!(std::mem::size_of::<GpuMaterial>() == 48);
+    assert!(std::mem::size_of::<GpuSphere>() == 32);
+    assert!(std::mem::size_of::<GpuQuad>() == 80);
+    assert!(std::mem::size_of::<GpuCuboid>() == 80);
+};

@@ -1,0 +1,56 @@
+//! WGSL sources, compiled into the binary, and the `// #include "path"` resolver that
+//! assembles one module from a file and the shared files it names (`shaders/common/`).
+
+/// Every WGSL file under `shaders/`, by its path relative to that folder.
+pub const SOURCES: &[(&str, &str)] = &[
+    ("trace.wgsl", include_str!("../../shaders/trace.wgsl")),
+    ("common/types.wgsl", include_str!("../../shaders/common/types.wgsl")),
+    ("common/rng.wgsl", include_str!("../../shaders/common/rng.wgsl")),
+    ("common/sampling.wgsl", include_str!("../../shaders/common/sampling.wgsl")),
+    ("common/intersect.wgsl", include_str!("../../shaders/common/intersect.wgsl")),
+    ("common/material.wgsl", include_str!("../../shaders/common/material.wgsl")),
+];
+
+const INCLUDE: &str = "// #include \"";
+
+/// The source of one file, by path relative to `shaders/`.
+pub fn source(name: &str) -> Option<&'static str> {
+    SOURCES.iter().find(|(n, _)| *n == name).map(|(_, s)| *s)
+}
+
+/// `name` with every file it includes (transitively) placed before it, each once.
+pub fn assemble(name: &str) -> Result<String, String> {
+    let mut done = Vec::new();
+    let mut out = String::new();
+    visit(name, &mut done, &mut Vec::new(), &mut out)?;
+    Ok(out)
+}
+
+fn visit(
+    name: &str,
+    done: &mut Vec<String>,
+    stack: &mut Vec<String>,
+    out: &mut String,
+) -> Result<(), String> {
+    if done.iter().any(|d| d == name) {
+        return Ok(());
+    }
+    if stack.iter().any(|d| d == name) {
+        return Err(format!("include cycle: {} -> {name}", stack.join(" -> ")));
+    }
+    let src = source(name).ok_or_else(|| {
+        let from = stack.last().map_or(String::new(), |s| format!(" (included from {s})"));
+        format!("no shader file `{name}`{from}")
+    })?;
+    stack.push(name.to_string());
+    for line in src.lines() {
+        if let Some(rest) = line.trim().strip_prefix(INCLUDE) {
+            let inc = rest.trim_end_matches('"');
+            visit(inc, done, stack, out)?;
+        }
+    }
+    stack.pop();
+    out.push_str(&format!("// ---- {name} ----\n{src}\n"));
+    done.push(name.to_string());
+    Ok(())
+}

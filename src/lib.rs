@@ -1,0 +1,10 @@
+//! termtrace: a wgpu path tracer with a live terminal preview.
+//!
+//! Data flows scene file → [`scene`] → [`gpu`] (adapter, tracer pass, accumulation) →
+//! [`render`] (progressive driver) → [`output`] (transfer, PNG/EXR) and the [`cli`].
+
+pub mod gpu;
+pub mod output;
+pub mod render;
+pub mod scene;
+pub mod cli;

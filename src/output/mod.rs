@@ -1,0 +1,7 @@
+//! The output stage: linear images, transfer functions, and files written atomically.
+
+pub mod image;
+pub mod write;
+
+pub use image::{LinearImage, Transfer};
+pub use write::{OutputError, check_writable, write_exr, write_png};

@@ -1,0 +1,89 @@
+//! Writing images atomically: encode into a temporary file beside the target, then rename
+//! it over the target, so a reader never sees half a file and a failure leaves no debris.
+
+use super::image::{LinearImage, Transfer};
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    #[error("cannot write {}: {message}", path.display())]
+    Write { path: PathBuf, message: String },
+}
+
+fn err(path: &Path, e: impl std::fmt::Display) -> OutputError {
+    OutputError::Write {
+        path: path.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+fn dir_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// Fails now, before any rendering, if `path` could not be written later.
+pub fn check_writable(path: &Path) -> Result<(), OutputError> {
+    if path.is_dir() {
+        return Err(err(path, "it is a directory"));
+    }
+    let dir = dir_of(path);
+    if !dir.is_dir() {
+        return Err(err(path, format!("directory {} does not exist", dir.display())));
+    }
+    tempfile::Builder::new()
+        .prefix(".termtrace-check-")
+        .tempfile_in(dir)
+        .map(drop)
+        .map_err(|e| err(path, e))
+}
+
+/// Runs `encode` into a temporary file beside `path`, then renames it to `path`.
+fn atomic_write(
+    path: &Path,
+    encode: impl FnOnce(&mut BufWriter<&mut std::fs::File>) -> Result<(), String>,
+) -> Result<(), OutputError> {
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".termtrace-")
+        .suffix(".part")
+        .tempfile_in(dir_of(path))
+        .map_err(|e| err(path, e))?;
+    {
+        let mut w = BufWriter::new(tmp.as_file_mut());
+        encode(&mut w).map_err(|e| err(path, e))?;
+        w.flush().map_err(|e| err(path, e))?;
+    }
+    tmp.as_file().sync_all().map_err(|e| err(path, e))?;
+    tmp.persist(path).map_err(|e| err(path, e.error))?;
+    Ok(())
+}
+
+/// Writes an 8-bit (or 16-bit) PNG encoded with `transfer`.
+pub fn write_png(
+    path: &Path,
+    img: &LinearImage,
+    transfer: Transfer,
+    sixteen_bit: bool,
+) -> Result<(), OutputError> {
+    atomic_write(path, |w| {
+        let r = if sixteen_bit {
+            img.to_rgb16(transfer)
+                .write_to(w, ::image::ImageFormat::Png)
+        } else {
+            img.to_rgb8(transfer).write_to(w, ::image::ImageFormat::Png)
+        };
+        r.map_err(|e| e.to_string())
+    })
+}
+
+/// Writes the linear radiance as 32-bit float OpenEXR.
+pub fn write_exr(path: &Path, img: &LinearImage) -> Result<(), OutputError> {
+    atomic_write(path, |w| {
+        img.to_rgb32f()
+            .write_to(w, ::image::ImageFormat::OpenExr)
+            .map_err(|e| e.to_string())
+    })
+}

@@ -1,0 +1,230 @@
+//! The progressive renderer: owns the GPU passes and buffers of one scene, advances the
+//! accumulation in watchdog-safe submissions, and resets it on any change (the lecture's
+//! `should_accumulate`).
+
+mod schedule;
+mod snapshot;
+
+pub use schedule::Schedule;
+pub use snapshot::Snapshot;
+
+use crate::gpu::layout::DispatchUniforms;
+use crate::gpu::{Accumulation, Features, FrameSettings, GpuContext, SceneBuffers, TracePass};
+use crate::scene::Scene;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// How a renderer specializes and sizes its work.
+#[derive(Clone, Copy, Debug)]
+pub struct RenderOptions {
+    /// Use the generic pipeline instead of one specialized for the scene.
+    pub generic: bool,
+    /// Count path segments (for benchmarks).
+    pub count_segments: bool,
+    /// Wall time one submission should take.
+    pub submission: Duration,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            generic: false,
+            count_segments: false,
+            submission: Duration::from_millis(100),
+        }
+    }
+}
+
+/// What one call of [`Renderer::step`] did.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StepStats {
+    /// Paths traced (pixels × samples).
+    pub paths: u64,
+    pub submissions: u32,
+    pub elapsed: Duration,
+}
+
+/// Where the current round is: samples `[base, base + k)` of rows below `next_row` are done.
+#[derive(Clone, Copy, Debug, Default)]
+struct Round {
+    k: u32,
+    next_row: u32,
+}
+
+pub struct Renderer {
+    ctx: Arc<GpuContext>,
+    trace: TracePass,
+    scene: SceneBuffers,
+    accum: Accumulation,
+    bind_group: wgpu::BindGroup,
+    settings: FrameSettings,
+    options: RenderOptions,
+    features: Features,
+    schedule: Schedule,
+    /// Samples per pixel of every completed round since the last reset.
+    samples: u32,
+    round: Option<Round>,
+    /// The next round restarts the sums (`should_accumulate = 0`).
+    fresh: bool,
+}
+
+impl Renderer {
+    pub fn new(
+        ctx: Arc<GpuContext>,
+        scene: &Scene,
+        settings: FrameSettings,
+        options: RenderOptions,
+    ) -> Renderer {
+        let device = &ctx.device;
+        let mut trace = TracePass::new(device);
+        let features = Self::features_for(scene, &options);
+        trace.prepare(device, features);
+        let buffers = SceneBuffers::new(device, scene, &settings);
+        let accum = Accumulation::new(device, settings.width, settings.height);
+        let bind_group = trace.bind_group(device, &buffers, &accum);
+        accum.reset_counters(&ctx.queue);
+        Renderer {
+            trace,
+            scene: buffers,
+            accum,
+            bind_group,
+            settings,
+            options,
+            features,
+            schedule: Schedule::new(options.submission),
+            samples: 0,
+            round: None,
+            fresh: true,
+            ctx,
+        }
+    }
+
+    fn features_for(scene: &Scene, o: &RenderOptions) -> Features {
+        let mut f = if o.generic {
+            Features::generic()
+        } else {
+            Features::of(scene)
+        };
+        f.count_segments = o.count_segments;
+        f
+    }
+
+    pub fn context(&self) -> &Arc<GpuContext> {
+        &self.ctx
+    }
+    pub fn settings(&self) -> FrameSettings {
+        self.settings
+    }
+    pub fn features(&self) -> Features {
+        self.features
+    }
+    /// Samples per pixel of every completed round since the last reset.
+    pub fn samples(&self) -> u32 {
+        self.samples
+    }
+    /// GPU memory held by the accumulation.
+    pub fn accumulation_bytes(&self) -> u64 {
+        self.accum.gpu_bytes()
+    }
+
+    /// Starts the accumulation afresh on the next submission.
+    pub fn reset(&mut self) {
+        self.samples = 0;
+        self.round = None;
+        self.fresh = true;
+        self.accum.reset_counters(&self.ctx.queue);
+    }
+
+    /// Replaces the scene (and settings); resizes the accumulation if needed; resets.
+    pub fn set_scene(&mut self, scene: &Scene, settings: FrameSettings) {
+        let device = &self.ctx.device;
+        self.features = Self::features_for(scene, &self.options);
+        self.trace.prepare(device, self.features);
+        self.scene = SceneBuffers::new(device, scene, &settings);
+        if (settings.width, settings.height) != (self.settings.width, self.settings.height) {
+            self.accum = Accumulation::new(device, settings.width, settings.height);
+        }
+        self.settings = settings;
+        self.bind_group = self.trace.bind_group(device, &self.scene, &self.accum);
+        self.reset();
+    }
+
+    /// Traces for about `budget` (at least one submission), never past `max_samples` per
+    /// pixel. Returns what was done; `samples()` advances when a round completes.
+    pub fn step(&mut self, budget: Duration, max_samples: u32) -> StepStats {
+        let start = Instant::now();
+        let mut stats = StepStats::default();
+        let (w, h) = (self.settings.width, self.settings.height);
+        while self.samples < max_samples {
+            let round = match self.round {
+                Some(r) => r,
+                None => Round {
+                    k: self
+                        .schedule
+                        .samples_per_round(w, h, max_samples - self.samples),
+                    next_row: 0,
+                },
+            };
+            let rows = self.schedule.rows(w, round.k, h - round.next_row);
+            let d = DispatchUniforms {
+                sample_base: self.samples,
+                sample_count: round.k,
+                row_offset: round.next_row,
+                row_count: rows,
+                accumulate: u32::from(!self.fresh),
+                _pad: [0; 3],
+            };
+            let t = Instant::now();
+            let mut enc = self
+                .ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("trace.submission"),
+                });
+            self.trace
+                .encode(&self.ctx.queue, &mut enc, self.features, &self.bind_group, w, d);
+            self.ctx.queue.submit([enc.finish()]);
+            self.ctx
+                .device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .expect("the GPU stopped answering");
+            let paths = w as u64 * rows as u64 * round.k as u64;
+            self.schedule.observe(paths, t.elapsed());
+            stats.paths += paths;
+            stats.submissions += 1;
+            let next_row = round.next_row + rows;
+            if next_row >= h {
+                self.samples += round.k;
+                self.round = None;
+                self.fresh = false;
+            } else {
+                self.round = Some(Round {
+                    k: round.k,
+                    next_row,
+                });
+            }
+            if start.elapsed() >= budget {
+                break;
+            }
+        }
+        stats.elapsed = start.elapsed();
+        stats
+    }
+
+    /// Renders until every pixel has `spp` samples.
+    pub fn render_spp(&mut self, spp: u32) {
+        while self.samples < spp {
+            self.step(Duration::from_secs(1), spp);
+        }
+    }
+
+    /// Reads the accumulation back.
+    pub fn snapshot(&self) -> Snapshot {
+        Snapshot {
+            width: self.settings.width,
+            height: self.settings.height,
+            data: self.accum.read(&self.ctx),
+            samples: self.samples,
+        }
+    }
+}

@@ -1,0 +1,58 @@
+//! How much work one submission carries. Long work is cut into submissions of about
+//! `target` seconds each (far below the 2 s Windows TDR and the Linux watchdogs), sized from
+//! a running estimate of the cost of one path.
+
+use std::time::Duration;
+
+/// Pixels in the first, probing submission of a fresh renderer.
+const PROBE_PIXELS: u64 = 4096;
+/// Most samples per pixel one round takes (keeps the preview's rounds short).
+const MAX_SAMPLES_PER_ROUND: u32 = 256;
+
+#[derive(Clone, Debug)]
+pub struct Schedule {
+    /// Wall time one submission should take.
+    pub target: Duration,
+    /// Seconds per pixel-sample, as an exponential moving average; `None` before any measure.
+    cost: Option<f64>,
+}
+
+impl Schedule {
+    pub fn new(target: Duration) -> Schedule {
+        Schedule { target, cost: None }
+    }
+
+    /// Records that `pixel_samples` paths took `elapsed`.
+    pub fn observe(&mut self, pixel_samples: u64, elapsed: Duration) {
+        if pixel_samples == 0 {
+            return;
+        }
+        let c = elapsed.as_secs_f64() / pixel_samples as f64;
+        self.cost = Some(match self.cost {
+            None => c,
+            Some(old) => 0.7 * old + 0.3 * c,
+        });
+    }
+
+    /// Samples per pixel for the next round of a `width × height` image, at most `left`.
+    pub fn samples_per_round(&self, width: u32, height: u32, left: u32) -> u32 {
+        let Some(cost) = self.cost else {
+            return 1;
+        };
+        let full = cost * width as f64 * height as f64;
+        let k = (self.target.as_secs_f64() / full).floor();
+        (k as u32).clamp(1, MAX_SAMPLES_PER_ROUND).min(left.max(1))
+    }
+
+    /// Rows of the next submission at `k` samples per pixel, at most `left`.
+    pub fn rows(&self, width: u32, k: u32, left: u32) -> u32 {
+        let rows = match self.cost {
+            None => PROBE_PIXELS / width.max(1) as u64,
+            Some(cost) => {
+                let per_row = cost * width as f64 * k as f64;
+                (self.target.as_secs_f64() / per_row) as u64
+            }
+        };
+        (rows.max(1) as u32).min(left)
+    }
+}
