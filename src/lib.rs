@@ -3,8 +3,8 @@
 //! Data flows scene file → [`scene`] → [`gpu`] (adapter, tracer pass, accumulation) →
 //! [`render`] (progressive driver) → [`output`] (transfer, PNG/EXR) and the [`cli`].
 
+pub mod cli;
 pub mod gpu;
 pub mod output;
 pub mod render;
 pub mod scene;
-pub mod cli;

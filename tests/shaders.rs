@@ -33,11 +33,17 @@ fn wgsl_files(dir: &Path, prefix: &str, out: &mut Vec<String>) {
 #[test]
 fn every_wgsl_file_is_embedded_and_validates() {
     let mut files = Vec::new();
-    wgsl_files(Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders")), "", &mut files);
+    wgsl_files(
+        Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/shaders")),
+        "",
+        &mut files,
+    );
     assert!(files.len() >= 5, "found only {files:?}");
     for f in &files {
         let on_disk = std::fs::read_to_string(
-            Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders").join(f),
+            Path::new(env!("CARGO_MANIFEST_DIR"))
+                .join("shaders")
+                .join(f),
         )
         .unwrap();
         assert_eq!(
@@ -47,12 +53,20 @@ fn every_wgsl_file_is_embedded_and_validates() {
         );
         validate(f);
     }
-    assert_eq!(files.len(), shader::SOURCES.len(), "SOURCES lists a file that is not on disk");
+    assert_eq!(
+        files.len(),
+        shader::SOURCES.len(),
+        "SOURCES lists a file that is not on disk"
+    );
 }
 
 #[test]
 fn include_errors_are_reported() {
-    assert!(shader::assemble("nope.wgsl").unwrap_err().contains("nope.wgsl"));
+    assert!(
+        shader::assemble("nope.wgsl")
+            .unwrap_err()
+            .contains("nope.wgsl")
+    );
 }
 
 #[test]
@@ -70,7 +84,10 @@ fn mirrors_match_wgsl_layout() {
             panic!("{wgsl} is not a struct");
         };
         assert_eq!(*span as usize, size, "size of {wgsl}");
-        assert_eq!(layouter[handle].size as usize, size, "layout size of {wgsl}");
+        assert_eq!(
+            layouter[handle].size as usize, size,
+            "layout size of {wgsl}"
+        );
         for &(field, offset) in &fields {
             let m = members
                 .iter()
@@ -78,7 +95,9 @@ fn mirrors_match_wgsl_layout() {
                 .unwrap_or_else(|| panic!("{wgsl} has no field {field}"));
             assert_eq!(m.offset as usize, offset, "offset of {wgsl}.{field}");
         }
-        let named = members.iter().filter(|m| !m.name.as_deref().unwrap_or("").starts_with('_'));
+        let named = members
+            .iter()
+            .filter(|m| !m.name.as_deref().unwrap_or("").starts_with('_'));
         assert_eq!(
             named.count(),
             fields.len(),

@@ -29,17 +29,17 @@ fn scatter_dielectric(m: Material, d: vec3f, n_out: vec3f, state: ptr<function, 
     if ratio != 1.0 {
         let u = rand(state);
         if ratio * sin_theta > 1.0 || schlick(cos_theta, ratio) > u {
-            dir = reflect(d, n);
+            dir = normalize(reflect(d, n));
         } else {
             let r_perp = ratio * (d + cos_theta * n);
             let r_par = -sqrt(abs(1.0 - dot(r_perp, r_perp))) * n;
-            dir = r_perp + r_par;
+            dir = normalize(r_perp + r_par);
         }
     }
     if m.absorption > 0.0 {
         dir = normalize_or(dir + m.absorption * random_unit_vector(state), dir);
     }
-    return Scatter(normalize(dir), m.color, false);
+    return Scatter(dir, m.color, false);
 }
 
 // Lambertian, smoothness blend, fuzz and the specular-probability lobe of the lecture.

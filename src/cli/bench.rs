@@ -71,16 +71,26 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         if a.generic { "generic" } else { "specialized" },
         r.features().summary()
     );
-    println!("pipeline     created in {:.0} ms", compile.as_secs_f64() * 1e3);
+    println!(
+        "pipeline     created in {:.0} ms",
+        compile.as_secs_f64() * 1e3
+    );
     println!(
         "measured     {:.1} s, {} spp complete, {} paths",
         secs,
         r.samples(),
         paths
     );
-    println!("samples/s    {:.4e}  ({})", paths as f64 / secs, rate_text(paths as f64 / secs));
+    println!(
+        "samples/s    {:.4e}  ({})",
+        paths as f64 / secs,
+        rate_text(paths as f64 / secs)
+    );
     println!("segments/s   {:.4e}", segments as f64 / secs);
-    println!("segments     {:.2} per path", segments as f64 / paths.max(1) as f64);
+    println!(
+        "segments     {:.2} per path",
+        segments as f64 / paths.max(1) as f64
+    );
     println!("invalid      {}", snap.invalid_samples());
     Ok(ExitCode::SUCCESS)
 }

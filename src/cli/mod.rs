@@ -11,7 +11,12 @@ use std::process::ExitCode;
 
 /// A GPU path tracer whose live preview is drawn in the terminal.
 #[derive(Parser, Debug)]
-#[command(name = "termtrace", version, about, args_conflicts_with_subcommands = true)]
+#[command(
+    name = "termtrace",
+    version,
+    about,
+    args_conflicts_with_subcommands = true
+)]
 pub struct Cli {
     #[command(subcommand)]
     command: Option<Command>,

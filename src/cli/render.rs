@@ -110,6 +110,19 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     };
     let mut r = Renderer::new(ctx.clone(), &scene, settings, options);
     install_ctrlc();
+    if !a.quiet {
+        let what = match a.time {
+            Some(t) => format!("for {t} s"),
+            None => format!("to {} spp", a.spp.unwrap_or(scene.render.spp)),
+        };
+        eprintln!(
+            "rendering {} at {}x{} {what} on {} (Ctrl-C stops and saves)",
+            scene.origin,
+            settings.width,
+            settings.height,
+            ctx.adapter_name()
+        );
+    }
 
     let time_limit = a.time.map(Duration::from_secs_f64);
     let spp = match time_limit {
@@ -117,13 +130,20 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         None => a.spp.unwrap_or(scene.render.spp),
     };
     let pb = progress_bar(a.quiet, time_limit, spp);
-    pb.set_prefix(format!("{} {}x{}", scene.short_name(), settings.width, settings.height));
+    pb.set_prefix(format!(
+        "{} {}x{}",
+        scene.short_name(),
+        settings.width,
+        settings.height
+    ));
     let start = Instant::now();
     let mut paths = 0u64;
     let mut interrupted = false;
     while r.samples() < spp {
         let budget = match time_limit {
-            Some(t) => t.saturating_sub(start.elapsed()).min(Duration::from_millis(250)),
+            Some(t) => t
+                .saturating_sub(start.elapsed())
+                .min(Duration::from_millis(250)),
             None => Duration::from_millis(250),
         };
         paths += r.step(budget, spp).paths;
@@ -154,12 +174,20 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let png_written = save(&png, &image, |p| write_png(p, &image, a.transfer, a.png16))?;
     let mut outputs = vec![png_written.display().to_string()];
     if let Some(exr) = &a.exr {
-        outputs.push(save(exr, &image, |p| write_exr(p, &image))?.display().to_string());
+        outputs.push(
+            save(exr, &image, |p| write_exr(p, &image))?
+                .display()
+                .to_string(),
+        );
     }
     let rate = paths as f64 / elapsed.as_secs_f64().max(1e-9);
     eprintln!(
         "{}{} ({}x{}, {} spp, {:.1} s, {} on {}, {} invalid samples)",
-        if interrupted { "interrupted; wrote " } else { "wrote " },
+        if interrupted {
+            "interrupted; wrote "
+        } else {
+            "wrote "
+        },
         outputs.join(" and "),
         settings.width,
         settings.height,
@@ -188,9 +216,15 @@ fn save(
                 .unwrap_or_else(|| "render.png".into());
             let rescue = std::env::temp_dir().join(format!("termtrace-rescued-{name}"));
             write(&rescue).with_context(|| {
-                format!("{e}; saving the {}x{} image elsewhere failed too", image.width, image.height)
+                format!(
+                    "{e}; saving the {}x{} image elsewhere failed too",
+                    image.width, image.height
+                )
             })?;
-            eprintln!("error: {e}; the image was saved to {} instead", rescue.display());
+            eprintln!(
+                "error: {e}; the image was saved to {} instead",
+                rescue.display()
+            );
             Ok(rescue)
         }
     }

@@ -17,7 +17,9 @@ pub struct GpuContext {
 pub enum GpuError {
     #[error("no GPU adapter that can run compute shaders was found.\n{tried}\n{HINT}")]
     NoAdapter { tried: String },
-    #[error("no adapter matches `{selector}`.\n{tried}\nSelect one by a part of its name, its backend (vulkan, gl, metal, dx12), its type (cpu, discrete, integrated) or its number in `termtrace adapters`.")]
+    #[error(
+        "no adapter matches `{selector}`.\n{tried}\nSelect one by a part of its name, its backend (vulkan, gl, metal, dx12), its type (cpu, discrete, integrated) or its number in `termtrace adapters`."
+    )]
     NoMatch { selector: String, tried: String },
     #[error("could not open a device on {adapter}: {message}")]
     Device { adapter: String, message: String },
@@ -174,9 +176,7 @@ impl GpuContext {
     /// Opens a device on `adapter`, with every limit the adapter offers.
     pub fn on(adapter: wgpu::Adapter) -> Result<GpuContext, GpuError> {
         let info = adapter.get_info();
-        let timestamps = adapter
-            .features()
-            .contains(wgpu::Features::TIMESTAMP_QUERY);
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
         let mut required_features = wgpu::Features::empty();
         if timestamps {
             required_features |= wgpu::Features::TIMESTAMP_QUERY;
@@ -187,12 +187,11 @@ impl GpuContext {
             required_limits: adapter.limits(),
             ..Default::default()
         };
-        let (device, queue) = pollster::block_on(adapter.request_device(&desc)).map_err(|e| {
-            GpuError::Device {
+        let (device, queue) =
+            pollster::block_on(adapter.request_device(&desc)).map_err(|e| GpuError::Device {
                 adapter: describe(&info),
                 message: e.to_string(),
-            }
-        })?;
+            })?;
         tracing::info!("device opened on {}", describe(&info));
         Ok(GpuContext {
             device,

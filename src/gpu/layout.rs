@@ -99,8 +99,11 @@ pub struct GpuCuboid {
     pub _pad3: f32,
 }
 
-/// `(WGSL name, size, [(field, offset)])` of every mirror, for the layout test.
-pub fn mirrors() -> Vec<(&'static str, usize, Vec<(&'static str, usize)>)> {
+/// A mirror's WGSL struct name, its size, and `(field, byte offset)` of each named field.
+pub type MirrorLayout = (&'static str, usize, Vec<(&'static str, usize)>);
+
+/// The layout of every mirror, for the test that compares them with naga's.
+pub fn mirrors() -> Vec<MirrorLayout> {
     use std::mem::{offset_of, size_of};
     macro_rules! m {
         ($wgsl:literal, $t:ty, [$($f:ident),* $(,)?]) => {
@@ -108,20 +111,61 @@ pub fn mirrors() -> Vec<(&'static str, usize, Vec<(&'static str, usize)>)> {
         };
     }
     vec![
-        m!("SceneUniforms", SceneUniforms, [
-            cam_origin, lens_radius, cam_to_corner, cam_horizontal, cam_vertical, cam_u, cam_v,
-            sky_bottom, sky_uniform, sky_top, sun_dir, sun_size, sun_radiance, width, height,
-            max_bounces, seed, n_spheres, n_quads, n_boxes,
-        ]),
-        m!("DispatchUniforms", DispatchUniforms, [
-            sample_base, sample_count, row_offset, row_count, accumulate,
-        ]),
-        m!("Material", GpuMaterial, [
-            color, smoothness, specular_color, absorption, specular, light, ior,
-        ]),
-        m!("Sphere", GpuSphere, [anchor, radius, anchor_normal, material]),
+        m!(
+            "SceneUniforms",
+            SceneUniforms,
+            [
+                cam_origin,
+                lens_radius,
+                cam_to_corner,
+                cam_horizontal,
+                cam_vertical,
+                cam_u,
+                cam_v,
+                sky_bottom,
+                sky_uniform,
+                sky_top,
+                sun_dir,
+                sun_size,
+                sun_radiance,
+                width,
+                height,
+                max_bounces,
+                seed,
+                n_spheres,
+                n_quads,
+                n_boxes,
+            ]
+        ),
+        m!(
+            "DispatchUniforms",
+            DispatchUniforms,
+            [sample_base, sample_count, row_offset, row_count, accumulate,]
+        ),
+        m!(
+            "Material",
+            GpuMaterial,
+            [
+                color,
+                smoothness,
+                specular_color,
+                absorption,
+                specular,
+                light,
+                ior,
+            ]
+        ),
+        m!(
+            "Sphere",
+            GpuSphere,
+            [anchor, radius, anchor_normal, material]
+        ),
         m!("Quad", GpuQuad, [q, material, u, v, normal, w]),
-        m!("Cuboid", GpuCuboid, [center, material, half_extents, axis_x, axis_y, axis_z]),
+        m!(
+            "Cuboid",
+            GpuCuboid,
+            [center, material, half_extents, axis_x, axis_y, axis_z]
+        ),
     ]
 }
 

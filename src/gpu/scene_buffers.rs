@@ -57,7 +57,7 @@ pub fn scene_uniforms(scene: &Scene, s: &FrameSettings) -> SceneUniforms {
             u.sky_bottom = bottom.to_array();
             u.sky_top = top.to_array();
             if let Some(sun) = sun {
-                u.sun_dir = sun.direction.as_vec3().to_array();
+                u.sun_dir = sun.direction.normalize().as_vec3().to_array();
                 u.sun_size = sun.size;
                 u.sun_radiance = (sun.color * sun.intensity).to_array();
             }
@@ -158,7 +158,11 @@ fn material(o: &Object) -> GpuMaterial {
 
 /// A storage buffer of `items`, or of one zeroed item when there are none (WGSL arrays
 /// cannot be empty).
-fn storage<T: bytemuck::Pod + Default>(device: &wgpu::Device, label: &str, items: &[T]) -> wgpu::Buffer {
+fn storage<T: bytemuck::Pod + Default>(
+    device: &wgpu::Device,
+    label: &str,
+    items: &[T],
+) -> wgpu::Buffer {
     let one = [T::default()];
     let data = if items.is_empty() { &one[..] } else { items };
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {

@@ -4,11 +4,26 @@
 /// Every WGSL file under `shaders/`, by its path relative to that folder.
 pub const SOURCES: &[(&str, &str)] = &[
     ("trace.wgsl", include_str!("../../shaders/trace.wgsl")),
-    ("common/types.wgsl", include_str!("../../shaders/common/types.wgsl")),
-    ("common/rng.wgsl", include_str!("../../shaders/common/rng.wgsl")),
-    ("common/sampling.wgsl", include_str!("../../shaders/common/sampling.wgsl")),
-    ("common/intersect.wgsl", include_str!("../../shaders/common/intersect.wgsl")),
-    ("common/material.wgsl", include_str!("../../shaders/common/material.wgsl")),
+    (
+        "common/types.wgsl",
+        include_str!("../../shaders/common/types.wgsl"),
+    ),
+    (
+        "common/rng.wgsl",
+        include_str!("../../shaders/common/rng.wgsl"),
+    ),
+    (
+        "common/sampling.wgsl",
+        include_str!("../../shaders/common/sampling.wgsl"),
+    ),
+    (
+        "common/intersect.wgsl",
+        include_str!("../../shaders/common/intersect.wgsl"),
+    ),
+    (
+        "common/material.wgsl",
+        include_str!("../../shaders/common/material.wgsl"),
+    ),
 ];
 
 const INCLUDE: &str = "// #include \"";
@@ -39,7 +54,9 @@ fn visit(
         return Err(format!("include cycle: {} -> {name}", stack.join(" -> ")));
     }
     let src = source(name).ok_or_else(|| {
-        let from = stack.last().map_or(String::new(), |s| format!(" (included from {s})"));
+        let from = stack
+            .last()
+            .map_or(String::new(), |s| format!(" (included from {s})"));
         format!("no shader file `{name}`{from}")
     })?;
     stack.push(name.to_string());

@@ -32,7 +32,10 @@ pub fn check_writable(path: &Path) -> Result<(), OutputError> {
     }
     let dir = dir_of(path);
     if !dir.is_dir() {
-        return Err(err(path, format!("directory {} does not exist", dir.display())));
+        return Err(err(
+            path,
+            format!("directory {} does not exist", dir.display()),
+        ));
     }
     tempfile::Builder::new()
         .prefix(".termtrace-check-")
@@ -46,9 +49,12 @@ fn atomic_write(
     path: &Path,
     encode: impl FnOnce(&mut BufWriter<&mut std::fs::File>) -> Result<(), String>,
 ) -> Result<(), OutputError> {
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".termtrace-")
-        .suffix(".part")
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".termtrace-").suffix(".part");
+    // An ordinary file's mode (0666 less the umask), not the temporary file's private 0600.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    let mut tmp = builder
         .tempfile_in(dir_of(path))
         .map_err(|e| err(path, e))?;
     {

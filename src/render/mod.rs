@@ -181,8 +181,14 @@ impl Renderer {
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("trace.submission"),
                 });
-            self.trace
-                .encode(&self.ctx.queue, &mut enc, self.features, &self.bind_group, w, d);
+            self.trace.encode(
+                &self.ctx.queue,
+                &mut enc,
+                self.features,
+                &self.bind_group,
+                w,
+                d,
+            );
             self.ctx.queue.submit([enc.finish()]);
             self.ctx
                 .device

@@ -40,7 +40,7 @@ impl Schedule {
             return 1;
         };
         let full = cost * width as f64 * height as f64;
-        let k = (self.target.as_secs_f64() / full).floor();
+        let k = whole(self.target.as_secs_f64() / full);
         (k as u32).clamp(1, MAX_SAMPLES_PER_ROUND).min(left.max(1))
     }
 
@@ -50,9 +50,45 @@ impl Schedule {
             None => PROBE_PIXELS / width.max(1) as u64,
             Some(cost) => {
                 let per_row = cost * width as f64 * k as f64;
-                (self.target.as_secs_f64() / per_row) as u64
+                whole(self.target.as_secs_f64() / per_row) as u64
             }
         };
         (rows.max(1) as u32).min(left)
+    }
+}
+
+/// `floor(x)`, forgiving the rounding of quotients that are whole numbers on paper.
+fn whole(x: f64) -> f64 {
+    (x + 1e-6).floor()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn probes_small_then_sizes_submissions_to_the_target() {
+        let mut s = Schedule::new(Duration::from_millis(100));
+        assert_eq!(s.samples_per_round(1000, 1000, 500), 1);
+        assert_eq!(
+            s.rows(1000, 1, 1000),
+            4,
+            "the probe covers about PROBE_PIXELS"
+        );
+        // 1 µs per path: a full 1000×1000 sample takes 1 s, ten times the target.
+        s.observe(1_000_000, Duration::from_secs(1));
+        assert_eq!(s.samples_per_round(1000, 1000, 500), 1);
+        assert_eq!(s.rows(1000, 1, 1000), 100);
+        assert_eq!(s.rows(1000, 1, 30), 30, "never past the rows left");
+        // 1 ns per path: 1 ms per full sample, so up to 100 samples per round.
+        let mut fast = Schedule::new(Duration::from_millis(100));
+        fast.observe(1_000_000, Duration::from_millis(1));
+        assert_eq!(fast.samples_per_round(1000, 1000, 500), 100);
+        assert_eq!(
+            fast.samples_per_round(1000, 1000, 7),
+            7,
+            "never past the samples left"
+        );
+        assert_eq!(fast.rows(1000, 100, 1000), 1000);
     }
 }

@@ -33,7 +33,11 @@ fn r4(x: f64) -> f64 {
 }
 
 fn r4v(v: Vec3) -> Vec3 {
-    Vec3::new(r4(v.x as f64) as f32, r4(v.y as f64) as f32, r4(v.z as f64) as f32)
+    Vec3::new(
+        r4(v.x as f64) as f32,
+        r4(v.y as f64) as f32,
+        r4(v.z as f64) as f32,
+    )
 }
 
 fn sphere(center: DVec3, radius: f64, material: Material, name: Option<&str>) -> Object {
@@ -104,7 +108,12 @@ pub fn weekend(seed: u64) -> Scene {
             objects.push(sphere(center, 0.2, m, None));
         }
     }
-    objects.push(sphere(DVec3::new(0.0, 1.0, 0.0), 1.0, glass(1.5), Some("glass")));
+    objects.push(sphere(
+        DVec3::new(0.0, 1.0, 0.0),
+        1.0,
+        glass(1.5),
+        Some("glass"),
+    ));
     objects.push(sphere(
         DVec3::new(-4.0, 1.0, 0.0),
         1.0,

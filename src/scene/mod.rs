@@ -4,9 +4,9 @@
 //! named material merged into the objects that use it, colours already linear.
 
 mod builtin;
-pub mod generate;
 pub mod color;
 mod error;
+pub mod generate;
 mod parse;
 mod reader;
 mod write;
@@ -83,7 +83,7 @@ pub const MAX_BOUNCES: u32 = 100_000;
 /// The optional sun of the gradient sky: `color * intensity * max(dot(direction, dir), 0)^size`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Sun {
-    /// Unit vector towards the sun.
+    /// Direction towards the sun, as written (not necessarily unit length).
     pub direction: DVec3,
     pub color: Vec3,
     pub intensity: f32,
@@ -122,7 +122,12 @@ impl Sky {
                 let t = 0.5 * (dir.y + 1.0);
                 let mut c = (1.0 - t) * bottom.as_dvec3() + t * top.as_dvec3();
                 if let Some(s) = sun {
-                    let k = s.direction.dot(dir).max(0.0).powf(s.size as f64);
+                    let k = s
+                        .direction
+                        .normalize()
+                        .dot(dir)
+                        .max(0.0)
+                        .powf(s.size as f64);
                     c += s.color.as_dvec3() * s.intensity as f64 * k;
                 }
                 c

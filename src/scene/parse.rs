@@ -4,7 +4,15 @@ use super::reader::{Sink, Table};
 use super::*;
 use toml::de::DeTable;
 
-const TOP_KEYS: &[&str] = &["camera", "render", "sky", "materials", "sphere", "quad", "box"];
+const TOP_KEYS: &[&str] = &[
+    "camera",
+    "render",
+    "sky",
+    "materials",
+    "sphere",
+    "quad",
+    "box",
+];
 const CAMERA_KEYS: &[&str] = &[
     "look_from",
     "look_at",
@@ -47,13 +55,7 @@ pub(super) fn parse(src: &str, origin: &str) -> Result<Scene, SceneError> {
             return Err(SceneError::Invalid(sink.into_diagnostics()));
         }
     };
-    let root = Table::new(
-        &sink,
-        doc.get_ref(),
-        0..0,
-        "scene".to_string(),
-        TOP_KEYS,
-    );
+    let root = Table::new(&sink, doc.get_ref(), 0..0, "scene".to_string(), TOP_KEYS);
     let scene = read_scene(&root, origin);
     let diags = sink.into_diagnostics();
     if diags.is_empty() {
@@ -151,7 +153,9 @@ fn read_render(t: &Table) -> RenderSettings {
         width: t.u32_in("width", 1, MAX_IMAGE_SIDE).unwrap_or(d.width),
         height: t.u32_in("height", 1, MAX_IMAGE_SIDE).unwrap_or(d.height),
         spp: t.u32_in("spp", 1, u32::MAX).unwrap_or(d.spp),
-        max_bounces: t.u32_in("max_bounces", 0, MAX_BOUNCES).unwrap_or(d.max_bounces),
+        max_bounces: t
+            .u32_in("max_bounces", 0, MAX_BOUNCES)
+            .unwrap_or(d.max_bounces),
         seed: t.u32_in("seed", 0, u32::MAX).unwrap_or(d.seed),
     }
 }
@@ -194,7 +198,7 @@ fn read_sun(t: &Table) -> Option<Sun> {
         return None;
     }
     Some(Sun {
-        direction: direction.normalize(),
+        direction,
         color: t.color("color").unwrap_or(Vec3::ONE),
         intensity: t.f64_in("intensity", 0.0, f64::MAX).unwrap_or(0.0) as f32,
         size: t.f64_in("size", 0.0, f64::MAX).unwrap_or(100.0) as f32,
@@ -275,16 +279,10 @@ fn read_object(
                 let names: Vec<&str> = named.iter().map(|(k, _)| k.as_str()).collect();
                 let help = match super::reader::suggest(n, &names) {
                     Some(s) => format!("did you mean `{s}`?"),
-                    None if names.is_empty() => {
-                        "define it in a [materials.NAME] table".to_string()
-                    }
+                    None if names.is_empty() => "define it in a [materials.NAME] table".to_string(),
                     None => format!("defined materials: {}", names.join(", ")),
                 };
-                t.error(
-                    "material",
-                    format!("no material named `{n}`"),
-                    Some(help),
-                );
+                t.error("material", format!("no material named `{n}`"), Some(help));
                 MaterialPatch::default()
             }
         },

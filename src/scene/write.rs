@@ -71,7 +71,11 @@ pub fn to_toml(scene: &Scene) -> String {
     let r = &scene.render;
     let _ = writeln!(o, "\n[render]");
     let _ = writeln!(o, "width = {}\nheight = {}", r.width, r.height);
-    let _ = writeln!(o, "spp = {}\nmax_bounces = {}\nseed = {}", r.spp, r.max_bounces, r.seed);
+    let _ = writeln!(
+        o,
+        "spp = {}\nmax_bounces = {}\nseed = {}",
+        r.spp, r.max_bounces, r.seed
+    );
     let _ = writeln!(o, "\n[sky]");
     match &scene.sky {
         Sky::Uniform(u) => {

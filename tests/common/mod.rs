@@ -1,0 +1,160 @@
+//! Shared by the GPU tests: one device per test binary (the software adapter in CI, or the
+//! one TERMTRACE_ADAPTER names), and small helpers to render scenes written inline.
+#![allow(dead_code)]
+
+use glam::DVec3;
+use std::sync::{Arc, OnceLock};
+use termtrace::gpu::{FrameSettings, GpuContext, layout::SceneUniforms, scene_buffers};
+use termtrace::output::LinearImage;
+use termtrace::render::{RenderOptions, Renderer, Snapshot};
+use termtrace::scene::Scene;
+
+pub fn ctx() -> Arc<GpuContext> {
+    static CTX: OnceLock<Arc<GpuContext>> = OnceLock::new();
+    CTX.get_or_init(|| {
+        let sel = std::env::var("TERMTRACE_ADAPTER").ok();
+        let c = GpuContext::new(sel.as_deref()).expect("a GPU adapter for the tests");
+        eprintln!("tests run on {}", c.adapter_name());
+        Arc::new(c)
+    })
+    .clone()
+}
+
+pub fn scene(toml: &str) -> Scene {
+    Scene::from_toml(toml, "test").unwrap_or_else(|e| panic!("{e}"))
+}
+
+pub fn settings(w: u32, h: u32, max_bounces: u32) -> FrameSettings {
+    FrameSettings {
+        width: w,
+        height: h,
+        max_bounces,
+        seed: 1,
+    }
+}
+
+/// Renders `spp` samples per pixel and returns the accumulation.
+pub fn snapshot_with(
+    scene: &Scene,
+    s: FrameSettings,
+    spp: u32,
+    options: RenderOptions,
+) -> Snapshot {
+    let mut r = Renderer::new(ctx(), scene, s, options);
+    r.render_spp(spp);
+    let snap = r.snapshot();
+    assert_eq!(snap.min_samples(), spp as u64);
+    snap
+}
+
+pub fn snapshot(scene: &Scene, s: FrameSettings, spp: u32) -> Snapshot {
+    snapshot_with(scene, s, spp, RenderOptions::default())
+}
+
+pub fn render(toml: &str, w: u32, h: u32, spp: u32, max_bounces: u32) -> LinearImage {
+    let snap = snapshot(&scene(toml), settings(w, h, max_bounces), spp);
+    assert_eq!(snap.invalid_samples(), 0, "invalid samples");
+    snap.image()
+}
+
+/// The camera frame the tracer uses, for host-side geometry.
+pub fn camera_frame(scene: &Scene, w: u32, h: u32) -> SceneUniforms {
+    let mut u = SceneUniforms::default();
+    scene_buffers::camera_uniforms(&scene.camera, w, h, &mut u);
+    u
+}
+
+/// Direction of the pinhole ray through image point (x, y) in pixel units (f64).
+pub fn pinhole_dir(u: &SceneUniforms, w: u32, h: u32, x: f64, y: f64) -> DVec3 {
+    let v = |a: [f32; 3]| DVec3::new(a[0] as f64, a[1] as f64, a[2] as f64);
+    (v(u.cam_to_corner) + (x / w as f64) * v(u.cam_horizontal) - (y / h as f64) * v(u.cam_vertical))
+        .normalize()
+}
+
+/// Whether a pixel's whole footprint sees the sphere (`Some(true)`), misses it entirely
+/// (`Some(false)`), or straddles its silhouette (`None`). Angles on the unit sphere obey the
+/// triangle inequality, so the pixel centre's angle to the sphere's centre ± the largest angle
+/// from the centre ray to a corner ray bounds every ray of the pixel.
+pub fn sphere_coverage(
+    u: &SceneUniforms,
+    w: u32,
+    h: u32,
+    px: (u32, u32),
+    center: DVec3,
+    radius: f64,
+) -> Option<bool> {
+    let origin = DVec3::new(
+        u.cam_origin[0] as f64,
+        u.cam_origin[1] as f64,
+        u.cam_origin[2] as f64,
+    );
+    let to_c = center - origin;
+    let beta = (radius / to_c.length()).asin();
+    let (x, y) = (px.0 as f64, px.1 as f64);
+    let c = pinhole_dir(u, w, h, x + 0.5, y + 0.5);
+    let alpha = c.angle_between(to_c);
+    let gamma = [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)]
+        .iter()
+        .map(|(dx, dy)| c.angle_between(pinhole_dir(u, w, h, x + dx, y + dy)))
+        .fold(0.0, f64::max);
+    let margin = 1e-4;
+    if alpha + gamma < beta - margin {
+        Some(true)
+    } else if alpha - gamma > beta + margin {
+        Some(false)
+    } else {
+        None
+    }
+}
+
+/// Largest relative difference between two colours.
+pub fn rel_err(a: [f32; 3], b: [f32; 3]) -> f64 {
+    (0..3)
+        .map(|c| (a[c] as f64 - b[c] as f64).abs() / (b[c] as f64).abs().max(1e-30))
+        .fold(0.0, f64::max)
+}
+
+/// The tracer's random stream, reproduced on the host (shaders/common/rng.wgsl).
+pub struct HostRng(pub u32);
+
+impl HostRng {
+    pub fn new(pixel: u32, sample: u32, seed: u32) -> HostRng {
+        let mut v = [pixel, sample, seed].map(|x| x.wrapping_mul(1664525).wrapping_add(1013904223));
+        let mix = |v: &mut [u32; 3]| {
+            v[0] = v[0].wrapping_add(v[1].wrapping_mul(v[2]));
+            v[1] = v[1].wrapping_add(v[2].wrapping_mul(v[0]));
+            v[2] = v[2].wrapping_add(v[0].wrapping_mul(v[1]));
+        };
+        mix(&mut v);
+        for x in v.iter_mut() {
+            *x ^= *x >> 16;
+        }
+        mix(&mut v);
+        HostRng(v[0] ^ v[1] ^ v[2])
+    }
+
+    pub fn rand(&mut self) -> f32 {
+        let s = self.0.wrapping_mul(747796405).wrapping_add(2891336453);
+        self.0 = s;
+        let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277803737);
+        let x = (word >> 22) ^ word;
+        (x >> 8) as f32 * (1.0 / 16777216.0)
+    }
+}
+
+/// (pixels that differ, largest channel difference, first differing pixel) of two images.
+pub fn image_diff(a: &LinearImage, b: &LinearImage) -> (usize, f32, Option<(u32, u32)>) {
+    assert_eq!((a.width, a.height), (b.width, b.height));
+    let mut n = 0;
+    let mut worst = 0.0f32;
+    let mut first = None;
+    for (i, (p, q)) in a.pixels.iter().zip(&b.pixels).enumerate() {
+        let d = (0..3).map(|c| (p[c] - q[c]).abs()).fold(0.0f32, f32::max);
+        if p != q {
+            n += 1;
+            first.get_or_insert((i as u32 % a.width, i as u32 / a.width));
+        }
+        worst = worst.max(d);
+    }
+    (n, worst, first)
+}
