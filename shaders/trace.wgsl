@@ -72,23 +72,23 @@ fn intersect_scene(ray: Ray) -> Hit {
     return hit;
 }
 
-// Geometric normal (as the primitive defines "outward") and material of a hit.
+// The surface point, geometric normal and material of a hit.
 struct Surface {
-    normal: vec3f,
+    point: SurfacePoint,
     material: u32,
 }
 
 fn surface_at(hit: Hit, ray: Ray) -> Surface {
     if hit.kind == KIND_SPHERE {
         let s = spheres[hit.index];
-        return Surface(sphere_normal(s, ray, hit.t), s.material);
+        return Surface(sphere_surface(s, ray, hit.t), s.material);
     }
     if hit.kind == KIND_QUAD {
         let q = quads[hit.index];
-        return Surface(q.normal, q.material);
+        return Surface(quad_surface(q, ray, hit.t), q.material);
     }
     let b = boxes[hit.index];
-    return Surface(box_normal(b, ray, hit.t), b.material);
+    return Surface(box_surface(b, ray, hit.t), b.material);
 }
 
 // The gradient sky with optional sun, or a uniform sky (MODEL.md "Sky").
@@ -154,17 +154,17 @@ fn trace_path(primary: Ray, state: ptr<function, u32>) -> PathResult {
         }
         var sc: Scatter;
         if HAS_DIELECTRICS && m.smoothness < 0.0 {
-            sc = scatter_dielectric(m, ray.dir, surf.normal, state);
+            sc = scatter_dielectric(m, ray.dir, surf.point.normal, state);
         } else {
-            sc = scatter_surface(m, ray.dir, surf.normal, state);
+            sc = scatter_surface(m, ray.dir, surf.point.normal, state);
         }
         if sc.absorbed {
             break;
         }
         throughput *= sc.attenuation;
-        let p = ray.origin + hit.t * ray.dir;
-        let side = select(-surf.normal, surf.normal, dot(sc.dir, surf.normal) > 0.0);
-        ray = Ray(offset_ray(p, side), sc.dir);
+        let n = surf.point.normal;
+        let side = select(-n, n, dot(sc.dir, n) > 0.0);
+        ray = Ray(offset_ray(surf.point.position, side), sc.dir);
     }
     return PathResult(radiance, segments);
 }

@@ -9,25 +9,28 @@ struct Ray {
 const NO_HIT: f32 = -1.0;
 
 // Ray/sphere in the numerically careful form of Haines, Günther & Akenine-Möller,
-// "Precision Improvements for Ray/Sphere Intersection", Ray Tracing Gems ch. 7: the
-// quadratic is solved with q = -(b + sign(b)·sqrt(disc)), roots c/q and q, so no root
-// suffers cancellation. Beyond the chapter, every term is taken relative to the sphere's
-// anchor A (a surface point near the view) with outward normal N there, centre C = A - r·N:
-//   f = o - C = g + r·N with g = o - A,
-//   b = f·d = g·d + r·(N·d),
-//   c = |f|² - r² = g·g + 2r·(g·N)        (no cancellation of two r²-sized terms),
-// which keeps a ground sphere of radius 1e6 exact to float precision near the anchor, where
-// the plain form loses everything below 1e6·2^-24 ≈ 0.06. Returns the nearest t in
+// "Precision Improvements for Ray/Sphere Intersection", Ray Tracing Gems ch. 7:
+//   - the discriminant as r² - |f - (f·d)·d|² (f = o - C): the squared distance from the
+//     centre to the ray's line, which stays exact for a small sphere far away, where b² - c
+//     subtracts two numbers of size |f|² and loses everything;
+//   - the roots as c/q and q with q = -(b + sign(b)·sqrt(disc)), so neither cancels.
+// Beyond the chapter, c is taken relative to the sphere's anchor A (a surface point near
+// the view) with outward normal N there (centre C = A - r·N): with g = o - A,
+//   f = g + r·N,   b = f·d = g·d + r·(N·d),   c = |f|² - r² = g·g + 2r·(g·N),
+// so c, which sets the near root, has no cancellation of two r²-sized terms: a ground sphere
+// of radius 1e6 is exact to float precision near the anchor. Returns the nearest t in
 // (0, t_max), or NO_HIT.
 fn hit_sphere(s: Sphere, ray: Ray, t_max: f32) -> f32 {
     let r = abs(s.radius);
     let g = ray.origin - s.anchor;
-    let b = dot(g, ray.dir) + r * dot(s.anchor_normal, ray.dir);
-    let c = dot(g, g) + 2.0 * r * dot(g, s.anchor_normal);
-    let disc = b * b - c;
+    let f = g + r * s.anchor_normal;
+    let b = dot(f, ray.dir);
+    let l = f - b * ray.dir;
+    let disc = (r - length(l)) * (r + length(l));
     if disc < 0.0 {
         return NO_HIT;
     }
+    let c = dot(g, g) + 2.0 * r * dot(g, s.anchor_normal);
     let sq = sqrt(disc);
     let q = -b - select(sq, -sq, b < 0.0);
     if q == 0.0 {
@@ -46,12 +49,29 @@ fn hit_sphere(s: Sphere, ray: Ray, t_max: f32) -> f32 {
     return NO_HIT;
 }
 
-// Geometric normal of a sphere at ray.origin + t·ray.dir, relative to the anchor as above;
-// flipped inward for a negative radius.
-fn sphere_normal(s: Sphere, ray: Ray, t: f32) -> vec3f {
+// Where a ray hit a surface: the point, moved onto the surface, and the geometric normal
+// (outward as the primitive defines it). The point is reprojected rather than taken as
+// ray.origin + t·ray.dir, whose error along the normal scales with the ray's origin and
+// length: from a camera 1000 units away that error (≈ 3e-5) exceeds the offset offset_ray
+// makes near the scene's origin, and reflected rays would start below the surface. After
+// reprojection the error scales with the point itself, as offset_ray assumes (Wächter &
+// Binder, Ray Tracing Gems ch. 6, §6.2: compute the hit point from the surface).
+struct SurfacePoint {
+    position: vec3f,
+    normal: vec3f,
+}
+
+// On a sphere, relative to its anchor A (outward normal N, centre A - r·N): with q = p - A,
+// the height above the sphere is |q + r·N| - r = (q·q + 2r·q·N) / (|q + r·N| + r), computed
+// without cancellation, and p moves by that height along the radial direction.
+fn sphere_surface(s: Sphere, ray: Ray, t: f32) -> SurfacePoint {
     let r = abs(s.radius);
-    let n = normalize((ray.origin - s.anchor + t * ray.dir) / r + s.anchor_normal);
-    return select(n, -n, s.radius < 0.0);
+    let q = ray.origin - s.anchor + t * ray.dir;
+    let m = q / r + s.anchor_normal;
+    let len = length(m);
+    let n = m / len;
+    let h = (dot(q, q) + 2.0 * r * dot(q, s.anchor_normal)) / (r * len + r);
+    return SurfacePoint(s.anchor + (q - h * n), select(n, -n, s.radius < 0.0));
 }
 
 // Ray/parallelogram (Shirley, Ray Tracing: The Next Week §6): plane hit, then planar
@@ -98,19 +118,31 @@ fn hit_box(bx: Cuboid, ray: Ray, t_max: f32) -> f32 {
     return t;
 }
 
-// Outward normal of a box at ray.origin + t·ray.dir: the face whose slab the local hit point
-// is closest to leaving.
-fn box_normal(bx: Cuboid, ray: Ray, t: f32) -> vec3f {
+// On a quad: p projected onto its plane.
+fn quad_surface(quad: Quad, ray: Ray, t: f32) -> SurfacePoint {
+    let p = ray.origin + t * ray.dir;
+    return SurfacePoint(p - quad.normal * dot(quad.normal, p - quad.q), quad.normal);
+}
+
+// On a box: the face is the slab the local hit point is closest to leaving; the local
+// coordinate across that face is snapped onto it.
+fn box_surface(bx: Cuboid, ray: Ray, t: f32) -> SurfacePoint {
     let oc = ray.origin + t * ray.dir - bx.center;
-    let lp = vec3f(dot(oc, bx.axis_x), dot(oc, bx.axis_y), dot(oc, bx.axis_z)) / bx.half_extents;
-    let a = abs(lp);
+    var lp = vec3f(dot(oc, bx.axis_x), dot(oc, bx.axis_y), dot(oc, bx.axis_z));
+    let a = abs(lp / bx.half_extents);
     var local = vec3f(0.0, 0.0, sign(lp.z));
     if a.x >= a.y && a.x >= a.z {
         local = vec3f(sign(lp.x), 0.0, 0.0);
+        lp.x = local.x * bx.half_extents.x;
     } else if a.y >= a.z {
         local = vec3f(0.0, sign(lp.y), 0.0);
+        lp.y = local.y * bx.half_extents.y;
+    } else {
+        lp.z = local.z * bx.half_extents.z;
     }
-    return normalize(local.x * bx.axis_x + local.y * bx.axis_y + local.z * bx.axis_z);
+    let world = bx.center + lp.x * bx.axis_x + lp.y * bx.axis_y + lp.z * bx.axis_z;
+    let n = normalize(local.x * bx.axis_x + local.y * bx.axis_y + local.z * bx.axis_z);
+    return SurfacePoint(world, n);
 }
 
 // Moves a hit point off its surface along the geometric normal `n` (pointing to the side the
