@@ -8,3 +8,4 @@ pub mod gpu;
 pub mod output;
 pub mod render;
 pub mod scene;
+pub mod ui;

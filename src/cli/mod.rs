@@ -5,6 +5,8 @@ mod bench;
 mod check;
 mod render;
 
+use crate::output::cells::{CellMode, ColorMode};
+use crate::ui::{Graphics, ViewOptions};
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -56,10 +58,50 @@ enum Command {
 }
 
 /// `termtrace [SCENE]` and `termtrace view [SCENE]`.
-#[derive(Args, Debug, Clone, Default)]
+#[derive(Args, Debug, Clone)]
 pub struct ViewArgs {
     /// Scene file, or the name of a built-in scene; the built-in showcase when omitted.
     pub scene: Option<String>,
+    /// How pixels become cells.
+    #[arg(long, value_enum, default_value_t = CellMode::Half)]
+    pub cells: CellMode,
+    /// Colours: truecolor, 256 (dithered palette) or none [default: from COLORTERM/TERM].
+    #[arg(long, value_enum)]
+    pub color: Option<ColorMode>,
+    /// Kitty graphics (`auto` uses them only in a local kitty, never over SSH).
+    #[arg(long, value_enum, default_value_t = Graphics::Auto)]
+    pub graphics: Graphics,
+    /// Most frames per second drawn.
+    #[arg(long, default_value_t = 30.0, value_parser = positive)]
+    pub fps: f64,
+    /// Lower the frame rate to keep output under this many kilobits per second.
+    #[arg(long, value_name = "KBPS", value_parser = positive)]
+    pub max_kbps: Option<f64>,
+    /// Trace N×N pixels per preview pixel and average them in linear light.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub ss: u32,
+    /// The preview stops accumulating (and leaves the GPU idle) at this many samples per pixel.
+    #[arg(long, default_value_t = 16384, value_parser = clap::value_parser!(u32).range(1..))]
+    pub max_spp: u32,
+    /// A cell whose colour moved by at most this much (0-255 per channel) is not resent.
+    #[arg(long, default_value_t = 2)]
+    pub threshold: u8,
+    /// Use the generic tracer instead of one specialized for the scene.
+    #[arg(long)]
+    pub generic: bool,
+    /// Quit after this many seconds (scripted runs, benchmarks).
+    #[arg(long, value_name = "SECONDS", value_parser = positive)]
+    pub exit_after: Option<f64>,
+    /// Print frames drawn and bytes written when the preview ends.
+    #[arg(long)]
+    pub stats: bool,
+}
+
+fn positive(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        _ => Err(format!("`{s}` is not a positive number")),
+    }
 }
 
 fn init_logging(g: &GlobalArgs, to_stderr: bool) -> anyhow::Result<()> {
@@ -121,8 +163,23 @@ pub fn main() -> ExitCode {
     }
 }
 
-fn view(_args: ViewArgs, _g: &GlobalArgs) -> anyhow::Result<ExitCode> {
-    anyhow::bail!("the live preview is not built yet")
+fn view(a: ViewArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
+    crate::ui::run(ViewOptions {
+        scene: a.scene,
+        cells: a.cells,
+        color: a.color,
+        graphics: a.graphics,
+        fps: a.fps,
+        max_kbps: a.max_kbps,
+        supersample: a.ss,
+        max_spp: a.max_spp,
+        threshold: a.threshold,
+        generic: a.generic,
+        adapter: g.adapter.clone(),
+        log: g.log.clone(),
+        exit_after: a.exit_after.map(std::time::Duration::from_secs_f64),
+        stats: a.stats,
+    })
 }
 
 /// Loads the scene a command names (a file, or a built-in name).

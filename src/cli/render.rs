@@ -84,12 +84,12 @@ pub(crate) fn frame_settings(
     max_bounces: Option<u32>,
     seed: Option<u32>,
 ) -> FrameSettings {
-    FrameSettings {
-        width: width.unwrap_or(scene.render.width),
-        height: height.unwrap_or(scene.render.height),
-        max_bounces: max_bounces.unwrap_or(scene.render.max_bounces),
-        seed: seed.unwrap_or(scene.render.seed),
-    }
+    FrameSettings::new(
+        width.unwrap_or(scene.render.width),
+        height.unwrap_or(scene.render.height),
+        max_bounces.unwrap_or(scene.render.max_bounces),
+        seed.unwrap_or(scene.render.seed),
+    )
 }
 
 pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {

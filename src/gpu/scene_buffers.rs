@@ -13,12 +13,31 @@ pub struct FrameSettings {
     pub height: u32,
     pub max_bounces: u32,
     pub seed: u32,
+    /// Width / height of one pixel: 1 for images; a terminal's pixels are taller than wide.
+    pub pixel_aspect: f64,
+}
+
+impl FrameSettings {
+    /// Settings for square pixels.
+    pub fn new(width: u32, height: u32, max_bounces: u32, seed: u32) -> FrameSettings {
+        FrameSettings {
+            width,
+            height,
+            max_bounces,
+            seed,
+            pixel_aspect: 1.0,
+        }
+    }
+
+    /// Width / height of the whole image, as the camera sees it.
+    pub fn aspect(&self) -> f64 {
+        self.width as f64 * self.pixel_aspect / self.height as f64
+    }
 }
 
 /// The camera of MODEL.md as the focus-plane frame the shader uses (Shirley, Ray Tracing in
 /// One Weekend §11–13), computed in f64 and relative to `look_from`.
-pub fn camera_uniforms(cam: &Camera, width: u32, height: u32, u: &mut SceneUniforms) {
-    let aspect = width as f64 / height as f64;
+pub fn camera_uniforms(cam: &Camera, aspect: f64, u: &mut SceneUniforms) {
     let focus = cam.focus();
     let half_h = (cam.vfov.to_radians() / 2.0).tan();
     let view_h = 2.0 * half_h * focus;
@@ -47,7 +66,7 @@ pub fn scene_uniforms(scene: &Scene, s: &FrameSettings) -> SceneUniforms {
         seed: s.seed,
         ..Default::default()
     };
-    camera_uniforms(&scene.camera, s.width, s.height, &mut u);
+    camera_uniforms(&scene.camera, s.aspect(), &mut u);
     match &scene.sky {
         Sky::Uniform(c) => {
             u.sky_uniform = 1;

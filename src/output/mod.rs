@@ -1,5 +1,6 @@
 //! The output stage: linear images, transfer functions, and files written atomically.
 
+pub mod cells;
 pub mod image;
 pub mod write;
 

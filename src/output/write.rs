@@ -67,6 +67,13 @@ fn atomic_write(
     Ok(())
 }
 
+/// Writes a text file (an edited scene).
+pub fn write_text(path: &Path, text: &str) -> Result<(), OutputError> {
+    atomic_write(path, |w| {
+        w.write_all(text.as_bytes()).map_err(|e| e.to_string())
+    })
+}
+
 /// Writes an 8-bit (or 16-bit) PNG encoded with `transfer`.
 pub fn write_png(
     path: &Path,

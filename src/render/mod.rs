@@ -6,7 +6,7 @@ mod schedule;
 mod snapshot;
 
 pub use schedule::Schedule;
-pub use snapshot::Snapshot;
+pub use snapshot::{ErrorEstimate, REL_MSE_EPSILON, Snapshot};
 
 use crate::gpu::layout::DispatchUniforms;
 use crate::gpu::{Accumulation, Features, FrameSettings, GpuContext, SceneBuffers, TracePass};

@@ -4,6 +4,17 @@
 use crate::gpu::AccumData;
 use crate::output::LinearImage;
 
+/// pbrt's relative MSE adds this to the squared reference so that black pixels do not divide
+/// by zero (pbrt-v4, `imgtool diff --metric relmse`).
+pub const REL_MSE_EPSILON: f64 = 0.01;
+
+/// An image's estimated error, in linear radiance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ErrorEstimate {
+    pub rmse: f64,
+    pub rel_rmse: f64,
+}
+
 #[derive(Clone, Debug)]
 pub struct Snapshot {
     pub width: u32,
@@ -46,6 +57,49 @@ impl Snapshot {
             .map(|(e, o)| (e[3] + o[3]) as u64)
             .min()
             .unwrap_or(0)
+    }
+
+    /// The estimated error of the image, from the difference of its two halves (no reference
+    /// needed); `None` until each half of every pixel holds a sample.
+    ///
+    /// Each pixel keeps the sums of its even and of its odd samples: two independent means
+    /// E and O of n_e and n_o samples of the same distribution (variance σ²), and the image
+    /// is their pooled mean M. Then Var(E - O) = σ²(1/n_e + 1/n_o) and Var(M) = σ²/(n_e + n_o),
+    /// so D² · n_e·n_o / (n_e + n_o)², with D = E - O, is an unbiased estimate of Var(M), the
+    /// mean squared error of M when the estimator is unbiased (E[M] is the true value).
+    /// Assumptions: the samples of a pixel are independent and identically distributed (each
+    /// sample has its own random stream), and the renderer is unbiased; bias is invisible to
+    /// this estimate (that is what `converge --bias-check` is for).
+    ///
+    /// Returned as errors over the whole image: `rmse` the root of the mean estimated MSE, and
+    /// `rel_rmse` the root of pbrt's relative MSE, MSE / (value² + 0.01), with the image's own
+    /// value standing in for the unknown reference.
+    pub fn error_estimate(&self) -> Option<ErrorEstimate> {
+        let (mut mse, mut rel) = (0.0f64, 0.0f64);
+        for (e, o) in self.data.even.iter().zip(&self.data.odd) {
+            let (ne, no) = (e[3] as f64, o[3] as f64);
+            if ne < 1.0 || no < 1.0 {
+                return None;
+            }
+            let k = ne * no / ((ne + no) * (ne + no));
+            for c in 0..3 {
+                let (me, mo) = (e[c] as f64 / ne, o[c] as f64 / no);
+                let m = (e[c] as f64 + o[c] as f64) / (ne + no);
+                let var = (me - mo).powi(2) * k;
+                mse += var;
+                rel += var / (m * m + REL_MSE_EPSILON);
+            }
+        }
+        let n = (3 * self.data.even.len()).max(1) as f64;
+        Some(ErrorEstimate {
+            rmse: (mse / n).sqrt(),
+            rel_rmse: (rel / n).sqrt(),
+        })
+    }
+
+    /// The estimated relative RMSE (see [`Snapshot::error_estimate`]).
+    pub fn noise_estimate(&self) -> Option<f64> {
+        self.error_estimate().map(|e| e.rel_rmse)
     }
 
     /// Samples discarded as NaN or infinite since the last reset.

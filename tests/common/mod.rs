@@ -25,12 +25,7 @@ pub fn scene(toml: &str) -> Scene {
 }
 
 pub fn settings(w: u32, h: u32, max_bounces: u32) -> FrameSettings {
-    FrameSettings {
-        width: w,
-        height: h,
-        max_bounces,
-        seed: 1,
-    }
+    FrameSettings::new(w, h, max_bounces, 1)
 }
 
 /// Renders `spp` samples per pixel and returns the accumulation.
@@ -60,7 +55,7 @@ pub fn render(toml: &str, w: u32, h: u32, spp: u32, max_bounces: u32) -> LinearI
 /// The camera frame the tracer uses, for host-side geometry.
 pub fn camera_frame(scene: &Scene, w: u32, h: u32) -> SceneUniforms {
     let mut u = SceneUniforms::default();
-    scene_buffers::camera_uniforms(&scene.camera, w, h, &mut u);
+    scene_buffers::camera_uniforms(&scene.camera, w as f64 / h as f64, &mut u);
     u
 }
 

@@ -1,0 +1,538 @@
+//! The preview's state and what each key does to it. Pure: no terminal, no GPU, so every
+//! key → parameter → reset rule is unit-tested here.
+
+use super::keys::{Action, Param};
+use crate::output::LinearImage;
+use crate::output::cells::CellMode;
+use crate::scene::color::{linear_to_srgb, srgb_to_linear};
+use crate::scene::{MAX_BOUNCES, Material, Scene, Shape};
+use glam::{DMat3, DVec3};
+use std::time::{Duration, Instant};
+
+/// What the screen shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    Preview,
+    Help,
+}
+
+/// What the main loop must do after an action.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Effect {
+    None,
+    /// The scene changed: send it to the renderer, which restarts the accumulation.
+    SceneChanged,
+    /// Restart the accumulation of the same scene.
+    Reset,
+    /// The cell mode changed: the preview resolution changes with it.
+    Relayout,
+    SavePng,
+    WriteScene,
+    Quit,
+}
+
+/// The latest figures from the renderer.
+#[derive(Clone, Debug, Default)]
+pub struct Stats {
+    pub width: u32,
+    pub height: u32,
+    pub spp: u32,
+    pub samples_per_second: f64,
+    pub elapsed: Duration,
+    /// Estimated relative RMSE of the image, when known.
+    pub noise: Option<f64>,
+    pub invalid: u64,
+}
+
+/// Progress of the background PNG save.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Saving {
+    pub path: String,
+    pub done: u32,
+    pub total: u32,
+}
+
+pub struct App {
+    /// The scene as edited.
+    pub scene: Scene,
+    /// The scene as loaded, for `R`.
+    pub original: Scene,
+    pub selected: usize,
+    pub param: Param,
+    pub mode: Mode,
+    pub cells: CellMode,
+    /// The adapter, as the status line names it.
+    pub adapter: String,
+    pub stats: Stats,
+    /// The latest preview image.
+    pub image: Option<LinearImage>,
+    /// A message for the status line, and when it was set.
+    pub message: Option<(String, Instant)>,
+    pub saving: Option<Saving>,
+}
+
+/// How long a status message stays.
+pub const MESSAGE_TIME: Duration = Duration::from_secs(6);
+
+impl App {
+    pub fn new(scene: Scene, adapter: String, cells: CellMode) -> App {
+        App {
+            original: scene.clone(),
+            scene,
+            selected: 0,
+            param: Param::Smoothness,
+            mode: Mode::Preview,
+            cells,
+            adapter,
+            stats: Stats::default(),
+            image: None,
+            message: None,
+            saving: None,
+        }
+    }
+
+    pub fn say(&mut self, msg: impl Into<String>) {
+        self.message = Some((msg.into(), Instant::now()));
+    }
+
+    /// The message, while it is fresh.
+    pub fn current_message(&self) -> Option<&str> {
+        self.message
+            .as_ref()
+            .filter(|(_, t)| t.elapsed() < MESSAGE_TIME)
+            .map(|(m, _)| m.as_str())
+    }
+
+    /// Label of the selected object (`tomato`, `sphere #3`).
+    pub fn selected_label(&self) -> String {
+        self.scene
+            .labels()
+            .get(self.selected)
+            .cloned()
+            .unwrap_or_else(|| "no objects".into())
+    }
+
+    pub fn selected_material(&self) -> Option<&Material> {
+        self.scene.objects.get(self.selected).map(|o| &o.material)
+    }
+
+    /// The current value of a parameter, for display.
+    pub fn value(&self, p: Param) -> Option<f64> {
+        let cam = &self.scene.camera;
+        let m = self.selected_material();
+        Some(match p {
+            Param::Smoothness => m?.smoothness as f64,
+            Param::Absorption => m?.absorption as f64,
+            Param::Specular => m?.specular as f64,
+            Param::Light => m?.light as f64,
+            Param::Ior => m?.ior as f64,
+            Param::Red => linear_to_srgb(m?.color.x as f64),
+            Param::Green => linear_to_srgb(m?.color.y as f64),
+            Param::Blue => linear_to_srgb(m?.color.z as f64),
+            Param::Aperture => cam.aperture,
+            Param::Focus => cam.focus(),
+            Param::Bounces => self.scene.render.max_bounces as f64,
+            Param::Fov => cam.vfov,
+        })
+    }
+
+    /// Applies a key's action.
+    pub fn apply(&mut self, action: Action) -> Effect {
+        if self.mode == Mode::Help {
+            // In the help, ? and Esc close it; q still quits; everything else is ignored.
+            return match action {
+                Action::ToggleHelp | Action::Back => {
+                    self.mode = Mode::Preview;
+                    Effect::None
+                }
+                Action::Quit => Effect::Quit,
+                _ => Effect::None,
+            };
+        }
+        let n = self.scene.objects.len();
+        match action {
+            Action::SelectNext if n > 0 => {
+                self.selected = (self.selected + 1) % n;
+                Effect::None
+            }
+            Action::SelectPrev if n > 0 => {
+                self.selected = (self.selected + n - 1) % n;
+                Effect::None
+            }
+            Action::SelectNext | Action::SelectPrev => Effect::None,
+            Action::Choose(p) => {
+                self.param = p;
+                Effect::None
+            }
+            Action::NextParam => {
+                self.param = self.param.next();
+                Effect::None
+            }
+            Action::Adjust { up, coarse } => self.adjust(up, coarse),
+            Action::Orbit { yaw, pitch } => {
+                self.orbit(yaw, pitch);
+                Effect::SceneChanged
+            }
+            Action::Move(f, r, u) => {
+                self.move_camera(f, r, u);
+                Effect::SceneChanged
+            }
+            Action::Zoom(k) => {
+                let cam = &mut self.scene.camera;
+                cam.vfov = (cam.vfov * k).clamp(1.0, 170.0);
+                Effect::SceneChanged
+            }
+            Action::FocusOnSelected => self.focus_on_selected(),
+            Action::ResetAccumulation => Effect::Reset,
+            Action::Revert => {
+                self.scene = self.original.clone();
+                self.selected = self
+                    .selected
+                    .min(self.scene.objects.len().saturating_sub(1));
+                self.say("reverted every edit");
+                Effect::SceneChanged
+            }
+            Action::SavePng => Effect::SavePng,
+            Action::WriteScene => Effect::WriteScene,
+            Action::CycleCells => {
+                self.cells = self.cells.next();
+                Effect::Relayout
+            }
+            Action::ToggleHelp => {
+                self.mode = Mode::Help;
+                Effect::None
+            }
+            Action::Quit | Action::Back => Effect::Quit,
+        }
+    }
+
+    fn adjust(&mut self, up: bool, coarse: bool) -> Effect {
+        let sign = if up { 1.0 } else { -1.0 };
+        let p = self.param;
+        if p.is_material() {
+            let Some(obj) = self.scene.objects.get_mut(self.selected) else {
+                return Effect::None;
+            };
+            let m = &mut obj.material;
+            let step = |fine: f32, big: f32| sign * if coarse { big } else { fine };
+            let before = m.clone();
+            match p {
+                Param::Smoothness => {
+                    m.smoothness = snap(m.smoothness + step(0.01, 0.1)).clamp(-1.0, 1.0)
+                }
+                Param::Absorption => {
+                    m.absorption = snap(m.absorption + step(0.01, 0.1)).clamp(0.0, 1.0)
+                }
+                Param::Specular => m.specular = snap(m.specular + step(0.01, 0.1)).clamp(0.0, 1.0),
+                Param::Light => m.light = snap(m.light + step(0.1, 1.0)).max(0.0),
+                Param::Ior => m.ior = snap(m.ior + step(0.01, 0.1)).clamp(0.05, 10.0),
+                Param::Red | Param::Green | Param::Blue => {
+                    let c = match p {
+                        Param::Red => &mut m.color.x,
+                        Param::Green => &mut m.color.y,
+                        _ => &mut m.color.z,
+                    };
+                    let encoded = linear_to_srgb(*c as f64) as f32 + step(0.01, 0.1);
+                    *c = srgb_to_linear(snap(encoded).clamp(0.0, 1.0) as f64) as f32;
+                }
+                _ => unreachable!("camera parameters are handled below"),
+            }
+            return if *m == before {
+                Effect::None
+            } else {
+                Effect::SceneChanged
+            };
+        }
+        let cam = &mut self.scene.camera;
+        let focus = cam.focus();
+        match p {
+            Param::Aperture => {
+                let k: f64 = if coarse { 1.5 } else { 1.1 };
+                cam.aperture = if cam.aperture <= 0.0 {
+                    if up {
+                        focus * if coarse { 0.02 } else { 0.002 }
+                    } else {
+                        0.0
+                    }
+                } else if up {
+                    cam.aperture * k
+                } else if cam.aperture / k < focus * 1e-4 {
+                    0.0
+                } else {
+                    cam.aperture / k
+                };
+            }
+            Param::Focus => {
+                let k: f64 = if coarse { 1.2 } else { 1.02 };
+                cam.focus_distance = Some(if up { focus * k } else { focus / k });
+            }
+            Param::Bounces => {
+                let b = self.scene.render.max_bounces;
+                let nb = match (up, coarse) {
+                    (true, false) => b.saturating_add(1),
+                    (false, false) => b.saturating_sub(1),
+                    (true, true) => b.saturating_mul(2).max(1),
+                    (false, true) => b / 2,
+                };
+                self.scene.render.max_bounces = nb.min(MAX_BOUNCES);
+            }
+            Param::Fov => {
+                let d = if coarse { 10.0 } else { 1.0 };
+                cam.vfov = (cam.vfov + sign as f64 * d).clamp(1.0, 170.0);
+            }
+            _ => unreachable!("material parameters are handled above"),
+        }
+        Effect::SceneChanged
+    }
+
+    fn orbit(&mut self, yaw: f64, pitch: f64) {
+        let cam = &mut self.scene.camera;
+        let up = cam.up.normalize();
+        let mut offset = cam.look_from - cam.look_at;
+        offset = DMat3::from_axis_angle(up, yaw.to_radians()) * offset;
+        let right = up.cross(offset).normalize();
+        let pitched = DMat3::from_axis_angle(right, -pitch.to_radians()) * offset;
+        // Stay at least 1° away from the up axis, where the camera frame would flip.
+        if pitched.normalize().dot(up).abs() < 1f64.to_radians().cos() {
+            offset = pitched;
+        }
+        cam.look_from = cam.look_at + offset;
+    }
+
+    fn move_camera(&mut self, forward: f64, right: f64, upward: f64) {
+        let cam = &mut self.scene.camera;
+        let view = cam.look_at - cam.look_from;
+        let dist = view.length();
+        let f = view / dist;
+        let r = f.cross(cam.up).normalize();
+        let u = r.cross(f);
+        let delta = dist * (forward * f + right * r + upward * u);
+        cam.look_from += delta;
+        cam.look_at += delta;
+    }
+
+    /// Puts the focus plane through the selected object's centre.
+    fn focus_on_selected(&mut self) -> Effect {
+        let Some(obj) = self.scene.objects.get(self.selected) else {
+            return Effect::None;
+        };
+        let center = match &obj.shape {
+            Shape::Sphere { center, .. } | Shape::Box { center, .. } => *center,
+            Shape::Quad { q, u, v } => *q + 0.5 * (*u + *v),
+        };
+        let cam = &mut self.scene.camera;
+        let dir = (cam.look_at - cam.look_from).normalize();
+        // Distance along the view axis: the focus plane is perpendicular to it.
+        let along = (center - cam.look_from).dot(dir);
+        if along <= 0.0 {
+            self.say("the selected object is behind the camera");
+            return Effect::None;
+        }
+        cam.focus_distance = Some(along);
+        self.say(format!("focus distance {}", fmt_value(along)));
+        Effect::SceneChanged
+    }
+}
+
+/// Rounds away float noise from repeated steps (0.1 + 0.01 + … stays on the 0.001 grid).
+fn snap(x: f32) -> f32 {
+    (x * 1000.0).round() / 1000.0
+}
+
+/// A value for the status line: up to three decimals, no trailing zeros.
+pub fn fmt_value(x: f64) -> String {
+    if x.abs() >= 1000.0 {
+        return format!("{x:.0}");
+    }
+    let s = format!("{x:.3}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" { "0".into() } else { s.into() }
+}
+
+/// The camera's distance to its target (for tests and the status line).
+pub fn target_distance(scene: &Scene) -> f64 {
+    (scene.camera.look_at - scene.camera.look_from).length()
+}
+
+/// Up vector of the camera (for tests).
+pub fn camera_up(scene: &Scene) -> DVec3 {
+    scene.camera.up
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ui::keys::action;
+    use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
+
+    fn app() -> App {
+        App::new(
+            Scene::load("specular").unwrap(),
+            "test adapter".into(),
+            CellMode::Half,
+        )
+    }
+
+    fn press(app: &mut App, c: KeyCode) -> Effect {
+        let a = action(KeyEvent::new(c, KeyModifiers::NONE)).expect("bound key");
+        app.apply(a)
+    }
+
+    #[test]
+    fn tab_selects_objects_in_a_cycle() {
+        let mut a = app();
+        let n = a.scene.objects.len();
+        assert_eq!(a.selected_label(), "ground");
+        assert_eq!(press(&mut a, KeyCode::Tab), Effect::None);
+        assert_eq!(a.selected_label(), "matte");
+        press(&mut a, KeyCode::BackTab);
+        press(&mut a, KeyCode::BackTab);
+        assert_eq!(a.selected, n - 1);
+    }
+
+    #[test]
+    fn material_keys_change_the_selected_object_and_reset() {
+        let mut a = app();
+        press(&mut a, KeyCode::Tab); // "matte", smoothness 0.95, specular 0
+        press(&mut a, KeyCode::Char('3'));
+        assert_eq!(a.param, Param::Specular);
+        assert_eq!(press(&mut a, KeyCode::Char('+')), Effect::SceneChanged);
+        assert_eq!(a.scene.objects[1].material.specular, 0.01);
+        assert_eq!(press(&mut a, KeyCode::Char(']')), Effect::SceneChanged);
+        assert_eq!(a.scene.objects[1].material.specular, 0.11);
+        // Other objects are untouched.
+        assert_eq!(a.scene.objects[2].material, a.original.objects[2].material);
+        // At the bottom of the range a further step changes nothing and resets nothing.
+        for _ in 0..20 {
+            press(&mut a, KeyCode::Char('['));
+        }
+        assert_eq!(a.scene.objects[1].material.specular, 0.0);
+        assert_eq!(press(&mut a, KeyCode::Char('-')), Effect::None);
+    }
+
+    #[test]
+    fn smoothness_goes_negative_to_glass_and_colour_steps_in_srgb() {
+        let mut a = app();
+        press(&mut a, KeyCode::Char('1'));
+        for _ in 0..20 {
+            press(&mut a, KeyCode::Char('['));
+        }
+        assert_eq!(a.scene.objects[0].material.smoothness, -1.0);
+        assert!(a.scene.objects[0].material.is_dielectric());
+        press(&mut a, KeyCode::Char('6'));
+        let before = a.value(Param::Red).unwrap();
+        press(&mut a, KeyCode::Char(']'));
+        assert!((a.value(Param::Red).unwrap() - (before + 0.1)).abs() < 2e-3);
+    }
+
+    #[test]
+    fn camera_keys_move_the_camera_and_reset() {
+        let mut a = app();
+        let d0 = target_distance(&a.scene);
+        assert_eq!(press(&mut a, KeyCode::Left), Effect::SceneChanged);
+        assert!(
+            (target_distance(&a.scene) - d0).abs() < 1e-9,
+            "orbit keeps the distance"
+        );
+        assert_ne!(a.scene.camera.look_from, a.original.camera.look_from);
+        let at = a.scene.camera.look_at;
+        press(&mut a, KeyCode::Char('i'));
+        assert!(
+            (target_distance(&a.scene) - d0).abs() < 1e-9,
+            "moving moves the target too"
+        );
+        assert_ne!(a.scene.camera.look_at, at);
+        let fov = a.scene.camera.vfov;
+        press(&mut a, KeyCode::Char('z'));
+        assert!(a.scene.camera.vfov < fov);
+        // Pitching far up stops short of the up axis instead of flipping over it.
+        for _ in 0..100 {
+            press(&mut a, KeyCode::Up);
+        }
+        let off = (a.scene.camera.look_from - a.scene.camera.look_at).normalize();
+        assert!(off.dot(camera_up(&a.scene).normalize()) < 1.0 - 1e-6);
+    }
+
+    #[test]
+    fn aperture_focus_bounces_fov() {
+        let mut a = app();
+        press(&mut a, KeyCode::Char('9'));
+        assert_eq!(a.scene.camera.aperture, 0.0);
+        press(&mut a, KeyCode::Char('+'));
+        assert!(a.scene.camera.aperture > 0.0);
+        press(&mut a, KeyCode::Char('-'));
+        press(&mut a, KeyCode::Char('-'));
+        press(&mut a, KeyCode::Char('['));
+        for _ in 0..30 {
+            press(&mut a, KeyCode::Char('['));
+        }
+        assert_eq!(
+            a.scene.camera.aperture, 0.0,
+            "stepping down ends at a pinhole"
+        );
+        press(&mut a, KeyCode::Char('b'));
+        let b = a.scene.render.max_bounces;
+        press(&mut a, KeyCode::Char('+'));
+        assert_eq!(a.scene.render.max_bounces, b + 1);
+        press(&mut a, KeyCode::Char('v'));
+        press(&mut a, KeyCode::Char(']'));
+        assert_eq!(a.scene.camera.vfov, a.original.camera.vfov + 10.0);
+        press(&mut a, KeyCode::Tab);
+        assert_eq!(press(&mut a, KeyCode::Char('f')), Effect::SceneChanged);
+        // "matte" at (-1.8, 0, -2.4), camera (0, 0.6, 1.2) looking at (0, 0, -2): the focus
+        // plane goes through the centre, at its distance along the view axis.
+        let cam = &a.scene.camera;
+        let dir = (cam.look_at - cam.look_from).normalize();
+        let along = (DVec3::new(-1.8, 0.0, -2.4) - cam.look_from).dot(dir);
+        assert!(
+            (cam.focus() - along).abs() < 1e-12,
+            "{} vs {along}",
+            cam.focus()
+        );
+    }
+
+    #[test]
+    fn revert_reset_save_write_quit() {
+        let mut a = app();
+        press(&mut a, KeyCode::Char('4'));
+        press(&mut a, KeyCode::Char(']'));
+        assert!(a.scene != a.original);
+        assert_eq!(press(&mut a, KeyCode::Char('R')), Effect::SceneChanged);
+        assert!(a.scene == a.original);
+        assert_eq!(press(&mut a, KeyCode::Char('r')), Effect::Reset);
+        assert_eq!(press(&mut a, KeyCode::Char('p')), Effect::SavePng);
+        assert_eq!(press(&mut a, KeyCode::Char('w')), Effect::WriteScene);
+        assert_eq!(press(&mut a, KeyCode::Char('c')), Effect::Relayout);
+        assert_eq!(a.cells, CellMode::Quadrant);
+        assert_eq!(press(&mut a, KeyCode::Char('q')), Effect::Quit);
+        assert_eq!(press(&mut a, KeyCode::Esc), Effect::Quit);
+        let ctrl_c = KeyEvent::new(KeyCode::Char('c'), KeyModifiers::CONTROL);
+        assert_eq!(a.apply(action(ctrl_c).unwrap()), Effect::Quit);
+    }
+
+    #[test]
+    fn help_swallows_keys_until_closed() {
+        let mut a = app();
+        press(&mut a, KeyCode::Char('?'));
+        assert_eq!(a.mode, Mode::Help);
+        assert_eq!(press(&mut a, KeyCode::Left), Effect::None);
+        assert!(a.scene == a.original);
+        press(&mut a, KeyCode::Char('?'));
+        assert_eq!(a.mode, Mode::Preview);
+        press(&mut a, KeyCode::Char('?'));
+        assert_eq!(
+            press(&mut a, KeyCode::Esc),
+            Effect::None,
+            "Esc closes the help"
+        );
+        assert_eq!(a.mode, Mode::Preview);
+    }
+
+    #[test]
+    fn values_print_compactly() {
+        assert_eq!(fmt_value(0.95), "0.95");
+        assert_eq!(fmt_value(1.0), "1");
+        assert_eq!(fmt_value(-0.0001), "0");
+        assert_eq!(fmt_value(1234.5), "1234");
+    }
+}

@@ -1,0 +1,259 @@
+//! The preview's key bindings: one table drives dispatch, the `?` help overlay and the
+//! README's key list.
+
+use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
+
+/// A parameter the `+ - [ ]` keys adjust.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Param {
+    Smoothness,
+    Absorption,
+    Specular,
+    Light,
+    Ior,
+    Red,
+    Green,
+    Blue,
+    Aperture,
+    Focus,
+    Bounces,
+    Fov,
+}
+
+impl Param {
+    pub const ALL: [Param; 12] = [
+        Param::Smoothness,
+        Param::Absorption,
+        Param::Specular,
+        Param::Light,
+        Param::Ior,
+        Param::Red,
+        Param::Green,
+        Param::Blue,
+        Param::Aperture,
+        Param::Focus,
+        Param::Bounces,
+        Param::Fov,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Param::Smoothness => "smoothness",
+            Param::Absorption => "absorption",
+            Param::Specular => "specular",
+            Param::Light => "light",
+            Param::Ior => "ior",
+            Param::Red => "red",
+            Param::Green => "green",
+            Param::Blue => "blue",
+            Param::Aperture => "aperture",
+            Param::Focus => "focus",
+            Param::Bounces => "bounces",
+            Param::Fov => "fov",
+        }
+    }
+
+    /// Parameters of the selected object's material (the others belong to the camera).
+    pub fn is_material(self) -> bool {
+        !matches!(
+            self,
+            Param::Aperture | Param::Focus | Param::Bounces | Param::Fov
+        )
+    }
+
+    pub fn next(self) -> Param {
+        let i = Param::ALL.iter().position(|p| *p == self).unwrap_or(0);
+        Param::ALL[(i + 1) % Param::ALL.len()]
+    }
+}
+
+/// What a key does.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Action {
+    SelectNext,
+    SelectPrev,
+    Choose(Param),
+    NextParam,
+    /// Adjust the active parameter: up or down, by a fine or a coarse step.
+    Adjust {
+        up: bool,
+        coarse: bool,
+    },
+    /// Orbit the camera around `look_at` by degrees (yaw about `up`, pitch).
+    Orbit {
+        yaw: f64,
+        pitch: f64,
+    },
+    /// Move camera and target by fractions of their distance: forward, right, up.
+    Move(f64, f64, f64),
+    /// Multiply the field of view.
+    Zoom(f64),
+    FocusOnSelected,
+    ResetAccumulation,
+    Revert,
+    SavePng,
+    WriteScene,
+    CycleCells,
+    ToggleHelp,
+    /// Esc: closes the help, else quits.
+    Back,
+    Quit,
+}
+
+/// A binding: the keys as the help shows them, and what they do.
+pub struct Binding {
+    pub keys: &'static str,
+    pub help: &'static str,
+}
+
+/// The help overlay's lines, in order.
+pub const BINDINGS: &[Binding] = &[
+    Binding {
+        keys: "Tab / Shift-Tab",
+        help: "select the next / previous object",
+    },
+    Binding {
+        keys: "1 2 3 4 5",
+        help: "adjust smoothness, absorption, specular, light, ior",
+    },
+    Binding {
+        keys: "6 7 8",
+        help: "adjust the colour's red, green, blue (sRGB)",
+    },
+    Binding {
+        keys: "9 0 b v",
+        help: "adjust aperture, focus distance, max bounces, field of view",
+    },
+    Binding {
+        keys: "m",
+        help: "next parameter",
+    },
+    Binding {
+        keys: "+ / -",
+        help: "raise / lower the parameter by a fine step",
+    },
+    Binding {
+        keys: "] / [",
+        help: "raise / lower it by a coarse step",
+    },
+    Binding {
+        keys: "arrows",
+        help: "orbit the camera around its target",
+    },
+    Binding {
+        keys: "i k j l",
+        help: "move forward, back, left, right",
+    },
+    Binding {
+        keys: "u n",
+        help: "move up, down",
+    },
+    Binding {
+        keys: "z / x",
+        help: "zoom in / out (field of view)",
+    },
+    Binding {
+        keys: "f",
+        help: "focus on the selected object",
+    },
+    Binding {
+        keys: "r / R",
+        help: "restart accumulation / revert every edit",
+    },
+    Binding {
+        keys: "p",
+        help: "save a PNG at the scene's resolution (in the background)",
+    },
+    Binding {
+        keys: "w",
+        help: "write the edited scene to NAME.edited.toml",
+    },
+    Binding {
+        keys: "c",
+        help: "cycle cells: half blocks, quadrants, sextants, ASCII",
+    },
+    Binding {
+        keys: "?",
+        help: "this help",
+    },
+    Binding {
+        keys: "q / Esc / Ctrl-C",
+        help: "quit",
+    },
+];
+
+/// Degrees per orbit step, and fraction of the target distance per move step.
+const ORBIT_DEG: f64 = 5.0;
+const MOVE_STEP: f64 = 0.05;
+const ZOOM_STEP: f64 = 0.9;
+
+/// The action of a key press, if it has one.
+pub fn action(key: KeyEvent) -> Option<Action> {
+    use Action::*;
+    if key.modifiers.contains(KeyModifiers::CONTROL) {
+        return match key.code {
+            KeyCode::Char('c') => Some(Quit),
+            _ => None,
+        };
+    }
+    Some(match key.code {
+        KeyCode::Tab => SelectNext,
+        KeyCode::BackTab => SelectPrev,
+        KeyCode::Char(c @ '1'..='8') => Choose(Param::ALL[c as usize - '1' as usize]),
+        KeyCode::Char('9') => Choose(Param::Aperture),
+        KeyCode::Char('0') => Choose(Param::Focus),
+        KeyCode::Char('b') => Choose(Param::Bounces),
+        KeyCode::Char('v') => Choose(Param::Fov),
+        KeyCode::Char('m') => NextParam,
+        KeyCode::Char('+') | KeyCode::Char('=') => Adjust {
+            up: true,
+            coarse: false,
+        },
+        KeyCode::Char('-') | KeyCode::Char('_') => Adjust {
+            up: false,
+            coarse: false,
+        },
+        KeyCode::Char(']') => Adjust {
+            up: true,
+            coarse: true,
+        },
+        KeyCode::Char('[') => Adjust {
+            up: false,
+            coarse: true,
+        },
+        KeyCode::Left => Orbit {
+            yaw: -ORBIT_DEG,
+            pitch: 0.0,
+        },
+        KeyCode::Right => Orbit {
+            yaw: ORBIT_DEG,
+            pitch: 0.0,
+        },
+        KeyCode::Up => Orbit {
+            yaw: 0.0,
+            pitch: ORBIT_DEG,
+        },
+        KeyCode::Down => Orbit {
+            yaw: 0.0,
+            pitch: -ORBIT_DEG,
+        },
+        KeyCode::Char('i') => Move(MOVE_STEP, 0.0, 0.0),
+        KeyCode::Char('k') => Move(-MOVE_STEP, 0.0, 0.0),
+        KeyCode::Char('j') => Move(0.0, -MOVE_STEP, 0.0),
+        KeyCode::Char('l') => Move(0.0, MOVE_STEP, 0.0),
+        KeyCode::Char('u') => Move(0.0, 0.0, MOVE_STEP),
+        KeyCode::Char('n') => Move(0.0, 0.0, -MOVE_STEP),
+        KeyCode::Char('z') => Zoom(ZOOM_STEP),
+        KeyCode::Char('x') => Zoom(1.0 / ZOOM_STEP),
+        KeyCode::Char('f') => FocusOnSelected,
+        KeyCode::Char('r') => ResetAccumulation,
+        KeyCode::Char('R') => Revert,
+        KeyCode::Char('p') => SavePng,
+        KeyCode::Char('w') => WriteScene,
+        KeyCode::Char('c') => CycleCells,
+        KeyCode::Char('?') => ToggleHelp,
+        KeyCode::Char('q') => Quit,
+        KeyCode::Esc => Back,
+        _ => return None,
+    })
+}

@@ -1,0 +1,499 @@
+//! The live preview: three threads and one event channel. The input thread reads terminal
+//! events, the render thread (`worker`) owns the GPU and sends frames, a signal handler
+//! sends SIGTERM/SIGHUP; the UI thread (here) only updates the [`app::App`] and draws, so
+//! input never waits on the GPU.
+
+pub mod app;
+pub mod keys;
+pub mod kitty;
+pub mod term;
+pub mod view;
+pub mod worker;
+
+use crate::gpu::{FrameSettings, GpuContext};
+use crate::output::cells::{self, CellMode, ColorMode};
+use crate::scene::Scene;
+use app::{App, Effect, Saving};
+use ratatui::Terminal;
+use ratatui::backend::CrosstermBackend;
+use ratatui::crossterm::event::{self, Event as TermEvent, KeyEventKind};
+use ratatui::crossterm::{cursor, execute, queue, terminal};
+use ratatui::layout::Rect;
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{RecvTimeoutError, Sender};
+use std::time::{Duration, Instant};
+use view::Grid;
+use worker::{Request, WorkerOptions};
+
+/// Everything that reaches the UI thread.
+pub enum Event {
+    Input(TermEvent),
+    Frame(Box<worker::Frame>),
+    SaveProgress {
+        done: u32,
+        total: u32,
+    },
+    Saved(Result<String, String>),
+    /// SIGTERM, SIGHUP or SIGINT from outside.
+    Signal,
+}
+
+/// How the preview reaches the terminal.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Graphics {
+    /// Kitty graphics in a local kitty terminal, cells everywhere else (never over SSH).
+    Auto,
+    /// Text cells.
+    Cells,
+    /// The kitty graphics protocol (zlib-compressed RGB).
+    Kitty,
+}
+
+/// The preview's options (the command line's `view` flags).
+#[derive(Clone, Debug)]
+pub struct ViewOptions {
+    pub scene: Option<String>,
+    pub cells: CellMode,
+    /// `None`: detect from COLORTERM / TERM.
+    pub color: Option<ColorMode>,
+    pub graphics: Graphics,
+    pub fps: f64,
+    /// Lower the frame rate to stay under this many kilobits per second of output.
+    pub max_kbps: Option<f64>,
+    /// Trace `n × n` pixels per image pixel and average them (linear light).
+    pub supersample: u32,
+    pub max_spp: u32,
+    /// A cell whose colour moved by at most this (per 8-bit channel) is not resent.
+    pub threshold: u8,
+    pub generic: bool,
+    pub adapter: Option<String>,
+    pub log: Option<PathBuf>,
+    /// Quit by itself after this long (scripted runs and benchmarks).
+    pub exit_after: Option<Duration>,
+    /// Print frames drawn and bytes written at exit.
+    pub stats: bool,
+}
+
+/// Whether kitty graphics suit this terminal: a local kitty, not over SSH, not in tmux.
+fn kitty_here() -> bool {
+    let var = |k| std::env::var_os(k).is_some();
+    std::env::var("TERM").is_ok_and(|t| t == "xterm-kitty")
+        && !var("SSH_CONNECTION")
+        && !var("SSH_TTY")
+        && !var("TMUX")
+}
+
+/// Cell size in pixels (width, height), when the terminal reports it.
+fn cell_pixels() -> Option<(f64, f64)> {
+    let ws = terminal::window_size().ok()?;
+    (ws.width > 0 && ws.height > 0 && ws.columns > 0 && ws.rows > 0).then(|| {
+        (
+            ws.width as f64 / ws.columns as f64,
+            ws.height as f64 / ws.rows as f64,
+        )
+    })
+}
+
+/// Widest image sent by kitty graphics (bandwidth).
+const KITTY_MAX_WIDTH: f64 = 960.0;
+
+/// The preview's render settings for an image area of `area` cells.
+fn preview_settings(
+    scene: &Scene,
+    mode: CellMode,
+    kitty: bool,
+    ss: u32,
+    area: Rect,
+) -> Option<FrameSettings> {
+    if area.width == 0 || area.height == 0 {
+        return None;
+    }
+    // Without a report, a cell is about twice as tall as wide.
+    let (cw, ch) = cell_pixels().unwrap_or((8.0, 16.0));
+    let (cols, rows) = (area.width as f64, area.height as f64);
+    let (w, h, pixel_aspect) = if kitty {
+        let (pw, ph) = (cols * cw, rows * ch);
+        let k = (KITTY_MAX_WIDTH / pw).min(1.0);
+        ((pw * k).max(1.0) as u32, (ph * k).max(1.0) as u32, 1.0)
+    } else {
+        let (sx, sy) = mode.subpixels();
+        (
+            area.width as u32 * sx * ss,
+            area.height as u32 * sy * ss,
+            (cw / sx as f64) / (ch / sy as f64),
+        )
+    };
+    Some(FrameSettings {
+        width: w,
+        height: h,
+        max_bounces: scene.render.max_bounces,
+        seed: scene.render.seed,
+        pixel_aspect,
+    })
+}
+
+/// `dir/NAME.edited.toml` beside a scene file, `./NAME.edited.toml` for a built-in scene.
+pub fn edited_scene_path(scene: &Scene) -> PathBuf {
+    let name = format!("{}.edited.toml", scene.short_name());
+    match Path::new(&scene.origin).parent() {
+        Some(dir) if !scene.origin.starts_with("builtin:") => dir.join(name),
+        _ => PathBuf::from(name),
+    }
+}
+
+/// The first of `NAME.png`, `NAME-1.png`, … that does not exist yet.
+pub fn free_png_path(scene: &Scene) -> PathBuf {
+    let stem = scene.short_name();
+    (0..)
+        .map(|i| match i {
+            0 => PathBuf::from(format!("{stem}.png")),
+            i => PathBuf::from(format!("{stem}-{i}.png")),
+        })
+        .find(|p| !p.exists())
+        .expect("some name is free")
+}
+
+/// Writes the edited scene; an existing file of that name is kept as `….bak` first.
+pub fn write_scene(scene: &Scene) -> Result<String, String> {
+    let path = edited_scene_path(scene);
+    let mut note = String::new();
+    if path.exists() {
+        let backup = PathBuf::from(format!("{}.bak", path.display()));
+        std::fs::rename(&path, &backup)
+            .map_err(|e| format!("cannot back up {}: {e}", path.display()))?;
+        note = format!(" (the previous one is now {})", backup.display());
+    }
+    crate::output::write::write_text(&path, &crate::scene::to_toml(scene))
+        .map_err(|e| e.to_string())?;
+    Ok(format!("wrote {}{note}", path.display()))
+}
+
+struct Ui {
+    app: App,
+    opts: ViewOptions,
+    color: ColorMode,
+    kitty: bool,
+    grid: Grid,
+    to_worker: Sender<Request>,
+    generation: u64,
+    /// Settings of the latest scene request, to recognise its frames.
+    settings: Option<FrameSettings>,
+    fresh_image: bool,
+    quit: bool,
+    /// Messages to print once the terminal is restored.
+    farewell: Vec<String>,
+}
+
+impl Ui {
+    fn send_scene(&mut self, area: Rect) {
+        let (image, _) = view::split(area);
+        let s = preview_settings(
+            &self.app.scene,
+            self.app.cells,
+            self.kitty,
+            self.opts.supersample,
+            image,
+        );
+        self.settings = s;
+        if let Some(settings) = s {
+            self.generation += 1;
+            let _ = self.to_worker.send(Request::Scene {
+                scene: Box::new(self.app.scene.clone()),
+                settings,
+                generation: self.generation,
+            });
+        }
+    }
+
+    fn handle(&mut self, ev: Event, area: Rect) {
+        match ev {
+            Event::Input(TermEvent::Key(k)) if k.kind != KeyEventKind::Release => {
+                let Some(action) = keys::action(k) else {
+                    return;
+                };
+                match self.app.apply(action) {
+                    Effect::None => {}
+                    Effect::SceneChanged | Effect::Relayout => self.send_scene(area),
+                    Effect::Reset => {
+                        let _ = self.to_worker.send(Request::Reset);
+                    }
+                    Effect::SavePng => self.save_png(),
+                    Effect::WriteScene => match write_scene(&self.app.scene) {
+                        Ok(m) => self.app.say(m),
+                        Err(e) => self.app.say(format!("error: {e}")),
+                    },
+                    Effect::Quit => self.quit = true,
+                }
+            }
+            Event::Input(TermEvent::Resize(..)) => self.send_scene(area),
+            Event::Input(_) => {}
+            Event::Frame(f) => {
+                let expected = self.settings.map(|s| (s.width, s.height));
+                if f.generation == self.generation
+                    && expected == Some((f.image.width, f.image.height))
+                {
+                    self.app.stats = f.stats;
+                    self.app.image = Some(f.image);
+                    self.fresh_image = true;
+                }
+            }
+            Event::SaveProgress { done, total } => {
+                if let Some(s) = &mut self.app.saving {
+                    s.done = done;
+                    s.total = total;
+                }
+            }
+            Event::Saved(r) => {
+                self.app.saving = None;
+                let m = r.unwrap_or_else(|e| format!("error: {e}"));
+                if self.quit {
+                    self.farewell.push(m.clone());
+                }
+                self.app.say(m);
+            }
+            Event::Signal => self.quit = true,
+        }
+    }
+
+    fn save_png(&mut self) {
+        if let Some(s) = &self.app.saving {
+            let m = format!("already saving {}", s.path);
+            self.app.say(m);
+            return;
+        }
+        let path = free_png_path(&self.app.scene);
+        self.app.saving = Some(Saving {
+            path: path.display().to_string(),
+            done: 0,
+            total: self.app.scene.render.spp,
+        });
+        let _ = self.to_worker.send(Request::Save {
+            scene: Box::new(self.app.scene.clone()),
+            path,
+        });
+    }
+
+    /// Re-encodes the grid from the latest image if a new one came.
+    fn encode(&mut self, area: Rect) {
+        if !self.fresh_image {
+            return;
+        }
+        let (image, _) = view::split(area);
+        let Some(img) = &self.app.image else { return };
+        if self.kitty {
+            // The image goes out by the graphics protocol; the cells under it stay blank.
+            let blank = cells::Cell {
+                glyph: ' ',
+                fg: cells::CellColor::Default,
+                bg: cells::CellColor::Default,
+            };
+            let n = image.width as usize * image.height as usize;
+            self.grid
+                .update(image.width, image.height, vec![blank; n], 0);
+            return;
+        }
+        let small = cells::downsample(img, self.opts.supersample);
+        let encoded = cells::encode(&small, self.app.cells, self.color);
+        let (sx, sy) = self.app.cells.subpixels();
+        let (cols, rows) = ((small.width / sx) as u16, (small.height / sy) as u16);
+        self.grid.update(cols, rows, encoded, self.opts.threshold);
+    }
+}
+
+/// Opens the preview; returns when the user quits.
+pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
+    let scene = match &opts.scene {
+        Some(s) => crate::cli::load_scene(s)?,
+        None => Scene::default_scene(),
+    };
+    anyhow::ensure!(
+        std::io::stdout().is_terminal() && std::io::stdin().is_terminal(),
+        "the live preview needs a terminal on stdin and stdout; \
+         for files use `termtrace render {} -o out.png`",
+        opts.scene.as_deref().unwrap_or("SCENE")
+    );
+    // Open the GPU before taking the terminal, so that its errors print plainly.
+    let ctx = Arc::new(GpuContext::new(opts.adapter.as_deref())?);
+    // `llvmpipe (LLVM 15.0.6, 256 bits)` → `llvmpipe (Vulkan)`: the status line is short.
+    let short = ctx.info.name.split(" (").next().unwrap_or(&ctx.info.name);
+    let adapter = format!("{short} ({:?})", ctx.info.backend);
+    let color = opts.color.unwrap_or_else(|| {
+        ColorMode::detect(
+            std::env::var("COLORTERM").ok().as_deref(),
+            std::env::var("TERM").ok().as_deref(),
+        )
+    });
+    let cells = if color == ColorMode::None && opts.cells != CellMode::Ascii {
+        CellMode::Ascii
+    } else {
+        opts.cells
+    };
+    let kitty = match opts.graphics {
+        Graphics::Kitty => true,
+        Graphics::Cells => false,
+        Graphics::Auto => kitty_here(),
+    };
+
+    let (tx, rx) = std::sync::mpsc::channel::<Event>();
+    let signal_tx = tx.clone();
+    let _ = ctrlc::set_handler(move || {
+        let _ = signal_tx.send(Event::Signal);
+    });
+    let guard = term::TerminalGuard::enter(opts.log.as_deref())?;
+    let input_tx = tx.clone();
+    std::thread::Builder::new()
+        .name("input".into())
+        .spawn(move || {
+            while let Ok(ev) = event::read() {
+                if input_tx.send(Event::Input(ev)).is_err() {
+                    break;
+                }
+            }
+        })?;
+    let (to_worker, worker) = worker::spawn(
+        ctx,
+        WorkerOptions {
+            fps: opts.fps,
+            max_spp: opts.max_spp,
+            generic: opts.generic,
+        },
+        tx,
+    );
+
+    let bytes = Arc::new(AtomicU64::new(0));
+    let mut terminal = Terminal::new(CrosstermBackend::new(term::CountingWriter::new(
+        bytes.clone(),
+    )))?;
+    let mut ui = Ui {
+        app: App::new(scene, adapter, cells),
+        opts: opts.clone(),
+        color,
+        kitty,
+        grid: Grid::default(),
+        to_worker,
+        generation: 0,
+        settings: None,
+        fresh_image: false,
+        quit: false,
+        farewell: Vec::new(),
+    };
+    let mut area = Rect::from((
+        (0, 0).into(),
+        terminal
+            .size()
+            .map(|s| (s.width, s.height))
+            .unwrap_or((80, 24))
+            .into(),
+    ));
+    ui.send_scene(area);
+
+    let started = Instant::now();
+    let min_frame = Duration::from_secs_f64(1.0 / opts.fps.max(1.0));
+    let mut next_draw = Instant::now();
+    let mut dirty = true;
+    let mut frames = 0u64;
+    // (seconds since start, bytes written so far, frames so far) after every frame.
+    let mut history: Vec<(f64, u64, u64)> = Vec::new();
+    while !ui.quit {
+        let wait = next_draw
+            .saturating_duration_since(Instant::now())
+            .max(Duration::from_millis(if dirty { 0 } else { 250 }));
+        match rx.recv_timeout(wait) {
+            Ok(ev) => {
+                if let Event::Input(TermEvent::Resize(w, h)) = ev {
+                    area = Rect::new(0, 0, w, h);
+                }
+                ui.handle(ev, area);
+                dirty = true;
+                // Take whatever else is queued before drawing.
+                while let Ok(ev) = rx.try_recv() {
+                    if let Event::Input(TermEvent::Resize(w, h)) = ev {
+                        area = Rect::new(0, 0, w, h);
+                    }
+                    ui.handle(ev, area);
+                }
+            }
+            Err(RecvTimeoutError::Timeout) => dirty = true,
+            Err(RecvTimeoutError::Disconnected) => break,
+        }
+        if opts.exit_after.is_some_and(|t| started.elapsed() >= t) {
+            ui.quit = true;
+        }
+        if ui.quit || !dirty || Instant::now() < next_draw {
+            continue;
+        }
+        let before = bytes.load(Ordering::Relaxed);
+        let kitty_frame = ui.kitty && ui.fresh_image;
+        ui.encode(area);
+        ui.fresh_image = false;
+        let out = terminal.backend_mut();
+        queue!(out, terminal::BeginSynchronizedUpdate)?;
+        let completed =
+            terminal.draw(|f| view::draw(&ui.app, &ui.grid, f.area(), f.buffer_mut()))?;
+        area = completed.area;
+        if kitty_frame && let Some(img) = &ui.app.image {
+            let (image, _) = view::split(area);
+            let out = terminal.backend_mut();
+            queue!(out, cursor::MoveTo(image.x, image.y))?;
+            out.write_all(kitty::transmit(img, image.width, image.height).as_bytes())?;
+        }
+        execute!(terminal.backend_mut(), terminal::EndSynchronizedUpdate)?;
+        frames += 1;
+        dirty = false;
+        if opts.stats {
+            history.push((
+                started.elapsed().as_secs_f64(),
+                bytes.load(Ordering::Relaxed),
+                frames,
+            ));
+        }
+        let sent = bytes.load(Ordering::Relaxed) - before;
+        let budget = opts.max_kbps.map_or(Duration::ZERO, |kbps| {
+            Duration::from_secs_f64(sent as f64 * 8.0 / (kbps * 1000.0))
+        });
+        next_draw = Instant::now() + min_frame.max(budget);
+    }
+
+    // Stop the render thread; a background save in progress writes what it has.
+    let _ = ui.to_worker.send(Request::Quit);
+    let _ = worker.join();
+    while let Ok(ev) = rx.try_recv() {
+        if let Event::Saved(r) = ev {
+            ui.farewell
+                .push(r.unwrap_or_else(|e| format!("error: {e}")));
+        }
+    }
+    drop(terminal);
+    drop(guard);
+    for m in &ui.farewell {
+        eprintln!("{m}");
+    }
+    if opts.stats {
+        let secs = started.elapsed().as_secs_f64();
+        let total = bytes.load(Ordering::Relaxed);
+        eprintln!(
+            "preview: {frames} frames in {secs:.1} s ({:.1} fps), {total} bytes ({:.1} kB/s), {} spp at {}x{}",
+            frames as f64 / secs,
+            total as f64 / secs / 1000.0,
+            ui.app.stats.spp,
+            ui.app.stats.width,
+            ui.app.stats.height,
+        );
+        // The last quarter of the run: the noise has fallen, so fewer cells change.
+        if let Some(&(t0, b0, f0)) = history.iter().find(|h| h.0 >= 0.75 * secs)
+            && let Some(&(t1, b1, f1)) = history.last()
+            && t1 > t0
+        {
+            eprintln!(
+                "preview: last quarter {:.1} fps, {:.1} kB/s",
+                (f1 - f0) as f64 / (t1 - t0),
+                (b1 - b0) as f64 / (t1 - t0) / 1000.0
+            );
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,286 @@
+//! Drawing the preview: the image cells, two status lines, the help overlay.
+
+use super::app::{App, Mode, fmt_value};
+use super::keys::{BINDINGS, Param};
+use crate::output::cells::{Cell, CellColor};
+use ratatui::buffer::Buffer;
+use ratatui::layout::Rect;
+use ratatui::style::{Color, Modifier, Style};
+use ratatui::text::{Line, Span};
+use ratatui::widgets::{Block, Clear, Paragraph, Widget};
+
+/// Where the image and the status lines go in a terminal of `area`: two status lines when
+/// there is room for an image beside them, one on a short terminal, none below three rows.
+pub fn split(area: Rect) -> (Rect, Rect) {
+    let status_rows = match area.height {
+        0..=2 => 0,
+        3..=5 => 1,
+        _ => 2,
+    };
+    let image = Rect {
+        height: area.height - status_rows,
+        ..area
+    };
+    let status = Rect {
+        y: area.y + image.height,
+        height: status_rows,
+        ..area
+    };
+    (image, status)
+}
+
+/// The encoded preview, as last drawn: cells whose colour moved less than a threshold keep
+/// their previous colour, so the terminal diff does not resend them.
+#[derive(Clone, Debug, Default)]
+pub struct Grid {
+    pub cols: u16,
+    pub rows: u16,
+    pub cells: Vec<Cell>,
+}
+
+fn close(a: CellColor, b: CellColor, threshold: u8) -> bool {
+    match (a, b) {
+        (CellColor::Rgb(x), CellColor::Rgb(y)) => (0..3).all(|c| x[c].abs_diff(y[c]) <= threshold),
+        (x, y) => x == y,
+    }
+}
+
+impl Grid {
+    /// Takes a new frame; returns how many cells changed beyond the threshold.
+    pub fn update(&mut self, cols: u16, rows: u16, cells: Vec<Cell>, threshold: u8) -> usize {
+        if (cols, rows) != (self.cols, self.rows) || self.cells.len() != cells.len() {
+            *self = Grid { cols, rows, cells };
+            return self.cells.len();
+        }
+        let mut changed = 0;
+        for (old, new) in self.cells.iter_mut().zip(cells) {
+            let same = old.glyph == new.glyph
+                && close(old.fg, new.fg, threshold)
+                && close(old.bg, new.bg, threshold);
+            if !same {
+                *old = new;
+                changed += 1;
+            }
+        }
+        changed
+    }
+}
+
+fn color(c: CellColor) -> Color {
+    match c {
+        CellColor::Rgb([r, g, b]) => Color::Rgb(r, g, b),
+        CellColor::Indexed(i) => Color::Indexed(i),
+        CellColor::Default => Color::Reset,
+    }
+}
+
+/// The image cells, drawn at the top-left of the area they are given.
+pub struct ImageWidget<'a>(pub &'a Grid);
+
+impl Widget for ImageWidget<'_> {
+    fn render(self, area: Rect, buf: &mut Buffer) {
+        let g = self.0;
+        for row in 0..g.rows.min(area.height) {
+            for col in 0..g.cols.min(area.width) {
+                let c = g.cells[row as usize * g.cols as usize + col as usize];
+                buf[(area.x + col, area.y + row)]
+                    .set_char(c.glyph)
+                    .set_fg(color(c.fg))
+                    .set_bg(color(c.bg));
+            }
+        }
+    }
+}
+
+const SEP: &str = " │ ";
+
+fn duration(d: std::time::Duration) -> String {
+    let s = d.as_secs_f64();
+    if s < 60.0 {
+        format!("{s:.1} s")
+    } else {
+        format!("{}:{:02}", (s / 60.0) as u64, s as u64 % 60)
+    }
+}
+
+fn rate(r: f64) -> String {
+    if r >= 1e9 {
+        format!("{:.2} Gs/s", r / 1e9)
+    } else if r >= 1e6 {
+        format!("{:.2} Ms/s", r / 1e6)
+    } else {
+        format!("{:.0} ks/s", r / 1e3)
+    }
+}
+
+/// First status line: a fresh message and the background save first (they are what the
+/// user is waiting for; a narrow terminal clips the end), then what renders and how fast.
+pub fn stats_line(app: &App) -> Line<'static> {
+    let s = &app.stats;
+    let mut parts = vec![
+        format!(" {}", app.scene.short_name()),
+        app.adapter.clone(),
+        format!("{}×{}", s.width, s.height),
+        format!("{} spp", s.spp),
+        rate(s.samples_per_second),
+        duration(s.elapsed),
+    ];
+    match s.noise {
+        Some(n) => parts.push(format!("noise {:.2}%", n * 100.0)),
+        None => parts.push("noise –".into()),
+    }
+    if s.invalid > 0 {
+        parts.push(format!("{} invalid", s.invalid));
+    }
+    let mut spans = Vec::new();
+    if let Some(m) = app.current_message() {
+        let style = if m.starts_with("error") {
+            Color::Red
+        } else {
+            Color::Green
+        };
+        spans.push(Span::styled(
+            format!(" {m} "),
+            Style::new().fg(Color::Black).bg(style),
+        ));
+    }
+    if let Some(sv) = &app.saving {
+        spans.push(Span::styled(
+            format!(" saving {} {}/{} spp ", sv.path, sv.done, sv.total),
+            Style::new().fg(Color::Black).bg(Color::Yellow),
+        ));
+    }
+    spans.push(Span::raw(parts.join(SEP)));
+    Line::from(spans)
+}
+
+/// Second status line: the selected object and every adjustable value, the active one
+/// highlighted. When `width` is too narrow for all, the camera's values that are not active
+/// go first, then the help hint.
+pub fn params_line(app: &App, width: u16) -> Line<'static> {
+    let full = params_spans(app, true, true);
+    let fits = |s: &Vec<Span>| {
+        s.iter().map(|x| x.content.chars().count()).sum::<usize>() <= width as usize
+    };
+    if fits(&full) {
+        return Line::from(full);
+    }
+    let no_camera = params_spans(app, false, true);
+    if fits(&no_camera) {
+        return Line::from(no_camera);
+    }
+    Line::from(params_spans(app, false, false))
+}
+
+fn params_spans(app: &App, camera: bool, hint: bool) -> Vec<Span<'static>> {
+    let mut spans = vec![Span::styled(
+        format!(" ▸ {}", app.selected_label()),
+        Style::new().add_modifier(Modifier::BOLD),
+    )];
+    let shown: &[(Param, &str)] = &[
+        (Param::Smoothness, "smooth"),
+        (Param::Absorption, "absorb"),
+        (Param::Specular, "spec"),
+        (Param::Light, "light"),
+        (Param::Ior, "ior"),
+        (Param::Red, "r"),
+        (Param::Green, "g"),
+        (Param::Blue, "b"),
+        (Param::Aperture, "aperture"),
+        (Param::Focus, "focus"),
+        (Param::Bounces, "bounces"),
+        (Param::Fov, "fov"),
+    ];
+    for (p, label) in shown {
+        if !camera && !p.is_material() && *p != app.param {
+            continue;
+        }
+        let Some(v) = app.value(*p) else { continue };
+        spans.push(Span::raw(if matches!(p, Param::Green | Param::Blue) {
+            " "
+        } else {
+            "  "
+        }));
+        let text = format!("{label} {}", fmt_value(v));
+        if *p == app.param {
+            spans.push(Span::styled(
+                text,
+                Style::new().add_modifier(Modifier::REVERSED),
+            ));
+        } else {
+            spans.push(Span::raw(text));
+        }
+    }
+    if hint {
+        spans.push(Span::styled(
+            "   ? help",
+            Style::new().add_modifier(Modifier::DIM),
+        ));
+    }
+    spans
+}
+
+/// The key help, centred over `area`.
+pub fn help(area: Rect, buf: &mut Buffer) {
+    let key_width = BINDINGS
+        .iter()
+        .map(|b| b.keys.chars().count())
+        .max()
+        .unwrap_or(0);
+    let help_width = BINDINGS
+        .iter()
+        .map(|b| b.help.chars().count())
+        .max()
+        .unwrap_or(0);
+    // A space, the keys, two spaces, the help, a space; plus the two borders.
+    let width = (1 + key_width + 2 + help_width + 1 + 2) as u16;
+    let height = BINDINGS.len() as u16 + 2;
+    let w = width.min(area.width);
+    let h = height.min(area.height);
+    let r = Rect {
+        x: area.x + (area.width - w) / 2,
+        y: area.y + (area.height - h) / 2,
+        width: w,
+        height: h,
+    };
+    Clear.render(r, buf);
+    let lines: Vec<Line> = BINDINGS
+        .iter()
+        .map(|b| {
+            Line::from(vec![
+                Span::styled(
+                    format!(" {:>key_width$}", b.keys),
+                    Style::new().add_modifier(Modifier::BOLD),
+                ),
+                Span::raw(format!("  {}", b.help)),
+            ])
+        })
+        .collect();
+    Paragraph::new(lines)
+        .block(Block::bordered().title(" keys (? or Esc closes) "))
+        .render(r, buf);
+}
+
+/// The whole screen.
+pub fn draw(app: &App, grid: &Grid, area: Rect, buf: &mut Buffer) {
+    let (image, status) = split(area);
+    ImageWidget(grid).render(image, buf);
+    if status.height >= 1 {
+        let first = Rect {
+            height: 1,
+            ..status
+        };
+        Paragraph::new(stats_line(app)).render(first, buf);
+    }
+    if status.height >= 2 {
+        let second = Rect {
+            y: status.y + 1,
+            height: 1,
+            ..status
+        };
+        Paragraph::new(params_line(app, second.width)).render(second, buf);
+    }
+    if app.mode == Mode::Help {
+        help(area, buf);
+    }
+}
