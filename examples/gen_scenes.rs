@@ -1,7 +1,8 @@
-//! Regenerates the generated scenes in `scenes/` (`weekend.toml`, `spheres.toml`).
+//! Regenerates the generated files in `scenes/`: `weekend.toml`, `spheres.toml`, and the
+//! meshes `meshes/torus.obj` and `meshes/icosphere.obj` that `mesh.toml` uses.
 //! Run from the repository root: `cargo run --example gen_scenes`.
 
-use termtrace::scene::{generate, to_toml};
+use termtrace::scene::{generate, mesh, to_toml};
 
 fn main() -> std::io::Result<()> {
     let weekend = format!(
@@ -21,5 +22,11 @@ fn main() -> std::io::Result<()> {
         to_toml(&generate::sphere_grid(9, 5, 7))
     );
     std::fs::write("scenes/spheres.toml", grid)?;
+    std::fs::create_dir_all("scenes/meshes")?;
+    std::fs::write(
+        "scenes/meshes/torus.obj",
+        mesh::torus_obj(1.0, 0.35, 48, 24),
+    )?;
+    std::fs::write("scenes/meshes/icosphere.obj", mesh::icosphere_obj(3))?;
     Ok(())
 }

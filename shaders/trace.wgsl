@@ -10,12 +10,15 @@
 override HAS_SPHERES: bool = true;
 override HAS_QUADS: bool = true;
 override HAS_BOXES: bool = true;
+override HAS_TRIANGLES: bool = true;
 override HAS_DIELECTRICS: bool = true;
 override HAS_EMITTERS: bool = true;
 override HAS_DOF: bool = true;
 override HAS_SUN: bool = true;
 // Counting path segments costs an atomic per workgroup; only `bench` turns it on.
 override COUNT_SEGMENTS: bool = false;
+// Walk the BVH, or test every primitive in turn (tests compare the two; see src/gpu/features.rs).
+override USE_BVH: bool = true;
 
 @group(0) @binding(0) var<uniform> scene: SceneUniforms;
 @group(0) @binding(1) var<uniform> batch: DispatchUniforms;
@@ -30,12 +33,19 @@ override COUNT_SEGMENTS: bool = false;
 // [0, 1]: invalid (NaN/inf) samples discarded, as lo/hi words of a u64;
 // [2, 3]: path segments traced (only with COUNT_SEGMENTS).
 @group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 4>;
+@group(0) @binding(9) var<storage, read> nodes: array<BvhNode>;
+// Primitive references in leaf order: kind (KIND_* - 1) in the top two bits, index below.
+@group(0) @binding(10) var<storage, read> refs: array<u32>;
+@group(0) @binding(11) var<storage, read> triangles: array<Triangle>;
 
 const KIND_NONE: u32 = 0u;
 const KIND_SPHERE: u32 = 1u;
 const KIND_QUAD: u32 = 2u;
 const KIND_BOX: u32 = 3u;
+const KIND_TRIANGLE: u32 = 4u;
 const T_FAR: f32 = 3.0e38;
+// Deepest BVH the builder makes (src/bvh: MAX_DEPTH): the stack never overflows.
+const STACK_SIZE: u32 = 64u;
 
 struct Hit {
     t: f32,
@@ -43,30 +53,109 @@ struct Hit {
     index: u32,
 }
 
-fn intersect_scene(ray: Ray) -> Hit {
+// The distance to primitive `r` (a BVH reference) if nearer than t_max, else NO_HIT.
+fn hit_primitive(r: u32, ray: Ray, t_max: f32) -> f32 {
+    let index = r & 0x3fffffffu;
+    switch r >> 30u {
+        case 0u: {
+            if HAS_SPHERES {
+                return hit_sphere(spheres[index], ray, t_max);
+            }
+        }
+        case 1u: {
+            if HAS_QUADS {
+                return hit_quad(quads[index], ray, t_max);
+            }
+        }
+        case 2u: {
+            if HAS_BOXES {
+                return hit_box(boxes[index], ray, t_max);
+            }
+        }
+        default: {
+            if HAS_TRIANGLES {
+                return hit_triangle(triangles[index], ray, t_max);
+            }
+        }
+    }
+    return NO_HIT;
+}
+
+// The nearest hit by testing every primitive (USE_BVH = false).
+fn intersect_all(ray: Ray) -> Hit {
     var hit = Hit(T_FAR, KIND_NONE, 0u);
-    if HAS_SPHERES {
-        for (var i = 0u; i < scene.n_spheres; i++) {
-            let t = hit_sphere(spheres[i], ray, hit.t);
+    let counts = array<u32, 4>(scene.n_spheres, scene.n_quads, scene.n_boxes, scene.n_triangles);
+    for (var kind = 0u; kind < 4u; kind++) {
+        for (var i = 0u; i < counts[kind]; i++) {
+            let r = kind << 30u | i;
+            let t = hit_primitive(r, ray, hit.t);
             if t > 0.0 {
-                hit = Hit(t, KIND_SPHERE, i);
+                hit = Hit(t, kind + 1u, i);
             }
         }
     }
-    if HAS_QUADS {
-        for (var i = 0u; i < scene.n_quads; i++) {
-            let t = hit_quad(quads[i], ray, hit.t);
-            if t > 0.0 {
-                hit = Hit(t, KIND_QUAD, i);
+    return hit;
+}
+
+// The nearest hit, by walking the BVH nearest child first with a short stack; a node popped
+// from the stack is skipped if its entry distance is beyond the nearest hit found since.
+fn intersect_scene(ray: Ray) -> Hit {
+    if !USE_BVH {
+        return intersect_all(ray);
+    }
+    var hit = Hit(T_FAR, KIND_NONE, 0u);
+    if scene.n_spheres + scene.n_quads + scene.n_boxes + scene.n_triangles == 0u {
+        return hit;
+    }
+    let inv = safe_inverse(ray.dir);
+    if hit_bounds(nodes[0].min, nodes[0].max, ray.origin, inv, T_FAR) < 0.0 {
+        return hit;
+    }
+    var stack_node: array<u32, STACK_SIZE>;
+    var stack_t: array<f32, STACK_SIZE>;
+    var sp = 0u;
+    var node = 0u;
+    loop {
+        let n = nodes[node];
+        var next_found = false;
+        if n.count > 0u {
+            for (var i = n.first; i < n.first + n.count; i++) {
+                let r = refs[i];
+                let t = hit_primitive(r, ray, hit.t);
+                if t > 0.0 {
+                    hit = Hit(t, (r >> 30u) + 1u, r & 0x3fffffffu);
+                }
+            }
+        } else {
+            let l = nodes[n.first];
+            let r = nodes[n.first + 1u];
+            let tl = hit_bounds(l.min, l.max, ray.origin, inv, hit.t);
+            let tr = hit_bounds(r.min, r.max, ray.origin, inv, hit.t);
+            if tl >= 0.0 && tr >= 0.0 && sp < STACK_SIZE {
+                let left_first = tl <= tr;
+                node = select(n.first + 1u, n.first, left_first);
+                stack_node[sp] = select(n.first, n.first + 1u, left_first);
+                stack_t[sp] = max(tl, tr);
+                sp += 1u;
+                next_found = true;
+            } else if tl >= 0.0 {
+                node = n.first;
+                next_found = true;
+            } else if tr >= 0.0 {
+                node = n.first + 1u;
+                next_found = true;
             }
         }
-    }
-    if HAS_BOXES {
-        for (var i = 0u; i < scene.n_boxes; i++) {
-            let t = hit_box(boxes[i], ray, hit.t);
-            if t > 0.0 {
-                hit = Hit(t, KIND_BOX, i);
+        // Pop the nearest pending node that can still hold a nearer hit.
+        while !next_found && sp > 0u {
+            sp -= 1u;
+            if stack_t[sp] < hit.t {
+                node = stack_node[sp];
+                next_found = true;
             }
+        }
+        if !next_found {
+            break;
         }
     }
     return hit;
@@ -87,8 +176,12 @@ fn surface_at(hit: Hit, ray: Ray) -> Surface {
         let q = quads[hit.index];
         return Surface(quad_surface(q, ray, hit.t), q.material);
     }
-    let b = boxes[hit.index];
-    return Surface(box_surface(b, ray, hit.t), b.material);
+    if hit.kind == KIND_BOX {
+        let b = boxes[hit.index];
+        return Surface(box_surface(b, ray, hit.t), b.material);
+    }
+    let tri = triangles[hit.index];
+    return Surface(triangle_surface(tri, ray, hit.t), tri.material);
 }
 
 // The gradient sky with optional sun, or a uniform sky (MODEL.md "Sky").

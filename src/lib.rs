@@ -3,6 +3,7 @@
 //! Data flows scene file → [`scene`] → [`gpu`] (adapter, tracer pass, accumulation) →
 //! [`render`] (progressive driver) → [`output`] (transfer, PNG/EXR) and the [`cli`].
 
+pub mod bvh;
 pub mod cli;
 pub mod gpu;
 pub mod output;

@@ -145,6 +145,72 @@ fn box_surface(bx: Cuboid, ray: Ray, t: f32) -> SurfacePoint {
     return SurfacePoint(world, n);
 }
 
+// Ray/triangle (Möller & Trumbore, "Fast, Minimum Storage Ray/Triangle Intersection",
+// JGT 1997), two-sided. The barycentric bounds are widened by TRIANGLE_SLACK so that a ray
+// through an edge shared by two triangles hits at least one of them: the test is not
+// watertight, and a ray slipping into a closed mesh would bounce inside it.
+const TRIANGLE_SLACK: f32 = 1e-6;
+
+fn hit_triangle(tri: Triangle, ray: Ray, t_max: f32) -> f32 {
+    let p = cross(ray.dir, tri.e2);
+    let det = dot(tri.e1, p);
+    if det == 0.0 {
+        return NO_HIT;
+    }
+    let inv = 1.0 / det;
+    let s = ray.origin - tri.v0;
+    let u = dot(s, p) * inv;
+    if u < -TRIANGLE_SLACK || u > 1.0 + TRIANGLE_SLACK {
+        return NO_HIT;
+    }
+    let q = cross(s, tri.e1);
+    let v = dot(ray.dir, q) * inv;
+    if v < -TRIANGLE_SLACK || u + v > 1.0 + TRIANGLE_SLACK {
+        return NO_HIT;
+    }
+    let t = dot(tri.e2, q) * inv;
+    if !(t > 0.0 && t < t_max) {
+        return NO_HIT;
+    }
+    return t;
+}
+
+// On a triangle: the point from its barycentric coordinates (relative to v0, not to the ray
+// origin), and the normal of its winding.
+fn triangle_surface(tri: Triangle, ray: Ray, t: f32) -> SurfacePoint {
+    let p = ray.origin + t * ray.dir - tri.v0;
+    // Barycentrics of p by least squares in the triangle's plane.
+    let d00 = dot(tri.e1, tri.e1);
+    let d01 = dot(tri.e1, tri.e2);
+    let d11 = dot(tri.e2, tri.e2);
+    let d20 = dot(p, tri.e1);
+    let d21 = dot(p, tri.e2);
+    let denom = d00 * d11 - d01 * d01;
+    let v = (d11 * d20 - d01 * d21) / denom;
+    let w = (d00 * d21 - d01 * d20) / denom;
+    return SurfacePoint(tri.v0 + v * tri.e1 + w * tri.e2, normalize(cross(tri.e1, tri.e2)));
+}
+
+// Ray/box slab test against a BVH node's bounds, with the ray's reciprocal direction: the
+// entry distance if the box is hit before t_max, else NO_HIT (Kay & Kajiya 1986; Williams et
+// al., "An Efficient and Robust Ray-Box Intersection Algorithm", JGT 2005).
+fn hit_bounds(bmin: vec3f, bmax: vec3f, origin: vec3f, inv_dir: vec3f, t_max: f32) -> f32 {
+    let t0 = (bmin - origin) * inv_dir;
+    let t1 = (bmax - origin) * inv_dir;
+    let lo = min(t0, t1);
+    let hi = max(t0, t1);
+    let near = max(max(lo.x, lo.y), max(lo.z, 0.0));
+    let far = min(min(hi.x, hi.y), min(hi.z, t_max));
+    return select(NO_HIT, near, near <= far);
+}
+
+// 1 / dir with components too small to invert replaced by a tiny positive number: the slab
+// test then sees an axis-parallel ray, and nothing becomes infinite or NaN (WGSL may assume
+// neither occurs).
+fn safe_inverse(dir: vec3f) -> vec3f {
+    return 1.0 / select(vec3f(1e-30), dir, abs(dir) >= vec3f(1e-30));
+}
+
 // Moves a hit point off its surface along the geometric normal `n` (pointing to the side the
 // new ray leaves into) by an amount that scales with the point's magnitude: a fixed number of
 // float ulps, or a fixed distance near the origin where ulps vanish. Wächter & Binder,

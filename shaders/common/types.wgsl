@@ -29,7 +29,7 @@ struct SceneUniforms {
     n_spheres: u32,         // 176
     n_quads: u32,           // 180
     n_boxes: u32,           // 184
-    _pad7: u32,             // 188
+    n_triangles: u32,       // 188
 }                           // 192
 
 // What one submission traces: rows [row_offset, row_offset + row_count) of the image,
@@ -92,3 +92,22 @@ struct Cuboid {
     axis_z: vec3f,          //  64
     _pad3: f32,             //  76
 }                           //  80
+
+// A triangle: a vertex and the two edges from it (Möller & Trumbore 1997).
+struct Triangle {
+    v0: vec3f,              //   0
+    material: u32,          //  12
+    e1: vec3f,              //  16  v1 - v0
+    _pad0: f32,             //  28
+    e2: vec3f,              //  32  v2 - v0
+    _pad1: f32,             //  44
+}                           //  48
+
+// A node of the BVH (src/bvh): an inner node's children are `first` and `first + 1`; a leaf
+// (count > 0) holds primitives refs[first .. first + count].
+struct BvhNode {
+    min: vec3f,             //   0
+    first: u32,             //  12
+    max: vec3f,             //  16
+    count: u32,             //  28
+}                           //  32

@@ -14,6 +14,13 @@ pub struct BenchArgs {
     /// Scene file or built-in scene name.
     #[arg(default_value = "weekend")]
     pub scene: String,
+    /// Instead of SCENE, a generated field of N random spheres around the weekend scene's
+    /// three large ones (for the scaling table).
+    #[arg(long, value_name = "N")]
+    pub spheres: Option<usize>,
+    /// Test every primitive instead of walking the BVH.
+    #[arg(long)]
+    pub no_bvh: bool,
     #[arg(long, default_value_t = 1280)]
     pub width: u32,
     #[arg(long, default_value_t = 720)]
@@ -37,26 +44,33 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         a.time > 0.0 && a.warmup >= 0.0,
         "--time must be positive, --warmup non-negative"
     );
-    let scene = load_scene(&a.scene)?;
+    let prepare = Instant::now();
+    let scene = match a.spheres {
+        Some(n) => crate::scene::generate::sphere_field(n, 2024),
+        None => load_scene(&a.scene)?,
+    };
     let settings = frame_settings(&scene, Some(a.width), Some(a.height), a.max_bounces, None);
     let ctx = Arc::new(GpuContext::new(g.adapter.as_deref())?);
     let options = RenderOptions {
         generic: a.generic,
         count_segments: true,
+        no_bvh: a.no_bvh,
+        gpu_timing: true,
         ..Default::default()
     };
-    let compile = Instant::now();
     let mut r = Renderer::new(ctx.clone(), &scene, settings, options);
-    let compile = compile.elapsed();
+    let prepare = prepare.elapsed();
     let warm = Instant::now();
     while warm.elapsed().as_secs_f64() < a.warmup {
         r.step(Duration::from_millis(200), u32::MAX);
     }
     r.reset();
     let start = Instant::now();
-    let mut paths = 0u64;
+    let (mut paths, mut gpu_seconds) = (0u64, 0.0);
     while start.elapsed().as_secs_f64() < a.time {
-        paths += r.step(Duration::from_millis(250), u32::MAX).paths;
+        let s = r.step(Duration::from_millis(250), u32::MAX);
+        paths += s.paths;
+        gpu_seconds += s.gpu_seconds;
     }
     let secs = start.elapsed().as_secs_f64();
     let snap = r.snapshot();
@@ -64,16 +78,34 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     println!("adapter      {}", ctx.adapter_name());
     println!(
         "scene        {} at {}x{}, max_bounces {}, tracer {} ({})",
-        scene.short_name(),
+        match a.spheres {
+            Some(n) => format!("{n} random spheres"),
+            None => scene.short_name(),
+        },
         settings.width,
         settings.height,
         settings.max_bounces,
         if a.generic { "generic" } else { "specialized" },
         r.features().summary()
     );
+    let n = scene.counts();
+    let (nodes, build) = r.bvh_stats();
     println!(
-        "pipeline     created in {:.0} ms",
-        compile.as_secs_f64() * 1e3
+        "primitives   {} ({} spheres, {} quads, {} boxes, {} triangles); {}",
+        n.spheres + n.quads + n.boxes + n.triangles,
+        n.spheres,
+        n.quads,
+        n.boxes,
+        n.triangles,
+        if a.no_bvh {
+            "no BVH: every primitive tested".to_string()
+        } else {
+            format!("BVH of {nodes} nodes built in {:.0} ms", build * 1e3)
+        }
+    );
+    println!(
+        "prepared     in {:.2} s (scene, BVH, pipeline, buffers)",
+        prepare.as_secs_f64()
     );
     println!(
         "measured     {:.1} s, {} spp complete, {} paths",
@@ -91,6 +123,17 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         "segments     {:.2} per path",
         segments as f64 / paths.max(1) as f64
     );
+    if r.gpu_timed() && gpu_seconds > 0.0 {
+        println!(
+            "gpu time     {:.1} s of passes ({:.0} % of wall): {:.4e} samples/s, {:.4e} segments/s",
+            gpu_seconds,
+            100.0 * gpu_seconds / secs,
+            paths as f64 / gpu_seconds,
+            segments as f64 / gpu_seconds
+        );
+    } else {
+        println!("gpu time     not measured (no timestamp queries on this adapter)");
+    }
     println!("invalid      {}", snap.invalid_samples());
     Ok(ExitCode::SUCCESS)
 }

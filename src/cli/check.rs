@@ -42,7 +42,7 @@ fn c3(v: glam::Vec3) -> String {
 pub fn summary(s: &Scene) -> String {
     let c = &s.camera;
     let r = &s.render;
-    let (ns, nq, nb) = s.counts();
+    let n = s.counts();
     let mut kinds = [0usize; 4];
     for o in &s.objects {
         let m = &o.material;
@@ -77,7 +77,7 @@ pub fn summary(s: &Scene) -> String {
     format!(
         "{}: ok\n  camera     from {} to {}, vfov {}°, aperture {}, focus distance {}\n  \
          render     {}x{}, {} spp, max_bounces {}, seed {}\n  sky        {}\n  \
-         objects    {} ({} spheres, {} quads, {} boxes)\n  \
+         objects    {} ({} spheres, {} quads, {} boxes, {} meshes of {} triangles)\n  \
          materials  {} Lambertian, {} glossy/metal, {} dielectric, {} emitters; {} named\n  \
          tracer     {}",
         s.origin,
@@ -93,9 +93,11 @@ pub fn summary(s: &Scene) -> String {
         r.seed,
         sky,
         s.objects.len(),
-        ns,
-        nq,
-        nb,
+        n.spheres,
+        n.quads,
+        n.boxes,
+        n.meshes,
+        n.triangles,
         kinds[0],
         kinds[1],
         kinds[2],

@@ -13,12 +13,7 @@ use std::process::ExitCode;
 
 /// A GPU path tracer whose live preview is drawn in the terminal.
 #[derive(Parser, Debug)]
-#[command(
-    name = "termtrace",
-    version,
-    about,
-    args_conflicts_with_subcommands = true
-)]
+#[command(name = "termtrace", version, about)]
 pub struct Cli {
     #[command(subcommand)]
     command: Option<Command>,
@@ -58,7 +53,7 @@ enum Command {
 }
 
 /// `termtrace [SCENE]` and `termtrace view [SCENE]`.
-#[derive(Args, Debug, Clone)]
+#[derive(Args, Debug, Clone, PartialEq)]
 pub struct ViewArgs {
     /// Scene file, or the name of a built-in scene; the built-in showcase when omitted.
     pub scene: Option<String>,
@@ -138,9 +133,29 @@ pub fn quiet_vulkan_layers() {
     }
 }
 
+/// Refuses a scene or preview options before a subcommand (`termtrace --cells quadrant render
+/// x`): they belong to the preview alone.
+fn check_view_args(cli: Cli) -> Result<Cli, String> {
+    if cli.command.is_some() {
+        let none = Cli::parse_from(["termtrace"]).view;
+        if cli.view != none {
+            return Err("a scene and preview options go after `view`, or alone: \
+                        `termtrace [SCENE] [OPTIONS]`"
+                .into());
+        }
+    }
+    Ok(cli)
+}
+
 /// Runs the command line; the binary's `main` is this.
 pub fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match check_view_args(Cli::parse()) {
+        Ok(c) => c,
+        Err(e) => {
+            eprintln!("error: {e}");
+            return ExitCode::from(2);
+        }
+    };
     let is_view = matches!(cli.command, None | Some(Command::View(_)));
     if let Err(e) = init_logging(&cli.global, !is_view) {
         eprintln!("error: {e:#}");
@@ -188,4 +203,46 @@ pub(crate) fn load_scene(name: &str) -> anyhow::Result<crate::scene::Scene> {
         crate::scene::SceneError::Invalid(_) => anyhow::anyhow!("invalid scene\n{e}"),
         other => other.into(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(args: &[&str]) -> Result<Cli, clap::Error> {
+        Cli::try_parse_from(std::iter::once("termtrace").chain(args.iter().copied()))
+    }
+
+    #[test]
+    fn global_options_go_before_or_after_the_subcommand() {
+        for args in [
+            &["-v", "render", "basic"][..],
+            &["render", "basic", "-v"],
+            &["--adapter", "cpu", "render", "basic"],
+        ] {
+            let cli = parse(args).unwrap_or_else(|e| panic!("{args:?}: {e}"));
+            assert!(matches!(cli.command, Some(Command::Render(_))), "{args:?}");
+        }
+        let cli = parse(&["-v", "render", "basic"]).unwrap();
+        assert_eq!(cli.global.verbose, 1);
+    }
+
+    #[test]
+    fn a_scene_alone_opens_the_preview() {
+        let cli = parse(&["weekend", "--cells", "sextant"]).unwrap();
+        assert!(cli.command.is_none());
+        assert_eq!(cli.view.scene.as_deref(), Some("weekend"));
+        assert_eq!(cli.view.cells, CellMode::Sextant);
+        assert!(parse(&[]).unwrap().view.scene.is_none());
+        let cli = parse(&["view", "cornell"]).unwrap();
+        assert!(
+            matches!(cli.command, Some(Command::View(v)) if v.scene.as_deref() == Some("cornell"))
+        );
+    }
+
+    #[test]
+    fn preview_options_do_not_mix_with_other_commands() {
+        let err = parse(&["--cells", "quadrant", "render", "basic"]).map(check_view_args);
+        assert!(matches!(err, Ok(Err(_))), "{err:?}");
+    }
 }

@@ -13,12 +13,15 @@ pub struct Features {
     pub spheres: bool,
     pub quads: bool,
     pub boxes: bool,
+    pub triangles: bool,
     pub dielectrics: bool,
     pub emitters: bool,
     pub dof: bool,
     pub sun: bool,
     /// Counts path segments (benchmarks only); not a scene feature.
     pub count_segments: bool,
+    /// Walk the BVH (true) or test every primitive (false: for tests and scaling benchmarks).
+    pub bvh: bool,
 }
 
 impl Features {
@@ -28,11 +31,13 @@ impl Features {
             spheres: true,
             quads: true,
             boxes: true,
+            triangles: true,
             dielectrics: true,
             emitters: true,
             dof: true,
             sun: true,
             count_segments: false,
+            bvh: true,
         }
     }
 
@@ -42,17 +47,20 @@ impl Features {
             spheres: false,
             quads: false,
             boxes: false,
+            triangles: false,
             dielectrics: false,
             emitters: false,
             dof: scene.camera.aperture > 0.0,
             sun: matches!(&scene.sky, Sky::Gradient { sun: Some(s), .. } if s.intensity > 0.0),
             count_segments: false,
+            bvh: true,
         };
         for o in &scene.objects {
             match o.shape {
                 Shape::Sphere { .. } => f.spheres = true,
                 Shape::Quad { .. } => f.quads = true,
                 Shape::Box { .. } => f.boxes = true,
+                Shape::Mesh { .. } => f.triangles = true,
             }
             f.dielectrics |= o.material.is_dielectric();
             f.emitters |= o.material.is_emitter();
@@ -66,11 +74,13 @@ impl Features {
             spheres: self.spheres | other.spheres,
             quads: self.quads | other.quads,
             boxes: self.boxes | other.boxes,
+            triangles: self.triangles | other.triangles,
             dielectrics: self.dielectrics | other.dielectrics,
             emitters: self.emitters | other.emitters,
             dof: self.dof | other.dof,
             sun: self.sun | other.sun,
             count_segments: self.count_segments | other.count_segments,
+            bvh: self.bvh | other.bvh,
         }
     }
 
@@ -86,11 +96,13 @@ impl Features {
             ("HAS_SPHERES", b(self.spheres)),
             ("HAS_QUADS", b(self.quads)),
             ("HAS_BOXES", b(self.boxes)),
+            ("HAS_TRIANGLES", b(self.triangles)),
             ("HAS_DIELECTRICS", b(self.dielectrics)),
             ("HAS_EMITTERS", b(self.emitters)),
             ("HAS_DOF", b(self.dof)),
             ("HAS_SUN", b(self.sun)),
             ("COUNT_SEGMENTS", b(self.count_segments)),
+            ("USE_BVH", b(self.bvh)),
         ]
     }
 
@@ -100,6 +112,7 @@ impl Features {
             (self.spheres, "spheres"),
             (self.quads, "quads"),
             (self.boxes, "boxes"),
+            (self.triangles, "triangles"),
             (self.dielectrics, "dielectrics"),
             (self.emitters, "emitters"),
             (self.dof, "dof"),

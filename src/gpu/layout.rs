@@ -33,7 +33,7 @@ pub struct SceneUniforms {
     pub n_spheres: u32,
     pub n_quads: u32,
     pub n_boxes: u32,
-    pub _pad7: u32,
+    pub n_triangles: u32,
 }
 
 #[repr(C)]
@@ -99,6 +99,26 @@ pub struct GpuCuboid {
     pub _pad3: f32,
 }
 
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuTriangle {
+    pub v0: [f32; 3],
+    pub material: u32,
+    pub e1: [f32; 3],
+    pub _pad0: f32,
+    pub e2: [f32; 3],
+    pub _pad1: f32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuBvhNode {
+    pub min: [f32; 3],
+    pub first: u32,
+    pub max: [f32; 3],
+    pub count: u32,
+}
+
 /// A mirror's WGSL struct name, its size, and `(field, byte offset)` of each named field.
 pub type MirrorLayout = (&'static str, usize, Vec<(&'static str, usize)>);
 
@@ -135,6 +155,7 @@ pub fn mirrors() -> Vec<MirrorLayout> {
                 n_spheres,
                 n_quads,
                 n_boxes,
+                n_triangles,
             ]
         ),
         m!(
@@ -166,6 +187,8 @@ pub fn mirrors() -> Vec<MirrorLayout> {
             GpuCuboid,
             [center, material, half_extents, axis_x, axis_y, axis_z]
         ),
+        m!("Triangle", GpuTriangle, [v0, material, e1, e2]),
+        m!("BvhNode", GpuBvhNode, [min, first, max, count]),
     ]
 }
 
@@ -176,4 +199,6 @@ const _: () = {
     assert!(std::mem::size_of::<GpuSphere>() == 32);
     assert!(std::mem::size_of::<GpuQuad>() == 80);
     assert!(std::mem::size_of::<GpuCuboid>() == 80);
+    assert!(std::mem::size_of::<GpuTriangle>() == 48);
+    assert!(std::mem::size_of::<GpuBvhNode>() == 32);
 };

@@ -7,6 +7,7 @@ pub mod features;
 pub mod layout;
 pub mod scene_buffers;
 pub mod shader;
+pub mod timer;
 pub mod trace;
 
 pub use accum::{AccumData, Accumulation};

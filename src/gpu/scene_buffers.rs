@@ -2,8 +2,10 @@
 //! host's f64 model.
 
 use super::layout::*;
+use crate::bvh::{Aabb, Bvh};
 use crate::scene::{Camera, Object, Scene, Shape, Sky, euler_xyz};
 use glam::DVec3;
+use std::hash::{Hash, Hasher};
 use wgpu::util::DeviceExt;
 
 /// What the tracer needs besides the scene itself.
@@ -82,10 +84,11 @@ pub fn scene_uniforms(scene: &Scene, s: &FrameSettings) -> SceneUniforms {
             }
         }
     }
-    let (ns, nq, nb) = scene.counts();
-    u.n_spheres = ns as u32;
-    u.n_quads = nq as u32;
-    u.n_boxes = nb as u32;
+    let n = scene.counts();
+    u.n_spheres = n.spheres as u32;
+    u.n_quads = n.quads as u32;
+    u.n_boxes = n.boxes as u32;
+    u.n_triangles = n.triangles as u32;
     u
 }
 
@@ -101,13 +104,39 @@ pub fn sphere_anchor(center: DVec3, radius: f64, toward: DVec3) -> (DVec3, DVec3
     (center + radius.abs() * n, n)
 }
 
-/// The primitive arrays: one material per object, primitives grouped by kind.
+/// Primitive kinds as the BVH's references encode them (top two bits; `KIND_* - 1` in
+/// trace.wgsl).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Kind {
+    Sphere = 0,
+    Quad = 1,
+    Box = 2,
+    Triangle = 3,
+}
+
+/// A BVH reference: kind in the top two bits, index in its array below.
+pub fn encode_ref(kind: Kind, index: usize) -> u32 {
+    assert!(index < 1 << 30, "more than 2^30 primitives of one kind");
+    (kind as u32) << 30 | index as u32
+}
+
+/// The primitive arrays (one material per object, primitives grouped by kind) and the
+/// bounds of every primitive, in the order `refs` names them.
 #[derive(Default)]
 pub struct Primitives {
     pub materials: Vec<GpuMaterial>,
     pub spheres: Vec<GpuSphere>,
     pub quads: Vec<GpuQuad>,
     pub boxes: Vec<GpuCuboid>,
+    pub triangles: Vec<GpuTriangle>,
+    /// The reference and bounds of every primitive.
+    pub refs: Vec<u32>,
+    pub bounds: Vec<Aabb>,
+}
+
+fn f(v: DVec3) -> [f32; 3] {
+    v.as_vec3().to_array()
 }
 
 impl Primitives {
@@ -116,10 +145,18 @@ impl Primitives {
         for (i, o) in scene.objects.iter().enumerate() {
             p.materials.push(material(o));
             let mat = i as u32;
-            let f = |v: DVec3| v.as_vec3().to_array();
             match &o.shape {
                 Shape::Sphere { center, radius } => {
                     let (a, n) = sphere_anchor(*center, *radius, scene.camera.look_at);
+                    let r = DVec3::splat(radius.abs());
+                    p.push(
+                        Kind::Sphere,
+                        p.spheres.len(),
+                        Aabb {
+                            min: *center - r,
+                            max: *center + r,
+                        },
+                    );
                     p.spheres.push(GpuSphere {
                         anchor: f(a),
                         radius: *radius as f32,
@@ -129,6 +166,8 @@ impl Primitives {
                 }
                 Shape::Quad { q, u, v } => {
                     let n = u.cross(*v);
+                    let b = Aabb::of_points(&[*q, *q + *u, *q + *v, *q + *u + *v]);
+                    p.push(Kind::Quad, p.quads.len(), b);
                     p.quads.push(GpuQuad {
                         q: f(*q),
                         material: mat,
@@ -145,20 +184,88 @@ impl Primitives {
                     rotation,
                 } => {
                     let r = euler_xyz(*rotation);
+                    let h = *half_extents;
+                    let corners: Vec<DVec3> = (0..8)
+                        .map(|k| {
+                            let s = DVec3::new(
+                                if k & 1 == 0 { -1.0 } else { 1.0 },
+                                if k & 2 == 0 { -1.0 } else { 1.0 },
+                                if k & 4 == 0 { -1.0 } else { 1.0 },
+                            );
+                            *center + r * (s * h)
+                        })
+                        .collect();
+                    p.push(Kind::Box, p.boxes.len(), Aabb::of_points(&corners));
                     p.boxes.push(GpuCuboid {
                         center: f(*center),
                         material: mat,
-                        half_extents: f(*half_extents),
+                        half_extents: f(h),
                         axis_x: f(r.x_axis),
                         axis_y: f(r.y_axis),
                         axis_z: f(r.z_axis),
                         ..Default::default()
                     });
                 }
+                Shape::Mesh { .. } => {
+                    for [a, b, c] in o.shape.world_triangles() {
+                        p.push(
+                            Kind::Triangle,
+                            p.triangles.len(),
+                            Aabb::of_points(&[a, b, c]),
+                        );
+                        p.triangles.push(GpuTriangle {
+                            v0: f(a),
+                            material: mat,
+                            e1: f(b - a),
+                            e2: f(c - a),
+                            ..Default::default()
+                        });
+                    }
+                }
             }
         }
         p
     }
+
+    fn push(&mut self, kind: Kind, index: usize, bounds: Aabb) {
+        self.refs.push(encode_ref(kind, index));
+        self.bounds.push(bounds);
+    }
+}
+
+/// f32 bounds that contain the f64 ones: padded by a millionth of their extent and
+/// magnitude, far more than the rounding to f32 (2^-24 relative), so that no hit is lost to
+/// rounding and a flat box (an axis-aligned quad) still has a thickness.
+fn padded(b: &Aabb) -> ([f32; 3], [f32; 3]) {
+    let extent = (b.max - b.min).max_element();
+    let magnitude = b.min.abs().max(b.max.abs()).max_element();
+    let pad = 1e-6 * (extent + magnitude) + 1e-30;
+    (f(b.min - DVec3::splat(pad)), f(b.max + DVec3::splat(pad)))
+}
+
+/// The BVH over `p`, as the GPU reads it: nodes, and the references in leaf order. A scene
+/// without primitives gets an empty list (the buffer then holds one zeroed node, which the
+/// tracer never reads: it checks the primitive counts first).
+pub fn gpu_bvh(p: &Primitives) -> (Vec<GpuBvhNode>, Vec<u32>) {
+    if p.bounds.is_empty() {
+        return (Vec::new(), Vec::new());
+    }
+    let bvh = Bvh::build(&p.bounds);
+    let nodes = bvh
+        .nodes
+        .iter()
+        .map(|n| {
+            let (min, max) = padded(&n.bounds);
+            GpuBvhNode {
+                min,
+                first: n.first,
+                max,
+                count: n.count,
+            }
+        })
+        .collect();
+    let refs = bvh.order.iter().map(|&i| p.refs[i as usize]).collect();
+    (nodes, refs)
 }
 
 fn material(o: &Object) -> GpuMaterial {
@@ -191,6 +298,51 @@ fn storage<T: bytemuck::Pod + Default>(
     })
 }
 
+/// A hash of everything the BVH depends on: the shapes (not the materials, not the camera).
+pub fn geometry_hash(scene: &Scene) -> u64 {
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for o in &scene.objects {
+        let v: Vec<f64> = match &o.shape {
+            Shape::Sphere { center, radius } => vec![0.0, center.x, center.y, center.z, *radius],
+            Shape::Quad { q, u, v } => [1.0]
+                .into_iter()
+                .chain(q.to_array())
+                .chain(u.to_array())
+                .chain(v.to_array())
+                .collect(),
+            Shape::Box {
+                center,
+                half_extents,
+                rotation,
+            } => [2.0]
+                .into_iter()
+                .chain(center.to_array())
+                .chain(half_extents.to_array())
+                .chain(rotation.to_array())
+                .collect(),
+            Shape::Mesh {
+                mesh,
+                translate,
+                rotation,
+                scale,
+                ..
+            } => {
+                (std::sync::Arc::as_ptr(mesh) as usize).hash(&mut h);
+                [3.0]
+                    .into_iter()
+                    .chain(translate.to_array())
+                    .chain(rotation.to_array())
+                    .chain(scale.to_array())
+                    .collect()
+            }
+        };
+        for x in v {
+            x.to_bits().hash(&mut h);
+        }
+    }
+    h.finish()
+}
+
 /// The scene's GPU buffers.
 pub struct SceneBuffers {
     pub uniforms: wgpu::Buffer,
@@ -198,11 +350,29 @@ pub struct SceneBuffers {
     pub spheres: wgpu::Buffer,
     pub quads: wgpu::Buffer,
     pub boxes: wgpu::Buffer,
+    pub triangles: wgpu::Buffer,
+    pub nodes: wgpu::Buffer,
+    pub refs: wgpu::Buffer,
+    geometry: u64,
+    anchor_target: DVec3,
+    /// Nodes of the BVH, for reports.
+    pub node_count: usize,
+    /// Seconds the last BVH build took.
+    pub build_seconds: f64,
 }
 
 impl SceneBuffers {
     pub fn new(device: &wgpu::Device, scene: &Scene, s: &FrameSettings) -> SceneBuffers {
         let p = Primitives::of(scene);
+        let t = std::time::Instant::now();
+        let (nodes, refs) = gpu_bvh(&p);
+        let build_seconds = t.elapsed().as_secs_f64();
+        tracing::info!(
+            "BVH over {} primitives: {} nodes in {:.1} ms",
+            p.refs.len(),
+            nodes.len(),
+            build_seconds * 1e3
+        );
         let u = scene_uniforms(scene, s);
         SceneBuffers {
             uniforms: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -214,6 +384,44 @@ impl SceneBuffers {
             spheres: storage(device, "scene.spheres", &p.spheres),
             quads: storage(device, "scene.quads", &p.quads),
             boxes: storage(device, "scene.boxes", &p.boxes),
+            triangles: storage(device, "scene.triangles", &p.triangles),
+            node_count: nodes.len(),
+            nodes: storage(device, "scene.bvh_nodes", &nodes),
+            refs: storage(device, "scene.bvh_refs", &refs),
+            geometry: geometry_hash(scene),
+            anchor_target: scene.camera.look_at,
+            build_seconds,
         }
+    }
+
+    /// Brings the buffers up to date with `scene`. With the same geometry only the uniforms,
+    /// the materials and (when the camera's target moved) the sphere anchors are rewritten,
+    /// and the BVH is kept; otherwise everything is rebuilt. Returns true if the buffers were
+    /// replaced (bind groups must be made again).
+    pub fn update(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        scene: &Scene,
+        s: &FrameSettings,
+    ) -> bool {
+        if geometry_hash(scene) != self.geometry {
+            *self = SceneBuffers::new(device, scene, s);
+            return true;
+        }
+        queue.write_buffer(
+            &self.uniforms,
+            0,
+            bytemuck::bytes_of(&scene_uniforms(scene, s)),
+        );
+        let p = Primitives::of(scene);
+        if !p.materials.is_empty() {
+            queue.write_buffer(&self.materials, 0, bytemuck::cast_slice(&p.materials));
+        }
+        if scene.camera.look_at != self.anchor_target && !p.spheres.is_empty() {
+            queue.write_buffer(&self.spheres, 0, bytemuck::cast_slice(&p.spheres));
+            self.anchor_target = scene.camera.look_at;
+        }
+        false
     }
 }

@@ -6,10 +6,21 @@ use super::features::Features;
 use super::layout::DispatchUniforms;
 use super::scene_buffers::SceneBuffers;
 use super::shader;
+use super::timer::GpuTimer;
 use std::collections::HashMap;
 
 /// Invocations per workgroup side (`@workgroup_size(8, 8, 1)` in trace.wgsl).
 pub const WORKGROUP: u32 = 8;
+
+/// One dispatch of the tracer: which pipeline, over what, which rows and samples.
+pub struct TraceDispatch<'a> {
+    pub features: Features,
+    pub bind_group: &'a wgpu::BindGroup,
+    /// Image width in pixels.
+    pub width: u32,
+    pub uniforms: DispatchUniforms,
+    pub timer: Option<&'a GpuTimer>,
+}
 
 pub struct TracePass {
     layout: wgpu::BindGroupLayout,
@@ -49,6 +60,9 @@ impl TracePass {
                 entry(6, rw),
                 entry(7, rw),
                 entry(8, rw),
+                entry(9, ro),
+                entry(10, ro),
+                entry(11, ro),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -118,6 +132,9 @@ impl TracePass {
             &accum.even,
             &accum.odd,
             &accum.counters,
+            &scene.nodes,
+            &scene.refs,
+            &scene.triangles,
         ];
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()
@@ -134,28 +151,25 @@ impl TracePass {
         })
     }
 
-    /// Writes this dispatch's uniforms and records the dispatch over `d.row_count` rows of
-    /// an image `width` wide. The uniforms are per submission: submit before the next call.
+    /// Writes the dispatch's uniforms and records it. The uniforms are per submission:
+    /// submit before encoding the next dispatch.
     pub fn encode(
         &self,
         queue: &wgpu::Queue,
         encoder: &mut wgpu::CommandEncoder,
-        features: Features,
-        bind_group: &wgpu::BindGroup,
-        width: u32,
-        d: DispatchUniforms,
+        d: &TraceDispatch<'_>,
     ) {
-        queue.write_buffer(&self.dispatch, 0, bytemuck::bytes_of(&d));
-        let pipeline = &self.pipelines[&features];
+        queue.write_buffer(&self.dispatch, 0, bytemuck::bytes_of(&d.uniforms));
+        let pipeline = &self.pipelines[&d.features];
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("trace"),
-            timestamp_writes: None,
+            timestamp_writes: d.timer.map(GpuTimer::writes),
         });
         pass.set_pipeline(pipeline);
-        pass.set_bind_group(0, bind_group, &[]);
+        pass.set_bind_group(0, d.bind_group, &[]);
         pass.dispatch_workgroups(
-            width.div_ceil(WORKGROUP),
-            d.row_count.div_ceil(WORKGROUP),
+            d.width.div_ceil(WORKGROUP),
+            d.uniforms.row_count.div_ceil(WORKGROUP),
             1,
         );
     }

@@ -9,6 +9,8 @@ pub use schedule::Schedule;
 pub use snapshot::{ErrorEstimate, REL_MSE_EPSILON, Snapshot};
 
 use crate::gpu::layout::DispatchUniforms;
+use crate::gpu::timer::GpuTimer;
+use crate::gpu::trace::TraceDispatch;
 use crate::gpu::{Accumulation, Features, FrameSettings, GpuContext, SceneBuffers, TracePass};
 use crate::scene::Scene;
 use std::sync::Arc;
@@ -21,6 +23,10 @@ pub struct RenderOptions {
     pub generic: bool,
     /// Count path segments (for benchmarks).
     pub count_segments: bool,
+    /// Test every primitive instead of walking the BVH (tests, scaling benchmarks).
+    pub no_bvh: bool,
+    /// Time every pass on the GPU (timestamp queries, where the adapter has them).
+    pub gpu_timing: bool,
     /// Wall time one submission should take.
     pub submission: Duration,
 }
@@ -30,6 +36,8 @@ impl Default for RenderOptions {
         RenderOptions {
             generic: false,
             count_segments: false,
+            no_bvh: false,
+            gpu_timing: false,
             submission: Duration::from_millis(100),
         }
     }
@@ -42,6 +50,8 @@ pub struct StepStats {
     pub paths: u64,
     pub submissions: u32,
     pub elapsed: Duration,
+    /// Time the passes took on the GPU, when timed.
+    pub gpu_seconds: f64,
 }
 
 /// Where the current round is: samples `[base, base + k)` of rows below `next_row` are done.
@@ -66,6 +76,7 @@ pub struct Renderer {
     round: Option<Round>,
     /// The next round restarts the sums (`should_accumulate = 0`).
     fresh: bool,
+    timer: Option<GpuTimer>,
 }
 
 impl Renderer {
@@ -83,7 +94,13 @@ impl Renderer {
         let accum = Accumulation::new(device, settings.width, settings.height);
         let bind_group = trace.bind_group(device, &buffers, &accum);
         accum.reset_counters(&ctx.queue);
+        let timer = if options.gpu_timing {
+            GpuTimer::new(&ctx)
+        } else {
+            None
+        };
         Renderer {
+            timer,
             trace,
             scene: buffers,
             accum,
@@ -106,6 +123,7 @@ impl Renderer {
             Features::of(scene)
         };
         f.count_segments = o.count_segments;
+        f.bvh = !o.no_bvh;
         f
     }
 
@@ -122,6 +140,16 @@ impl Renderer {
     pub fn samples(&self) -> u32 {
         self.samples
     }
+    /// Whether passes are timed on the GPU.
+    pub fn gpu_timed(&self) -> bool {
+        self.timer.is_some()
+    }
+
+    /// Nodes in the BVH and the seconds its last build took.
+    pub fn bvh_stats(&self) -> (usize, f64) {
+        (self.scene.node_count, self.scene.build_seconds)
+    }
+
     /// GPU memory held by the accumulation.
     pub fn accumulation_bytes(&self) -> u64 {
         self.accum.gpu_bytes()
@@ -140,12 +168,15 @@ impl Renderer {
         let device = &self.ctx.device;
         self.features = Self::features_for(scene, &self.options);
         self.trace.prepare(device, self.features);
-        self.scene = SceneBuffers::new(device, scene, &settings);
+        let mut rebind = self.scene.update(device, &self.ctx.queue, scene, &settings);
         if (settings.width, settings.height) != (self.settings.width, self.settings.height) {
             self.accum = Accumulation::new(device, settings.width, settings.height);
+            rebind = true;
         }
         self.settings = settings;
-        self.bind_group = self.trace.bind_group(device, &self.scene, &self.accum);
+        if rebind {
+            self.bind_group = self.trace.bind_group(device, &self.scene, &self.accum);
+        }
         self.reset();
     }
 
@@ -184,16 +215,25 @@ impl Renderer {
             self.trace.encode(
                 &self.ctx.queue,
                 &mut enc,
-                self.features,
-                &self.bind_group,
-                w,
-                d,
+                &TraceDispatch {
+                    features: self.features,
+                    bind_group: &self.bind_group,
+                    width: w,
+                    uniforms: d,
+                    timer: self.timer.as_ref(),
+                },
             );
+            if let Some(t) = &self.timer {
+                t.resolve(&mut enc);
+            }
             self.ctx.queue.submit([enc.finish()]);
             self.ctx
                 .device
                 .poll(wgpu::PollType::wait_indefinitely())
                 .expect("the GPU stopped answering");
+            if let Some(t) = &self.timer {
+                stats.gpu_seconds += t.read_seconds(&self.ctx);
+            }
             let paths = w as u64 * rows as u64 * round.k as u64;
             self.schedule.observe(paths, t.elapsed());
             stats.paths += paths;

@@ -17,6 +17,7 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
     ("dof", include_str!("../../scenes/dof.toml")),
     ("cornell", include_str!("../../scenes/cornell.toml")),
     ("weekend", include_str!("../../scenes/weekend.toml")),
+    ("mesh", include_str!("../../scenes/mesh.toml")),
 ];
 
 /// The text of a built-in scene, by name.
@@ -26,3 +27,15 @@ pub fn builtin_source(name: &str) -> Option<&'static str> {
         .find(|(n, _)| *n == name)
         .map(|(_, s)| *s)
 }
+
+/// Files that built-in scenes refer to (meshes), by their path relative to `scenes/`.
+pub const BUILTIN_FILES: &[(&str, &str)] = &[
+    (
+        "meshes/torus.obj",
+        include_str!("../../scenes/meshes/torus.obj"),
+    ),
+    (
+        "meshes/icosphere.obj",
+        include_str!("../../scenes/meshes/icosphere.obj"),
+    ),
+];

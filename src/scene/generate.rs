@@ -209,3 +209,51 @@ pub fn sphere_grid(cols: u32, rows: u32, seed: u64) -> Scene {
         objects,
     }
 }
+
+/// `n` small spheres of the weekend scene's three materials on a jittered square grid of
+/// unit spacing around the weekend's three large spheres, on a ground quad: the same view as
+/// `weekend` at any number of spheres (benchmarks: `termtrace bench --spheres N`).
+pub fn sphere_field(n: usize, seed: u64) -> Scene {
+    let mut scene = weekend(seed);
+    let big = scene.objects.split_off(scene.objects.len() - 3);
+    let mut rng = SplitMix64::new(seed);
+    let side = (n as f64).sqrt().ceil() as i64;
+    let half = side as f64 / 2.0;
+    let mut objects = vec![Object {
+        name: Some("ground".into()),
+        shape: Shape::Quad {
+            q: DVec3::new(-4.0 * half - 10.0, 0.0, 4.0 * half + 10.0),
+            u: DVec3::new(8.0 * half + 20.0, 0.0, 0.0),
+            v: DVec3::new(0.0, 0.0, -(8.0 * half + 20.0)),
+        },
+        material: lambertian(Vec3::splat(0.5)),
+        material_name: None,
+    }];
+    'grid: for a in 0..side {
+        for b in 0..side {
+            if objects.len() > n {
+                break 'grid;
+            }
+            let center = DVec3::new(
+                a as f64 - half + 0.9 * rng.f64(),
+                0.2,
+                b as f64 - half + 0.9 * rng.f64(),
+            );
+            let choose = rng.f64();
+            let mut rv = || Vec3::new(rng.f64() as f32, rng.f64() as f32, rng.f64() as f32);
+            let m = if choose < 0.8 {
+                lambertian(rv() * rv())
+            } else if choose < 0.95 {
+                metal(Vec3::splat(0.5) + 0.5 * rv(), 0.25)
+            } else {
+                glass(1.5)
+            };
+            objects.push(sphere(center, 0.2, m, None));
+        }
+    }
+    objects.extend(big);
+    scene.objects = objects;
+    scene.origin = format!("termtrace::scene::generate::sphere_field({n})");
+    scene.camera.aperture = 0.0;
+    scene
+}

@@ -7,16 +7,19 @@ mod builtin;
 pub mod color;
 mod error;
 pub mod generate;
+pub mod mesh;
 mod parse;
 mod reader;
 mod write;
 
-pub use builtin::{BUILTIN_SCENES, DEFAULT_SCENE, builtin_source};
+pub use builtin::{BUILTIN_FILES, BUILTIN_SCENES, DEFAULT_SCENE, builtin_source};
 pub use error::{Diagnostic, SceneError};
+pub use mesh::Mesh;
 pub use write::to_toml;
 
 use glam::{DMat3, DVec3, Vec3};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// The pinhole or thin-lens camera of MODEL.md ("Space and camera").
 #[derive(Clone, Debug, PartialEq)]
@@ -200,6 +203,15 @@ pub enum Shape {
         half_extents: DVec3,
         rotation: DVec3,
     },
+    /// Triangles from an OBJ file, scaled, then rotated (Euler XYZ, degrees), then moved.
+    Mesh {
+        /// The file as the scene names it.
+        file: String,
+        mesh: Arc<Mesh>,
+        translate: DVec3,
+        rotation: DVec3,
+        scale: DVec3,
+    },
 }
 
 impl Shape {
@@ -209,6 +221,25 @@ impl Shape {
             Shape::Sphere { .. } => "sphere",
             Shape::Quad { .. } => "quad",
             Shape::Box { .. } => "box",
+            Shape::Mesh { .. } => "mesh",
+        }
+    }
+
+    /// A mesh's triangles in world space (empty for other shapes).
+    pub fn world_triangles(&self) -> Vec<[DVec3; 3]> {
+        match self {
+            Shape::Mesh {
+                mesh,
+                translate,
+                rotation,
+                scale,
+                ..
+            } => {
+                let r = euler_xyz(*rotation);
+                let f = |p: DVec3| *translate + r * (*scale * p);
+                mesh.triangles.iter().map(|t| t.map(f)).collect()
+            }
+            _ => Vec::new(),
         }
     }
 }
@@ -238,6 +269,16 @@ impl Object {
             None => format!("{} #{}", self.shape.kind(), index_in_kind + 1),
         }
     }
+}
+
+/// Objects by kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counts {
+    pub spheres: usize,
+    pub quads: usize,
+    pub boxes: usize,
+    pub meshes: usize,
+    pub triangles: usize,
 }
 
 /// A validated scene.
@@ -300,29 +341,29 @@ impl Scene {
 
     /// Objects with the index each has among the objects of its kind (for labels).
     pub fn labels(&self) -> Vec<String> {
-        let mut counts = [0usize; 3];
+        let mut counts = std::collections::HashMap::new();
         self.objects
             .iter()
             .map(|o| {
-                let k = match o.shape {
-                    Shape::Sphere { .. } => 0,
-                    Shape::Quad { .. } => 1,
-                    Shape::Box { .. } => 2,
-                };
-                counts[k] += 1;
-                o.label(counts[k] - 1)
+                let k = counts.entry(o.shape.kind()).or_insert(0usize);
+                *k += 1;
+                o.label(*k - 1)
             })
             .collect()
     }
 
-    /// How many objects of each kind: (spheres, quads, boxes).
-    pub fn counts(&self) -> (usize, usize, usize) {
-        let mut c = (0, 0, 0);
+    /// How many objects of each kind, and triangles in all meshes.
+    pub fn counts(&self) -> Counts {
+        let mut c = Counts::default();
         for o in &self.objects {
-            match o.shape {
-                Shape::Sphere { .. } => c.0 += 1,
-                Shape::Quad { .. } => c.1 += 1,
-                Shape::Box { .. } => c.2 += 1,
+            match &o.shape {
+                Shape::Sphere { .. } => c.spheres += 1,
+                Shape::Quad { .. } => c.quads += 1,
+                Shape::Box { .. } => c.boxes += 1,
+                Shape::Mesh { mesh, .. } => {
+                    c.meshes += 1;
+                    c.triangles += mesh.triangles.len();
+                }
             }
         }
         c

@@ -12,6 +12,7 @@ const TOP_KEYS: &[&str] = &[
     "sphere",
     "quad",
     "box",
+    "mesh",
 ];
 const CAMERA_KEYS: &[&str] = &[
     "look_from",
@@ -36,6 +37,7 @@ const MATERIAL_KEYS: &[&str] = &[
 const SPHERE_KEYS: &[&str] = &["center", "radius"];
 const QUAD_KEYS: &[&str] = &["q", "u", "v"];
 const BOX_KEYS: &[&str] = &["center", "half_extents", "rotation"];
+const MESH_KEYS: &[&str] = &["file", "translate", "rotation", "scale"];
 /// Keys every object table takes besides its shape and material keys.
 const OBJECT_KEYS: &[&str] = &["name", "material"];
 
@@ -97,6 +99,9 @@ fn read_scene(root: &Table, origin: &str) -> Scene {
     }
     for t in root.array_of_tables("box", &with(BOX_KEYS)) {
         objects.push(read_object(&t, &materials, read_box(&t)));
+    }
+    for t in root.array_of_tables("mesh", &with(MESH_KEYS)) {
+        objects.push(read_object(&t, &materials, read_mesh(&t, origin)));
     }
     let objects = objects.into_iter().flatten().collect();
 
@@ -356,4 +361,46 @@ fn read_box(t: &Table) -> Option<Shape> {
         half_extents: half?,
         rotation,
     })
+}
+
+/// The text of a mesh file: beside the scene file, or among the built-in files for a
+/// built-in scene.
+fn mesh_source(file: &str, origin: &str) -> Result<String, String> {
+    if origin.starts_with("builtin:") {
+        return super::BUILTIN_FILES
+            .iter()
+            .find(|(n, _)| *n == file)
+            .map(|(_, s)| s.to_string())
+            .ok_or_else(|| format!("no built-in file `{file}`"));
+    }
+    let base = std::path::Path::new(origin)
+        .parent()
+        .unwrap_or(std::path::Path::new("."));
+    let path = base.join(file);
+    std::fs::read_to_string(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))
+}
+
+fn read_mesh(t: &Table, origin: &str) -> Option<Shape> {
+    let file = required(t, "file", t.string("file"))?;
+    let translate = t.vec3("translate").unwrap_or(DVec3::ZERO);
+    let rotation = t.vec3("rotation").unwrap_or(DVec3::ZERO);
+    let scale = t.scale("scale").unwrap_or(DVec3::ONE);
+    if scale.abs().min_element() == 0.0 {
+        t.error("scale", "a mesh scale of 0 flattens it", None);
+        return None;
+    }
+    let mesh = mesh_source(&file, origin).and_then(|text| super::mesh::parse_obj(&text));
+    match mesh {
+        Ok(mesh) => Some(Shape::Mesh {
+            file,
+            mesh: std::sync::Arc::new(mesh),
+            translate,
+            rotation,
+            scale,
+        }),
+        Err(e) => {
+            t.error("file", format!("mesh `{file}`: {e}"), None);
+            None
+        }
+    }
 }

@@ -240,6 +240,16 @@ impl<'a, 's> Table<'a, 's> {
         Some(DVec3::from_array(out))
     }
 
+    /// A scale: one number for all axes, or `[x, y, z]`.
+    pub fn scale(&self, key: &str) -> Option<DVec3> {
+        let v = self.get(key)?;
+        if v.get_ref().is_array() {
+            self.vec3(key)
+        } else {
+            self.number(key, v).map(DVec3::splat)
+        }
+    }
+
     /// A colour: `"#rrggbb"` (sRGB, decoded to linear) or a linear `[r, g, b]`, each ≥ 0.
     pub fn color(&self, key: &str) -> Option<Vec3> {
         let v = self.get(key)?;

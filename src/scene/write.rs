@@ -130,6 +130,21 @@ pub fn to_toml(scene: &Scene) -> String {
                     v3(*rotation)
                 );
             }
+            Shape::Mesh {
+                file,
+                translate,
+                rotation,
+                scale,
+                ..
+            } => {
+                let _ = writeln!(
+                    o,
+                    "file = {file:?}\ntranslate = {}\nrotation = {}\nscale = {}",
+                    v3(*translate),
+                    v3(*rotation),
+                    v3(*scale)
+                );
+            }
         }
         if let Some(n) = &obj.material_name {
             let _ = writeln!(o, "material = {n:?}");

@@ -319,6 +319,11 @@ impl App {
         let center = match &obj.shape {
             Shape::Sphere { center, .. } | Shape::Box { center, .. } => *center,
             Shape::Quad { q, u, v } => *q + 0.5 * (*u + *v),
+            Shape::Mesh { .. } => {
+                let t = obj.shape.world_triangles();
+                let sum: DVec3 = t.iter().flatten().copied().sum();
+                sum / (3 * t.len()).max(1) as f64
+            }
         };
         let cam = &mut self.scene.camera;
         let dir = (cam.look_at - cam.look_from).normalize();

@@ -169,6 +169,25 @@ pub fn write_scene(scene: &Scene) -> Result<String, String> {
     }
     crate::output::write::write_text(&path, &crate::scene::to_toml(scene))
         .map_err(|e| e.to_string())?;
+    // A built-in scene's meshes live in the binary: write them beside the scene, so that the
+    // file loads on its own.
+    if scene.origin.starts_with("builtin:") {
+        let dir = path.parent().unwrap_or(Path::new("."));
+        for o in &scene.objects {
+            if let crate::scene::Shape::Mesh { file, .. } = &o.shape
+                && let Some((_, text)) = crate::scene::BUILTIN_FILES.iter().find(|(n, _)| n == file)
+            {
+                let target = dir.join(file);
+                if !target.exists() {
+                    if let Some(d) = target.parent() {
+                        std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
+                    }
+                    crate::output::write::write_text(&target, text).map_err(|e| e.to_string())?;
+                    note.push_str(&format!(" and {}", target.display()));
+                }
+            }
+        }
+    }
     Ok(format!("wrote {}{note}", path.display()))
 }
 

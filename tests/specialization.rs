@@ -1,0 +1,127 @@
+//! Two ways to the same image: the BVH against testing every primitive, and the pipeline
+//! specialized for a scene against the generic one. Both evaluate the same arithmetic on the
+//! same random numbers, so the images must agree bit for bit.
+
+mod common;
+use common::*;
+use termtrace::render::RenderOptions;
+use termtrace::scene::generate::SplitMix64;
+use termtrace::scene::{BUILTIN_SCENES, Scene};
+
+/// Many primitives of every kind, with every material kind, so that paths bounce around.
+fn crowded_scene() -> String {
+    let mut rng = SplitMix64::new(5);
+    let mut s = String::from(
+        "[camera]\nlook_from = [0, 3, 9]\nlook_at = [0, 0.5, 0]\nvfov = 45\n\
+         [[sphere]]\ncenter = [0, -1000, 0]\nradius = 1000\ncolor = [0.5, 0.5, 0.5]\n\
+         [[mesh]]\nfile = \"meshes/torus.obj\"\ntranslate = [0, 1, 0]\nrotation = [60, 0, 0]\ncolor = [0.9, 0.6, 0.2]\nsmoothness = 0.7\n",
+    );
+    let material = |rng: &mut SplitMix64| match rng.next_u64() % 4 {
+        0 => format!(
+            "color = [{:.3}, {:.3}, {:.3}]\n",
+            rng.f64(),
+            rng.f64(),
+            rng.f64()
+        ),
+        1 => format!("smoothness = 1\nabsorption = {:.3}\n", rng.range(0.0, 0.4)),
+        2 => "smoothness = -1\nior = 1.5\n".to_string(),
+        _ => format!("color = [1, 1, 1]\nlight = {:.2}\n", rng.range(0.5, 3.0)),
+    };
+    for _ in 0..200 {
+        s += &format!(
+            "[[sphere]]\ncenter = [{:.3}, {:.3}, {:.3}]\nradius = {:.3}\n{}",
+            rng.range(-6.0, 6.0),
+            rng.range(0.0, 3.0),
+            rng.range(-6.0, 6.0),
+            rng.range(0.05, 0.4),
+            material(&mut rng)
+        );
+    }
+    for _ in 0..40 {
+        s += &format!(
+            "[[quad]]\nq = [{:.3}, {:.3}, {:.3}]\nu = [{:.3}, 0, {:.3}]\nv = [0, {:.3}, {:.3}]\n{}",
+            rng.range(-6.0, 6.0),
+            rng.range(0.0, 2.0),
+            rng.range(-6.0, 6.0),
+            rng.range(0.2, 1.0),
+            rng.range(-0.5, 0.5),
+            rng.range(0.2, 1.0),
+            rng.range(-0.5, 0.5),
+            material(&mut rng)
+        );
+    }
+    for _ in 0..40 {
+        s += &format!(
+            "[[box]]\ncenter = [{:.3}, {:.3}, {:.3}]\nhalf_extents = [{:.3}, {:.3}, {:.3}]\nrotation = [{:.1}, {:.1}, {:.1}]\n{}",
+            rng.range(-6.0, 6.0),
+            rng.range(0.0, 2.0),
+            rng.range(-6.0, 6.0),
+            rng.range(0.1, 0.4),
+            rng.range(0.1, 0.4),
+            rng.range(0.1, 0.4),
+            rng.range(0.0, 90.0),
+            rng.range(0.0, 90.0),
+            rng.range(0.0, 90.0),
+            material(&mut rng)
+        );
+    }
+    s
+}
+
+#[test]
+fn the_bvh_finds_the_same_hits_as_testing_every_primitive() {
+    let text = crowded_scene();
+    // The mesh path is relative to the built-in scenes' folder.
+    let scene = Scene::from_toml(&text, "builtin:test").unwrap();
+    let n = scene.counts();
+    assert!(n.spheres > 200 && n.quads == 40 && n.boxes == 40 && n.triangles > 2000);
+    let s = settings(48, 32, 8);
+    let with = snapshot_with(&scene, s, 4, RenderOptions::default()).image();
+    let without = snapshot_with(
+        &scene,
+        s,
+        4,
+        RenderOptions {
+            no_bvh: true,
+            ..Default::default()
+        },
+    )
+    .image();
+    let (differ, worst, first) = image_diff(&with, &without);
+    assert_eq!(
+        differ, 0,
+        "{differ} pixels differ (by up to {worst:e}, first at {first:?})"
+    );
+    // And the image is not trivially uniform: the test sees geometry.
+    let distinct: std::collections::HashSet<_> =
+        with.pixels.iter().map(|p| p.map(f32::to_bits)).collect();
+    assert!(
+        distinct.len() > 500,
+        "only {} distinct pixels",
+        distinct.len()
+    );
+}
+
+#[test]
+fn specialized_and_generic_pipelines_give_the_same_image() {
+    for (name, _) in BUILTIN_SCENES {
+        let scene = Scene::load(name).unwrap();
+        let s = settings(32, 18, scene.render.max_bounces.min(8));
+        let special = snapshot_with(&scene, s, 2, RenderOptions::default()).image();
+        let generic = snapshot_with(
+            &scene,
+            s,
+            2,
+            RenderOptions {
+                generic: true,
+                ..Default::default()
+            },
+        )
+        .image();
+        let (differ, worst, first) = image_diff(&special, &generic);
+        assert_eq!(
+            differ, 0,
+            "{name}: {differ} pixels differ (by up to {worst:e}, first at {first:?})"
+        );
+    }
+}
