@@ -125,3 +125,29 @@ fn specialized_and_generic_pipelines_give_the_same_image() {
         );
     }
 }
+
+#[test]
+fn a_pipeline_compiled_in_the_background_changes_nothing_in_the_image() {
+    // The preview's path: a diffuse scene, then an edit that makes a sphere glass (a new
+    // feature set). The renderer traces with the generic pipeline until the new one is
+    // compiled, then switches; the accumulated image must be what a fresh render gives.
+    let diffuse = scene(
+        "[[sphere]]\ncenter = [0, -100.5, -1]\nradius = 100\n[[sphere]]\ncenter = [0, 0, -1]\nradius = 0.5\n",
+    );
+    let mut glass = diffuse.clone();
+    glass.objects[1].material.smoothness = -1.0;
+    glass.objects[1].material.color = glam::Vec3::ONE;
+    let s = settings(40, 30, 8);
+    let options = RenderOptions {
+        compile_in_background: true,
+        ..Default::default()
+    };
+    let mut r = termtrace::render::Renderer::new(ctx(), &diffuse, s, options);
+    r.render_spp(2);
+    r.set_scene(&glass, s);
+    r.render_spp(12);
+    let switched = r.snapshot().image();
+    let fresh = snapshot(&glass, s, 12).image();
+    let (differ, worst, _) = image_diff(&switched, &fresh);
+    assert_eq!(differ, 0, "{differ} pixels differ by up to {worst:e}");
+}

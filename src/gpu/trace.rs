@@ -1,5 +1,9 @@
 //! The tracer pass (`shaders/trace.wgsl`): its bind group layout, its pipelines (one per
 //! feature set, compiled on first use and cached) and the encoding of one dispatch.
+//!
+//! A new feature set can be compiled on another thread while the generic pipeline, which
+//! gives the same image bit for bit (tests/specialization.rs), keeps tracing: a key in the
+//! preview that turns a sphere into glass never stalls on the compiler.
 
 use super::accum::Accumulation;
 use super::features::Features;
@@ -7,7 +11,8 @@ use super::layout::DispatchUniforms;
 use super::scene_buffers::SceneBuffers;
 use super::shader;
 use super::timer::GpuTimer;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
+use std::sync::{Arc, Mutex};
 
 /// Invocations per workgroup side (`@workgroup_size(8, 8, 1)` in trace.wgsl).
 pub const WORKGROUP: u32 = 8;
@@ -26,8 +31,37 @@ pub struct TracePass {
     layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
     module: wgpu::ShaderModule,
-    pipelines: HashMap<Features, wgpu::ComputePipeline>,
+    pipelines: Arc<Mutex<HashMap<Features, wgpu::ComputePipeline>>>,
+    /// Feature sets being compiled on other threads.
+    pending: Arc<Mutex<HashSet<Features>>>,
     dispatch: wgpu::Buffer,
+}
+
+fn compile(
+    device: &wgpu::Device,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    features: Features,
+) -> wgpu::ComputePipeline {
+    let t = std::time::Instant::now();
+    let constants = features.constants();
+    let p = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some("trace.pipeline"),
+        layout: Some(layout),
+        module,
+        entry_point: Some("trace"),
+        compilation_options: wgpu::PipelineCompilationOptions {
+            constants: &constants,
+            zero_initialize_workgroup_memory: false,
+        },
+        cache: None,
+    });
+    tracing::info!(
+        "compiled trace pipeline [{}] in {:.0} ms",
+        features.summary(),
+        t.elapsed().as_secs_f64() * 1e3
+    );
+    p
 }
 
 fn entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
@@ -85,35 +119,52 @@ impl TracePass {
             layout,
             pipeline_layout,
             module,
-            pipelines: HashMap::new(),
+            pipelines: Arc::default(),
+            pending: Arc::default(),
             dispatch,
         }
     }
 
     /// The pipeline specialized for `features`, compiled now if it is new.
     pub fn prepare(&mut self, device: &wgpu::Device, features: Features) {
-        if self.pipelines.contains_key(&features) {
+        if self.ready(features) {
             return;
         }
-        let t = std::time::Instant::now();
-        let constants = features.constants();
-        let p = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("trace.pipeline"),
-            layout: Some(&self.pipeline_layout),
-            module: &self.module,
-            entry_point: Some("trace"),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &constants,
-                zero_initialize_workgroup_memory: false,
-            },
-            cache: None,
-        });
-        tracing::info!(
-            "compiled trace pipeline [{}] in {:.0} ms",
-            features.summary(),
-            t.elapsed().as_secs_f64() * 1e3
+        let p = compile(device, &self.pipeline_layout, &self.module, features);
+        self.pipelines
+            .lock()
+            .expect("pipeline cache")
+            .insert(features, p);
+    }
+
+    /// Whether the pipeline for `features` is compiled.
+    pub fn ready(&self, features: Features) -> bool {
+        self.pipelines
+            .lock()
+            .expect("pipeline cache")
+            .contains_key(&features)
+    }
+
+    /// Starts compiling the pipeline for `features` on another thread, unless it is ready or
+    /// already being compiled.
+    pub fn prepare_in_background(&self, device: &wgpu::Device, features: Features) {
+        if self.ready(features) || !self.pending.lock().expect("pending set").insert(features) {
+            return;
+        }
+        let (device, layout, module) = (
+            device.clone(),
+            self.pipeline_layout.clone(),
+            self.module.clone(),
         );
-        self.pipelines.insert(features, p);
+        let (pipelines, pending) = (self.pipelines.clone(), self.pending.clone());
+        std::thread::spawn(move || {
+            let p = compile(&device, &layout, &module, features);
+            pipelines
+                .lock()
+                .expect("pipeline cache")
+                .insert(features, p);
+            pending.lock().expect("pending set").remove(&features);
+        });
     }
 
     pub fn bind_group(
@@ -160,7 +211,8 @@ impl TracePass {
         d: &TraceDispatch<'_>,
     ) {
         queue.write_buffer(&self.dispatch, 0, bytemuck::bytes_of(&d.uniforms));
-        let pipeline = &self.pipelines[&d.features];
+        let pipelines = self.pipelines.lock().expect("pipeline cache");
+        let pipeline = &pipelines[&d.features];
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("trace"),
             timestamp_writes: d.timer.map(GpuTimer::writes),

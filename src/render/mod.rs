@@ -29,6 +29,9 @@ pub struct RenderOptions {
     pub gpu_timing: bool,
     /// Wall time one submission should take.
     pub submission: Duration,
+    /// Never wait for a new pipeline: trace with the generic one (same image) while the
+    /// specialized one compiles in the background (the live preview).
+    pub compile_in_background: bool,
 }
 
 impl Default for RenderOptions {
@@ -39,6 +42,7 @@ impl Default for RenderOptions {
             no_bvh: false,
             gpu_timing: false,
             submission: Duration::from_millis(100),
+            compile_in_background: false,
         }
     }
 }
@@ -90,6 +94,15 @@ impl Renderer {
         let mut trace = TracePass::new(device);
         let features = Self::features_for(scene, &options);
         trace.prepare(device, features);
+        if options.compile_in_background {
+            // The fallback for the feature sets edits will introduce.
+            let generic = Features {
+                count_segments: options.count_segments,
+                bvh: !options.no_bvh,
+                ..Features::generic()
+            };
+            trace.prepare_in_background(device, generic);
+        }
         let buffers = SceneBuffers::new(device, scene, &settings);
         let accum = Accumulation::new(device, settings.width, settings.height);
         let bind_group = trace.bind_group(device, &buffers, &accum);
@@ -163,11 +176,38 @@ impl Renderer {
         self.accum.reset_counters(&self.ctx.queue);
     }
 
+    /// The generic pipeline with this renderer's own switches (segment counting, BVH).
+    fn generic_features(&self) -> Features {
+        Features {
+            count_segments: self.options.count_segments,
+            bvh: !self.options.no_bvh,
+            ..Features::generic()
+        }
+    }
+
+    /// The pipeline the next submission uses: the scene's own when compiled, else (when
+    /// compiling in the background) the generic one, which renders the same image.
+    fn pipeline_features(&mut self) -> Features {
+        if self.trace.ready(self.features) {
+            return self.features;
+        }
+        let generic = self.generic_features();
+        if self.options.compile_in_background && self.trace.ready(generic) {
+            return generic;
+        }
+        self.trace.prepare(&self.ctx.device, self.features);
+        self.features
+    }
+
     /// Replaces the scene (and settings); resizes the accumulation if needed; resets.
     pub fn set_scene(&mut self, scene: &Scene, settings: FrameSettings) {
         let device = &self.ctx.device;
         self.features = Self::features_for(scene, &self.options);
-        self.trace.prepare(device, self.features);
+        if self.options.compile_in_background {
+            self.trace.prepare_in_background(device, self.features);
+        } else {
+            self.trace.prepare(device, self.features);
+        }
         let mut rebind = self.scene.update(device, &self.ctx.queue, scene, &settings);
         if (settings.width, settings.height) != (self.settings.width, self.settings.height) {
             self.accum = Accumulation::new(device, settings.width, settings.height);
@@ -186,6 +226,7 @@ impl Renderer {
         let start = Instant::now();
         let mut stats = StepStats::default();
         let (w, h) = (self.settings.width, self.settings.height);
+        let features = self.pipeline_features();
         while self.samples < max_samples {
             let round = match self.round {
                 Some(r) => r,
@@ -216,7 +257,7 @@ impl Renderer {
                 &self.ctx.queue,
                 &mut enc,
                 &TraceDispatch {
-                    features: self.features,
+                    features,
                     bind_group: &self.bind_group,
                     width: w,
                     uniforms: d,

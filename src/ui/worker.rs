@@ -102,6 +102,7 @@ impl Worker {
         RenderOptions {
             generic: self.opts.generic,
             submission: self.frame_time(),
+            compile_in_background: true,
             ..Default::default()
         }
     }
