@@ -5,6 +5,7 @@
 
 pub mod bvh;
 pub mod cli;
+pub mod converge;
 pub mod gpu;
 pub mod output;
 pub mod render;

@@ -3,6 +3,7 @@
 mod adapters;
 mod bench;
 mod check;
+mod converge;
 mod render;
 
 use crate::output::cells::{CellMode, ColorMode};
@@ -50,6 +51,8 @@ enum Command {
     Adapters,
     /// Measure samples/s and path segments/s on the chosen adapter.
     Bench(bench::BenchArgs),
+    /// Measure how fast the error falls against a reference: CSV, plot, fitted slope.
+    Converge(converge::ConvergeArgs),
 }
 
 /// `termtrace [SCENE]` and `termtrace view [SCENE]`.
@@ -92,7 +95,7 @@ pub struct ViewArgs {
     pub stats: bool,
 }
 
-fn positive(s: &str) -> Result<f64, String> {
+pub(crate) fn positive(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
         _ => Err(format!("`{s}` is not a positive number")),
@@ -168,6 +171,7 @@ pub fn main() -> ExitCode {
         Some(Command::Check(a)) => check::run(a),
         Some(Command::Adapters) => adapters::run(),
         Some(Command::Bench(a)) => bench::run(a, &cli.global),
+        Some(Command::Converge(a)) => converge::run(a, &cli.global),
     };
     match result {
         Ok(code) => code,

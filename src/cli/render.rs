@@ -52,10 +52,19 @@ pub struct RenderArgs {
     /// Use the generic tracer instead of one specialized for the scene.
     #[arg(long)]
     pub generic: bool,
+    /// Stop once the estimated relative RMSE (from the difference of two independent halves
+    /// of the samples) falls below this, e.g. 0.01 for 1 %.
+    #[arg(long, value_name = "E", value_parser = super::positive)]
+    pub target_error: Option<f64>,
     /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
 }
+
+/// How often `render` reads the image back for its noise estimate: for the progress bar,
+/// and (more often) to stop at a target error.
+const ESTIMATE_EVERY: Duration = Duration::from_secs(2);
+const TARGET_CHECK_EVERY: Duration = Duration::from_millis(500);
 
 fn positive_seconds(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
@@ -110,10 +119,28 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     };
     let mut r = Renderer::new(ctx.clone(), &scene, settings, options);
     install_ctrlc();
+    let time_limit = a.time.map(Duration::from_secs_f64);
+    // A target error alone renders until it is reached; with --spp or --time, whichever
+    // comes first.
+    let spp = match (time_limit, a.target_error, a.spp) {
+        (Some(_), _, _) => u32::MAX,
+        (None, Some(_), None) => u32::MAX,
+        (None, _, s) => s.unwrap_or(scene.render.spp),
+    };
     if !a.quiet {
-        let what = match a.time {
-            Some(t) => format!("for {t} s"),
-            None => format!("to {} spp", a.spp.unwrap_or(scene.render.spp)),
+        let until = a
+            .target_error
+            .map(|e| format!("until the estimated error is below {}%", e * 100.0));
+        let what = match (a.time, spp, until) {
+            (None, u32::MAX, Some(u)) => u,
+            (Some(t), _, u) => format!(
+                "for {t} s{}",
+                u.map_or(String::new(), |u| format!(" or {u}"))
+            ),
+            (None, n, u) => format!(
+                "to {n} spp{}",
+                u.map_or(String::new(), |u| format!(" or {u}"))
+            ),
         };
         eprintln!(
             "rendering {} at {}x{} {what} on {} (Ctrl-C stops and saves)",
@@ -124,12 +151,11 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         );
     }
 
-    let time_limit = a.time.map(Duration::from_secs_f64);
-    let spp = match time_limit {
-        Some(_) => u32::MAX,
-        None => a.spp.unwrap_or(scene.render.spp),
-    };
-    let pb = progress_bar(a.quiet, time_limit, spp);
+    let pb = progress_bar(
+        a.quiet,
+        time_limit.or((spp == u32::MAX).then_some(Duration::ZERO)),
+        spp,
+    );
     pb.set_prefix(format!(
         "{} {}x{}",
         scene.short_name(),
@@ -139,6 +165,9 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let start = Instant::now();
     let mut paths = 0u64;
     let mut interrupted = false;
+    let mut noise: Option<f64> = None;
+    let mut reached = false;
+    let mut last_estimate = Instant::now();
     while r.samples() < spp {
         let budget = match time_limit {
             Some(t) => t
@@ -149,15 +178,44 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         paths += r.step(budget, spp).paths;
         let elapsed = start.elapsed().as_secs_f64();
         let rate = paths as f64 / elapsed.max(1e-9);
+        let every = if a.target_error.is_some() {
+            TARGET_CHECK_EVERY
+        } else {
+            ESTIMATE_EVERY
+        };
+        if last_estimate.elapsed() >= every {
+            noise = r.snapshot().noise_estimate();
+            last_estimate = Instant::now();
+            if let (Some(n), Some(target)) = (noise, a.target_error)
+                && n <= target
+            {
+                reached = true;
+            }
+        }
+        let noise_text = noise.map_or(String::new(), |n| format!("  noise {:.2}%", n * 100.0));
         match time_limit {
             Some(t) => {
-                pb.set_message(format!("{} spp  {}", r.samples(), rate_text(rate)));
+                pb.set_message(format!(
+                    "{} spp  {}{noise_text}",
+                    r.samples(),
+                    rate_text(rate)
+                ));
                 pb.set_position(start.elapsed().min(t).as_millis() as u64);
             }
+            None if spp == u32::MAX => {
+                pb.set_message(format!(
+                    "{} spp  {}{noise_text}",
+                    r.samples(),
+                    rate_text(rate)
+                ));
+            }
             None => {
-                pb.set_message(rate_text(rate));
+                pb.set_message(format!("{}{noise_text}", rate_text(rate)));
                 pb.set_position(r.samples() as u64);
             }
+        }
+        if reached {
+            break;
         }
         if INTERRUPTED.load(Ordering::SeqCst) {
             interrupted = true;
@@ -171,6 +229,7 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let elapsed = start.elapsed();
     let snap = r.snapshot();
     let image = snap.image();
+    let estimate = snap.noise_estimate();
     let png_written = save(&png, &image, |p| write_png(p, &image, a.transfer, a.png16))?;
     let mut outputs = vec![png_written.display().to_string()];
     if let Some(exr) = &a.exr {
@@ -182,9 +241,11 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     }
     let rate = paths as f64 / elapsed.as_secs_f64().max(1e-9);
     eprintln!(
-        "{}{} ({}x{}, {} spp, {:.1} s, {} on {}, {} invalid samples)",
+        "{}{} ({}x{}, {} spp, {:.1} s, {} on {}, estimated error {}, {} invalid samples)",
         if interrupted {
             "interrupted; wrote "
+        } else if reached {
+            "target error reached; wrote "
         } else {
             "wrote "
         },
@@ -195,6 +256,7 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         elapsed.as_secs_f64(),
         rate_text(rate),
         ctx.adapter_name(),
+        estimate.map_or("–".into(), |e| format!("{:.3}%", e * 100.0)),
         snap.invalid_samples(),
     );
     Ok(ExitCode::SUCCESS)
@@ -235,6 +297,8 @@ fn progress_bar(quiet: bool, time: Option<Duration>, spp: u32) -> ProgressBar {
         return ProgressBar::hidden();
     }
     let (len, template) = match time {
+        // No bound known in advance: a spinner.
+        Some(t) if t.is_zero() => (0, "{prefix} {spinner} {elapsed_precise} {msg}"),
         Some(t) => (
             t.as_millis() as u64,
             "{prefix} {elapsed_precise} [{wide_bar:.cyan/blue}] {msg}  ETA {eta}",

@@ -72,8 +72,8 @@ impl Snapshot {
     /// this estimate (that is what `converge --bias-check` is for).
     ///
     /// Returned as errors over the whole image: `rmse` the root of the mean estimated MSE, and
-    /// `rel_rmse` the root of pbrt's relative MSE, MSE / (value² + 0.01), with the image's own
-    /// value standing in for the unknown reference.
+    /// `rel_rmse` the root of pbrt's relative MSE, MSE / (reference² + 0.01), with the
+    /// unknown reference² estimated by the product of the halves' means.
     pub fn error_estimate(&self) -> Option<ErrorEstimate> {
         let (mut mse, mut rel) = (0.0f64, 0.0f64);
         for (e, o) in self.data.even.iter().zip(&self.data.odd) {
@@ -84,10 +84,12 @@ impl Snapshot {
             let k = ne * no / ((ne + no) * (ne + no));
             for c in 0..3 {
                 let (me, mo) = (e[c] as f64 / ne, o[c] as f64 / no);
-                let m = (e[c] as f64 + o[c] as f64) / (ne + no);
                 let var = (me - mo).powi(2) * k;
                 mse += var;
-                rel += var / (m * m + REL_MSE_EPSILON);
+                // The reference's square, estimated without bias from the two independent
+                // halves (E[E·O] = μ²); the image's own square would overstate it by Var(M)
+                // and understate the error exactly where the noise is large.
+                rel += var / ((me * mo).max(0.0) + REL_MSE_EPSILON);
             }
         }
         let n = (3 * self.data.even.len()).max(1) as f64;

@@ -1,0 +1,341 @@
+//! `termtrace converge`: how fast the noise falls, measured against a reference, for one or
+//! several ways of rendering the same scene.
+
+use super::render::frame_settings;
+use super::{GlobalArgs, load_scene};
+use crate::converge::{self, Variant, metrics, plot, reference};
+use crate::gpu::GpuContext;
+use crate::output::{Transfer, write_exr, write_png};
+use crate::render::RenderOptions;
+use anyhow::Context;
+use clap::{Args, Parser};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::time::Duration;
+
+#[derive(Args, Debug)]
+pub struct ConvergeArgs {
+    /// Scene file or built-in scene name.
+    pub scene: String,
+    /// Seconds of rendering per run.
+    #[arg(long, default_value_t = 10.0, value_parser = super::positive)]
+    pub time: f64,
+    /// Directory for convergence.csv, convergence.png, final.png and reference.exr.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Measure against this linear EXR (the same size as the runs).
+    #[arg(long, value_name = "EXR", conflicts_with = "reference_spp")]
+    pub reference: Option<PathBuf>,
+    /// Render the reference with this many samples per pixel (cached for later runs).
+    #[arg(long, value_name = "N", default_value_t = 4096)]
+    pub reference_spp: u32,
+    /// Where rendered references are cached [default: ~/.cache/termtrace].
+    #[arg(long, value_name = "DIR")]
+    pub cache_dir: Option<PathBuf>,
+    /// Do not read or write the reference cache.
+    #[arg(long)]
+    pub no_cache: bool,
+    /// Independent runs per variant (different seeds): the mean curve and its spread.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub runs: u32,
+    /// Variants to compare, each a quoted set of options, e.g. '--no-nee' '' '--generic'
+    /// (options: --generic, --no-bvh, --max-bounces N).
+    #[arg(long, num_args = 1.., value_name = "'OPTIONS'", allow_hyphen_values = true)]
+    pub compare: Vec<String>,
+    /// Test every variant's final image against the reference, tile by tile (Welch t-test).
+    #[arg(long)]
+    pub bias_check: bool,
+    /// Significance of the bias check, before the Bonferroni correction over tiles.
+    #[arg(long, default_value_t = 0.01)]
+    pub alpha: f64,
+    /// Tile size of the bias check, in pixels.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
+    pub tile: u32,
+    #[arg(long)]
+    pub width: Option<u32>,
+    #[arg(long)]
+    pub height: Option<u32>,
+    #[arg(long)]
+    pub max_bounces: Option<u32>,
+    /// Seed of the first run (the next runs count up from it).
+    #[arg(long)]
+    pub seed: Option<u32>,
+    /// No progress bars.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+/// The options a `--compare` variant may set.
+#[derive(Parser, Debug)]
+#[command(no_binary_name = true, name = "--compare variant")]
+struct VariantArgs {
+    #[arg(long)]
+    generic: bool,
+    #[arg(long)]
+    no_bvh: bool,
+    #[arg(long)]
+    max_bounces: Option<u32>,
+}
+
+fn variant(spec: &str) -> anyhow::Result<Variant> {
+    let words = shlex::split(spec).with_context(|| format!("cannot split `{spec}` into words"))?;
+    let a = VariantArgs::try_parse_from(&words)
+        .map_err(|e| anyhow::anyhow!("in --compare '{spec}': {e}"))?;
+    Ok(Variant {
+        label: if spec.trim().is_empty() {
+            "default".into()
+        } else {
+            spec.trim().to_string()
+        },
+        options: RenderOptions {
+            generic: a.generic,
+            no_bvh: a.no_bvh,
+            ..Default::default()
+        },
+        max_bounces: a.max_bounces,
+    })
+}
+
+fn bar(quiet: bool, len: u64, template: &str) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template(template)
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    pb
+}
+
+pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
+    let scene = load_scene(&a.scene)?;
+    let settings = frame_settings(&scene, a.width, a.height, a.max_bounces, a.seed);
+    let variants = if a.compare.is_empty() {
+        vec![Variant::default()]
+    } else {
+        a.compare
+            .iter()
+            .map(|s| variant(s))
+            .collect::<anyhow::Result<_>>()?
+    };
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("cannot create the output directory {}", a.out.display()))?;
+    crate::output::check_writable(&a.out.join("convergence.csv"))?;
+    let ctx = Arc::new(GpuContext::new(g.adapter.as_deref())?);
+    eprintln!(
+        "converge: {} at {}x{} on {}",
+        scene.origin,
+        settings.width,
+        settings.height,
+        ctx.adapter_name()
+    );
+
+    let reference = match &a.reference {
+        Some(p) => reference::from_exr(p, settings.width, settings.height)?,
+        None => {
+            let cache = if a.no_cache {
+                None
+            } else {
+                Some(
+                    a.cache_dir
+                        .clone()
+                        .unwrap_or_else(reference::default_cache_dir),
+                )
+            };
+            let pb = bar(
+                a.quiet,
+                a.reference_spp as u64,
+                "reference {elapsed_precise} [{wide_bar}] {pos}/{len} spp  ETA {eta}",
+            );
+            let r = reference::rendered(
+                &ctx,
+                &scene,
+                settings,
+                a.reference_spp,
+                cache.as_deref(),
+                |done, _| pb.set_position(done as u64),
+            )?;
+            pb.finish_and_clear();
+            write_exr(&a.out.join("reference.exr"), &r.image)?;
+            r
+        }
+    };
+    eprintln!(
+        "reference: {}{}",
+        reference.source,
+        reference.noise().map_or(String::new(), |n| format!(
+            "; its own relative RMSE ≈ {:.3}% (errors below it are not measurable)",
+            n * 100.0
+        ))
+    );
+
+    let time = Duration::from_secs_f64(a.time);
+    let setup = converge::Setup {
+        ctx: &ctx,
+        scene: &scene,
+        settings,
+        reference: &reference.image,
+    };
+    let mut all = Vec::new();
+    let mut summaries = Vec::new();
+    let mut finals = Vec::new();
+    for v in &variants {
+        let mut runs = Vec::new();
+        for run in 0..a.runs {
+            let pb = bar(
+                a.quiet,
+                (a.time * 1000.0) as u64,
+                &format!(
+                    "{} run {}/{} {{elapsed_precise}} [{{wide_bar}}] {{msg}}",
+                    v.label,
+                    run + 1,
+                    a.runs
+                ),
+            );
+            let r = converge::run_once(&setup, v, run, time, |secs, spp| {
+                pb.set_position((secs * 1000.0) as u64);
+                pb.set_message(format!("{spp} spp"));
+            });
+            pb.finish_and_clear();
+            runs.push(r);
+        }
+        summaries.push(converge::summarize(&v.label, &runs));
+        finals.push(runs[0].last.clone());
+        all.push(runs);
+    }
+
+    // Table.
+    println!(
+        "{:<16} {:>4} {:>9} {:>7} {:>11} {:>11} {:>9} {:>11} {:>9}",
+        "variant", "run", "seconds", "spp", "RMSE", "relMSE", "rel RMSE", "MAE", "estimate"
+    );
+    let rows: Vec<&converge::Checkpoint> =
+        all.iter().flatten().flat_map(|r| &r.checkpoints).collect();
+    for c in &rows {
+        println!(
+            "{:<16} {:>4} {:>9.3} {:>7} {:>11.4e} {:>11.4e} {:>8.3}% {:>11.4e} {:>8}",
+            c.label,
+            c.run,
+            c.seconds,
+            c.spp,
+            c.errors.rmse,
+            c.errors.relmse,
+            c.errors.rel_rmse() * 100.0,
+            c.errors.mae,
+            c.estimated_rel_rmse
+                .map_or("–".into(), |e| format!("{:.3}%", e * 100.0))
+        );
+    }
+    println!();
+    for s in &summaries {
+        println!(
+            "{}: slope {} (log-log fit of relative RMSE against time, spp ≥ {}); 5% in {}, 1% in {}",
+            s.label,
+            s.slope.map_or("–".into(), |x| format!("{x:.3}")),
+            converge::FIT_MIN_SPP,
+            converge::fmt_time_to(s.to_5),
+            converge::fmt_time_to(s.to_1)
+        );
+    }
+    converge::write_csv(&a.out.join("convergence.csv"), &rows)
+        .with_context(|| format!("cannot write {}", a.out.join("convergence.csv").display()))?;
+    let curves: Vec<plot::Curve> = summaries
+        .iter()
+        .map(|s| plot::Curve {
+            label: s.label.clone(),
+            points: s.points.iter().map(|p| (p.0, p.1, p.2, p.3)).collect(),
+            slope: s.slope,
+        })
+        .collect();
+    plot::plot(
+        &a.out.join("convergence.png"),
+        &format!(
+            "{} at {}x{}: relative RMSE against time",
+            scene.short_name(),
+            settings.width,
+            settings.height
+        ),
+        &curves,
+    )?;
+    write_png(
+        &a.out.join("final.png"),
+        &finals[0].image(),
+        Transfer::Srgb,
+        false,
+    )?;
+    eprintln!(
+        "wrote {}/convergence.csv, convergence.png, final.png{}",
+        a.out.display(),
+        if a.reference.is_none() {
+            ", reference.exr"
+        } else {
+            ""
+        }
+    );
+
+    let mut biased = false;
+    if a.bias_check {
+        let exact = reference.snapshot.is_none();
+        let ref_snap = match &reference.snapshot {
+            Some(s) => s.clone(),
+            None => pseudo_snapshot(&reference.image),
+        };
+        for (v, last) in variants.iter().zip(&finals) {
+            let r = metrics::bias_check(last, &ref_snap, exact, a.tile, a.alpha);
+            if r.significant.is_empty() {
+                println!(
+                    "bias check {}: no tile of {} differs from the reference (alpha {} over {} tiles; smallest p {:.2e})",
+                    v.label, r.tiles, r.alpha, r.tiles, r.min_p
+                );
+            } else {
+                biased = true;
+                println!(
+                    "bias check {}: {} of {} tiles differ significantly from the reference (p < {:.1e}):",
+                    v.label,
+                    r.significant.len(),
+                    r.tiles,
+                    r.alpha / r.tiles as f64
+                );
+                for t in r.significant.iter().take(20) {
+                    println!(
+                        "  tile ({}, {}) at pixels ({}, {}): mean {:.5} vs reference {:.5}, t = {:.1}, p = {:.1e}",
+                        t.x,
+                        t.y,
+                        t.x * a.tile,
+                        t.y * a.tile,
+                        t.mean,
+                        t.reference,
+                        t.t,
+                        t.p
+                    );
+                }
+            }
+        }
+    }
+    Ok(if biased {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    })
+}
+
+/// A snapshot holding an exact image (a reference read from a file), for the bias check:
+/// both halves equal the image, with one sample each.
+fn pseudo_snapshot(img: &crate::output::LinearImage) -> crate::render::Snapshot {
+    let px: Vec<[f32; 4]> = img.pixels.iter().map(|p| [p[0], p[1], p[2], 1.0]).collect();
+    crate::render::Snapshot {
+        width: img.width,
+        height: img.height,
+        samples: 2,
+        data: crate::gpu::AccumData {
+            even: px.clone(),
+            odd: px,
+            invalid: 0,
+            segments: 0,
+        },
+    }
+}

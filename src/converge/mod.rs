@@ -1,0 +1,196 @@
+//! Error against run time: renders from zero and measures, at log-spaced checkpoints, the
+//! error of the image against a reference; summarises runs into curves with a fitted slope
+//! and the time to reach an error; writes the CSV and the plot.
+
+pub mod metrics;
+pub mod plot;
+pub mod reference;
+
+use crate::gpu::{FrameSettings, GpuContext};
+use crate::render::{RenderOptions, Renderer, Snapshot};
+use crate::scene::Scene;
+use metrics::{Errors, errors, log_log_fit, time_to};
+use std::io::Write;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// The first checkpoint, in seconds of rendering.
+pub const FIRST_CHECKPOINT: f64 = 0.05;
+/// Checkpoints are this factor apart: two per doubling of time.
+pub const CHECKPOINT_FACTOR: f64 = std::f64::consts::SQRT_2;
+/// Checkpoints with fewer samples per pixel are left out of the slope fit (the first
+/// samples' error is dominated by a few pixels).
+pub const FIT_MIN_SPP: u64 = 4;
+
+/// One way of rendering to compare (`--compare '--no-nee'`).
+#[derive(Clone, Debug)]
+pub struct Variant {
+    pub label: String,
+    pub options: RenderOptions,
+    pub max_bounces: Option<u32>,
+}
+
+impl Default for Variant {
+    fn default() -> Self {
+        Variant {
+            label: "default".into(),
+            options: RenderOptions::default(),
+            max_bounces: None,
+        }
+    }
+}
+
+/// The error at one checkpoint of one run.
+#[derive(Clone, Debug)]
+pub struct Checkpoint {
+    pub label: String,
+    pub run: u32,
+    /// Seconds of rendering (readbacks for measuring are not counted).
+    pub seconds: f64,
+    /// Fewest samples any pixel has.
+    pub spp: u64,
+    pub errors: Errors,
+    /// The estimate from the image's two halves, without the reference.
+    pub estimated_rel_rmse: Option<f64>,
+}
+
+pub struct Run {
+    pub checkpoints: Vec<Checkpoint>,
+    pub last: Snapshot,
+}
+
+/// What every run of a measurement shares.
+pub struct Setup<'a> {
+    pub ctx: &'a Arc<GpuContext>,
+    pub scene: &'a Scene,
+    pub settings: FrameSettings,
+    pub reference: &'a crate::output::LinearImage,
+}
+
+/// Renders `variant` from zero for `time` seconds of rendering and measures it against the
+/// reference at every checkpoint; `progress(seconds, spp)` after every step.
+pub fn run_once(
+    setup: &Setup<'_>,
+    variant: &Variant,
+    run: u32,
+    time: Duration,
+    mut progress: impl FnMut(f64, u32),
+) -> Run {
+    let s = FrameSettings {
+        max_bounces: variant.max_bounces.unwrap_or(setup.settings.max_bounces),
+        seed: setup.settings.seed.wrapping_add(run),
+        ..setup.settings
+    };
+    let mut r = Renderer::new(setup.ctx.clone(), setup.scene, s, variant.options);
+    let total = time.as_secs_f64();
+    let mut next = FIRST_CHECKPOINT.min(total);
+    let mut seconds = 0.0;
+    let mut checkpoints = Vec::new();
+    loop {
+        let left = (next - seconds).max(0.0);
+        let step = r.step(Duration::from_secs_f64(left.min(0.25)), u32::MAX);
+        seconds += step.elapsed.as_secs_f64();
+        progress(seconds, r.samples());
+        if seconds + 1e-9 < next {
+            continue;
+        }
+        let snap = r.snapshot();
+        checkpoints.push(Checkpoint {
+            label: variant.label.clone(),
+            run,
+            seconds,
+            spp: snap.min_samples(),
+            errors: errors(&snap.image(), setup.reference),
+            estimated_rel_rmse: snap.noise_estimate(),
+        });
+        if seconds >= total {
+            return Run {
+                checkpoints,
+                last: snap,
+            };
+        }
+        while next <= seconds {
+            next *= CHECKPOINT_FACTOR;
+        }
+        next = next.min(total);
+    }
+}
+
+/// A variant's runs, summarised.
+pub struct Summary {
+    pub label: String,
+    /// Per checkpoint index: (mean seconds, √(mean relMSE), lowest and highest relative RMSE
+    /// of the runs, fewest spp).
+    pub points: Vec<(f64, f64, f64, f64, u64)>,
+    pub slope: Option<f64>,
+    /// Seconds to reach 5 % and 1 % relative RMSE, and whether each was extrapolated.
+    pub to_5: Option<(f64, bool)>,
+    pub to_1: Option<(f64, bool)>,
+}
+
+pub fn summarize(label: &str, runs: &[Run]) -> Summary {
+    let n = runs.iter().map(|r| r.checkpoints.len()).min().unwrap_or(0);
+    let points: Vec<_> = (0..n)
+        .map(|k| {
+            let cs: Vec<&Checkpoint> = runs.iter().map(|r| &r.checkpoints[k]).collect();
+            let m = cs.len() as f64;
+            let secs = cs.iter().map(|c| c.seconds).sum::<f64>() / m;
+            let rel = (cs.iter().map(|c| c.errors.relmse).sum::<f64>() / m).sqrt();
+            let lo = cs
+                .iter()
+                .map(|c| c.errors.rel_rmse())
+                .fold(f64::MAX, f64::min);
+            let hi = cs.iter().map(|c| c.errors.rel_rmse()).fold(0.0, f64::max);
+            let spp = cs.iter().map(|c| c.spp).min().unwrap_or(0);
+            (secs, rel, lo, hi, spp)
+        })
+        .collect();
+    let curve: Vec<(f64, f64)> = points.iter().map(|p| (p.0, p.1)).collect();
+    let fit: Vec<(f64, f64)> = points
+        .iter()
+        .filter(|p| p.4 >= FIT_MIN_SPP)
+        .map(|p| (p.0, p.1))
+        .collect();
+    Summary {
+        label: label.to_string(),
+        slope: log_log_fit(&fit).map(|f| f.0),
+        to_5: time_to(&curve, 0.05),
+        to_1: time_to(&curve, 0.01),
+        points,
+    }
+}
+
+/// The CSV header, one row per checkpoint of every run.
+pub const CSV_HEADER: &str = "variant,run,seconds,spp,rmse,relmse,rel_rmse,mae,estimated_rel_rmse";
+
+pub fn write_csv(path: &Path, rows: &[&Checkpoint]) -> std::io::Result<()> {
+    let mut s = String::from(CSV_HEADER);
+    s.push('\n');
+    for c in rows {
+        s.push_str(&format!(
+            "\"{}\",{},{:.6},{},{:.6e},{:.6e},{:.6e},{:.6e},{}\n",
+            c.label.replace('"', "\"\""),
+            c.run,
+            c.seconds,
+            c.spp,
+            c.errors.rmse,
+            c.errors.relmse,
+            c.errors.rel_rmse(),
+            c.errors.mae,
+            c.estimated_rel_rmse
+                .map_or(String::new(), |e| format!("{e:.6e}"))
+        ));
+    }
+    let mut f = std::fs::File::create(path)?;
+    f.write_all(s.as_bytes())
+}
+
+/// `12.3 s`, or `~12.3 s (extrapolated)`.
+pub fn fmt_time_to(t: Option<(f64, bool)>) -> String {
+    match t {
+        None => "–".into(),
+        Some((s, false)) => format!("{s:.3} s"),
+        Some((s, true)) => format!("~{s:.3} s (extrapolated)"),
+    }
+}
