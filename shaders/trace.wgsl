@@ -26,10 +26,10 @@ override USE_BVH: bool = true;
 @group(0) @binding(3) var<storage, read> spheres: array<Sphere>;
 @group(0) @binding(4) var<storage, read> quads: array<Quad>;
 @group(0) @binding(5) var<storage, read> boxes: array<Cuboid>;
-// Running sums of the even and odd samples of each pixel, as unevaluated pairs (hi, lo):
-// [2p] = hi, [2p + 1] = lo; rgb is radiance, w the number of samples.
-@group(0) @binding(6) var<storage, read_write> accum_even: array<vec4f>;
-@group(0) @binding(7) var<storage, read_write> accum_odd: array<vec4f>;
+// Running sums of the even and odd samples of each pixel, in fixed point (see fixed_add):
+// ACCUM_WORDS words per pixel, [r.frac, r.low, r.high, g…, b…, samples].
+@group(0) @binding(6) var<storage, read_write> accum_even: array<u32>;
+@group(0) @binding(7) var<storage, read_write> accum_odd: array<u32>;
 // [0, 1]: invalid (NaN/inf) samples discarded, as lo/hi words of a u64;
 // [2, 3]: path segments traced (only with COUNT_SEGMENTS).
 @group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 4>;
@@ -262,15 +262,61 @@ fn trace_path(primary: Ray, state: ptr<function, u32>) -> PathResult {
     return PathResult(radiance, segments);
 }
 
-// Adds x to the unevaluated sum hi + lo without losing x's low bits: Knuth's TwoSum gives
-// the exact rounding error of hi + x, which lo collects. The sum stays exact to about two
-// ulps after millions of samples, where a plain f32 sum drifts (MODEL.md "Accumulation").
-fn two_sum_add(hi: ptr<function, vec4f>, lo: ptr<function, vec4f>, x: vec4f) {
-    let s = *hi + x;
-    let bp = s - *hi;
-    let err = (*hi - (s - bp)) + (x - bp);
-    *hi = s;
-    *lo += err;
+// The accumulation is integer arithmetic, exact and independent of order: a compiler may
+// reassociate float arithmetic (WGSL has no `precise`), and Mesa's does, which removes the
+// error term of compensated sums such as Knuth's TwoSum (measured: a million frames drifted by
+// 3.7e-3, exactly a plain f32 sum). Radiance is never negative, so each channel of each sample
+// becomes an unsigned 96-bit fixed-point number with 32 fraction bits (exact for any f32
+// ≥ 2^-8; below that truncated by < 2^-32) and is added with explicit carries.
+const ACCUM_WORDS: u32 = 10u;
+// The largest f32 below 2^32: samples are clamped to it (a radiance of 4e9 is no radiance).
+const FIXED_MAX: f32 = 4294967040.0;
+
+struct Fixed {
+    frac: vec3u,
+    low: vec3u,
+    high: vec3u,
+    samples: u32,
+}
+
+fn fixed_add(acc: ptr<function, Fixed>, v: vec3f) {
+    let c = clamp(v, vec3f(0.0), vec3f(FIXED_MAX));
+    let whole = floor(c);
+    let add_frac = vec3u((c - whole) * 4294967296.0);
+    let add_low = vec3u(whole);
+    let frac = (*acc).frac + add_frac;
+    let carry0 = select(vec3u(0u), vec3u(1u), frac < add_frac);
+    let low1 = (*acc).low + add_low;
+    let carry1 = select(vec3u(0u), vec3u(1u), low1 < add_low);
+    let low = low1 + carry0;
+    let carry2 = select(vec3u(0u), vec3u(1u), low < carry0);
+    (*acc).frac = frac;
+    (*acc).low = low;
+    (*acc).high += carry1 + carry2;
+    (*acc).samples += 1u;
+}
+
+fn fixed_load(buf: u32, pixel: u32) -> Fixed {
+    let b = pixel * ACCUM_WORDS;
+    var w: array<u32, 10>;
+    for (var i = 0u; i < ACCUM_WORDS; i++) {
+        w[i] = select(accum_odd[b + i], accum_even[b + i], buf == 0u);
+    }
+    return Fixed(vec3u(w[0], w[3], w[6]), vec3u(w[1], w[4], w[7]), vec3u(w[2], w[5], w[8]), w[9]);
+}
+
+fn fixed_store(buf: u32, pixel: u32, f: Fixed) {
+    let b = pixel * ACCUM_WORDS;
+    let w = array<u32, 10>(
+        f.frac.x, f.low.x, f.high.x, f.frac.y, f.low.y, f.high.y, f.frac.z, f.low.z, f.high.z, f.samples
+    );
+    for (var i = 0u; i < ACCUM_WORDS; i++) {
+        if buf == 0u {
+            accum_even[b + i] = w[i];
+        } else {
+            accum_odd[b + i] = w[i];
+        }
+    }
 }
 
 // True if any component is NaN or infinite, by the exponent bits: WGSL lets compilers assume
@@ -299,15 +345,11 @@ fn trace(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_in
     var segments = 0u;
     if in_image {
         let pixel = px.y * scene.width + px.x;
-        var even_hi = vec4f(0.0);
-        var even_lo = vec4f(0.0);
-        var odd_hi = vec4f(0.0);
-        var odd_lo = vec4f(0.0);
+        var even = Fixed(vec3u(0u), vec3u(0u), vec3u(0u), 0u);
+        var odd = even;
         if batch.accumulate != 0u {
-            even_hi = accum_even[2u * pixel];
-            even_lo = accum_even[2u * pixel + 1u];
-            odd_hi = accum_odd[2u * pixel];
-            odd_lo = accum_odd[2u * pixel + 1u];
+            even = fixed_load(0u, pixel);
+            odd = fixed_load(1u, pixel);
         }
         var invalid = 0u;
         for (var i = 0u; i < batch.sample_count; i++) {
@@ -319,17 +361,14 @@ fn trace(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_in
                 invalid += 1u;
                 continue;
             }
-            let x = vec4f(path.radiance, 1.0);
             if (sample & 1u) == 0u {
-                two_sum_add(&even_hi, &even_lo, x);
+                fixed_add(&even, path.radiance);
             } else {
-                two_sum_add(&odd_hi, &odd_lo, x);
+                fixed_add(&odd, path.radiance);
             }
         }
-        accum_even[2u * pixel] = even_hi;
-        accum_even[2u * pixel + 1u] = even_lo;
-        accum_odd[2u * pixel] = odd_hi;
-        accum_odd[2u * pixel + 1u] = odd_lo;
+        fixed_store(0u, pixel, even);
+        fixed_store(1u, pixel, odd);
         add_u64(0u, invalid);
     }
     if COUNT_SEGMENTS {

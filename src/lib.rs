@@ -10,4 +10,5 @@ pub mod gpu;
 pub mod output;
 pub mod render;
 pub mod scene;
+pub mod stability;
 pub mod ui;

@@ -214,10 +214,15 @@ fn safe_inverse(dir: vec3f) -> vec3f {
 // Moves a hit point off its surface along the geometric normal `n` (pointing to the side the
 // new ray leaves into) by an amount that scales with the point's magnitude: a fixed number of
 // float ulps, or a fixed distance near the origin where ulps vanish. Wächter & Binder,
-// "A Fast and Robust Method for Avoiding Self-Intersection", Ray Tracing Gems ch. 6.
+// "A Fast and Robust Method for Avoiding Self-Intersection", Ray Tracing Gems ch. 6. The
+// chapter's 256 ulps cover hit points with hundreds of ulps of error; ours are reprojected
+// onto their surface (a few ulps), so 32 suffice, and smaller offsets leak less light where
+// objects touch. Near the origin (where the floating origin of src/gpu/scene_buffers.rs puts
+// the camera's target) the chapter's fixed 2^-16; 2^-20 lost paths in the camera-inside-glass
+// scene. Chosen by `termtrace check --stress` (docs/STABILITY.md).
 const OFFSET_ORIGIN: f32 = 1.0 / 32.0;
 const OFFSET_FLOAT_SCALE: f32 = 1.0 / 65536.0;
-const OFFSET_INT_SCALE: f32 = 256.0;
+const OFFSET_INT_SCALE: f32 = 32.0;
 
 fn offset_ray(p: vec3f, n: vec3f) -> vec3f {
     let of_i = vec3i(OFFSET_INT_SCALE * n);

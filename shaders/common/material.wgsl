@@ -9,10 +9,21 @@ struct Scatter {
 }
 
 // Schlick, "An Inexpensive BRDF Model for Physically-based Rendering", 1994.
+// (1 - cos)^5 by multiplication: pow() is exp2(5·log2(x)) on GPUs, 1e-5 off near x = 0.
 fn schlick(cosine: f32, ratio: f32) -> f32 {
     var r0 = (1.0 - ratio) / (1.0 + ratio);
     r0 = r0 * r0;
-    return r0 + (1.0 - r0) * pow(1.0 - cosine, 5.0);
+    let x = 1.0 - cosine;
+    let x2 = x * x;
+    return r0 + (1.0 - r0) * (x2 * x2 * x);
+}
+
+// Snell's law in the lecture's form: with `n` facing the incoming unit direction `d`,
+// r_perp = ratio·(d + cos·n), r_par = -sqrt(|1 - |r_perp|²|)·n.
+fn refract_dir(d: vec3f, n: vec3f, cos_theta: f32, ratio: f32) -> vec3f {
+    let r_perp = ratio * (d + cos_theta * n);
+    let r_par = -sqrt(abs(1.0 - dot(r_perp, r_perp))) * n;
+    return r_perp + r_par;
 }
 
 // A dielectric: reflect by total internal reflection or with Schlick's probability, else
@@ -31,9 +42,7 @@ fn scatter_dielectric(m: Material, d: vec3f, n_out: vec3f, state: ptr<function, 
         if ratio * sin_theta > 1.0 || schlick(cos_theta, ratio) > u {
             dir = normalize(reflect(d, n));
         } else {
-            let r_perp = ratio * (d + cos_theta * n);
-            let r_par = -sqrt(abs(1.0 - dot(r_perp, r_perp))) * n;
-            dir = normalize(r_perp + r_par);
+            dir = normalize(refract_dir(d, n, cos_theta, ratio));
         }
     }
     if m.absorption > 0.0 {

@@ -8,11 +8,20 @@ use std::process::ExitCode;
 #[derive(Args, Debug)]
 pub struct CheckArgs {
     /// Scene files or built-in scene names.
-    #[arg(required = true)]
+    #[arg(required_unless_present = "stress")]
     pub scenes: Vec<String>,
+    /// Run the extreme scenes and the double-precision comparisons instead; one row per case.
+    #[arg(long)]
+    pub stress: bool,
+    /// Samples per pixel of each extreme render (with --stress).
+    #[arg(long, default_value_t = 16)]
+    pub spp: u32,
 }
 
-pub fn run(a: CheckArgs) -> anyhow::Result<ExitCode> {
+pub fn run(a: CheckArgs, g: &super::GlobalArgs) -> anyhow::Result<ExitCode> {
+    if a.stress {
+        return stress(&a, g);
+    }
     let mut failed = 0;
     for name in &a.scenes {
         match Scene::load(name) {
@@ -105,4 +114,84 @@ pub fn summary(s: &Scene) -> String {
         s.materials.len(),
         Features::of(s).summary(),
     )
+}
+
+/// Samples per pixel of the accumulation-drift row: a million frames.
+const DRIFT_SPP: u32 = 1_000_000;
+
+fn stress(a: &CheckArgs, g: &super::GlobalArgs) -> anyhow::Result<ExitCode> {
+    use crate::gpu::{FrameSettings, GpuContext};
+    use crate::stability::{self, FURNACE_BOUNCES, FURNACE_SKY};
+    use std::sync::Arc;
+    let ctx = Arc::new(GpuContext::new(g.adapter.as_deref())?);
+    println!("stress check on {}", ctx.adapter_name());
+    println!(
+        "{:<66} {:>8} {:>12} {:>12} {:>7}  result",
+        "case", "invalid", "furnace err", "worst rel", "rays"
+    );
+    let mut failed = 0;
+    let mut print = |row: &stability::StressRow| {
+        println!(
+            "{:<66} {:>8} {:>12} {:>12.2e} {:>7}  {}",
+            row.case,
+            row.invalid,
+            row.furnace.map_or("–".into(), |e| format!("{e:.2e}")),
+            row.probe.worst,
+            row.probe.count,
+            if row.pass() { "pass" } else { "FAIL" }
+        );
+        if !row.pass() {
+            failed += 1;
+        }
+    };
+    let (w, h) = (48, 27);
+    for (name, text) in crate::scene::EXTREME_SCENES {
+        let scene = Scene::from_toml(text, &format!("builtin:{name}"))?;
+        let s = FrameSettings::new(w, h, scene.render.max_bounces, 1);
+        let (invalid, _) = stability::render_counting(&ctx, &scene, s, a.spp);
+        let furnace = stability::furnace_applies(name).then(|| {
+            let fs = FrameSettings::new(w, h, FURNACE_BOUNCES, 1);
+            let (_, img) = stability::render_counting(
+                &ctx,
+                &stability::white_furnace(&scene, FURNACE_SKY),
+                fs,
+                a.spp,
+            );
+            stability::furnace_error(&img, FURNACE_SKY)
+        });
+        let probe = stability::run_probes(&ctx, &[stability::scene_category(&scene, 7)]).remove(0);
+        print(&stability::StressRow {
+            case: name.to_string(),
+            invalid,
+            furnace,
+            probe,
+        });
+    }
+    for probe in stability::run_probes(&ctx, &stability::categories(11)) {
+        print(&stability::StressRow {
+            case: probe.name.clone(),
+            invalid: 0,
+            furnace: None,
+            probe,
+        });
+    }
+    let drift = stability::accumulation_drift(&ctx, DRIFT_SPP);
+    print(&stability::StressRow {
+        case: format!("furnace sphere after {DRIFT_SPP} accumulated frames"),
+        invalid: drift.invalid,
+        furnace: Some(drift.error),
+        probe: stability::ProbeResult {
+            name: String::new(),
+            count: 0,
+            worst: 0.0,
+            mismatches: 0,
+            threshold: 0.0,
+        },
+    });
+    if failed > 0 {
+        println!("{failed} cases failed");
+        return Ok(ExitCode::FAILURE);
+    }
+    println!("every case passed");
+    Ok(ExitCode::SUCCESS)
 }

@@ -45,7 +45,7 @@ enum Command {
     View(ViewArgs),
     /// Render a scene to PNG (and linear EXR) headless.
     Render(render::RenderArgs),
-    /// Validate scene files and print a summary of each.
+    /// Validate scene files and print a summary of each (--stress: the stability report).
     Check(check::CheckArgs),
     /// List the GPU adapters this machine offers, best first.
     Adapters,
@@ -168,7 +168,7 @@ pub fn main() -> ExitCode {
         None => view(cli.view, &cli.global),
         Some(Command::View(v)) => view(v, &cli.global),
         Some(Command::Render(a)) => render::run(a, &cli.global),
-        Some(Command::Check(a)) => check::run(a),
+        Some(Command::Check(a)) => check::run(a, &cli.global),
         Some(Command::Adapters) => adapters::run(),
         Some(Command::Bench(a)) => bench::run(a, &cli.global),
         Some(Command::Converge(a)) => converge::run(a, &cli.global),

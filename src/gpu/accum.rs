@@ -1,14 +1,18 @@
-//! The accumulation buffers (running sums of the even and odd samples of every pixel, as
-//! hi/lo pairs), the invalid-sample and segment counters, and their readback.
+//! The accumulation buffers (running sums of the even and odd samples of every pixel, in
+//! 96-bit fixed point: see `fixed_add` in trace.wgsl), the invalid-sample and segment
+//! counters, and their readback.
 
 use super::GpuContext;
 
-/// Bytes of one pixel in one half: a hi and a lo `vec4f`.
-const PIXEL_BYTES: u64 = 32;
+/// Words of one pixel in one half: three per channel (fraction, low and high 32 bits of
+/// the integer part) and the sample count (ACCUM_WORDS in trace.wgsl).
+pub const ACCUM_WORDS: usize = 10;
+const PIXEL_BYTES: u64 = 4 * ACCUM_WORDS as u64;
 /// Four u32 counters: invalid samples (lo, hi) and path segments (lo, hi).
 const COUNTER_BYTES: u64 = 16;
 
-/// The per-pixel sums read back from the GPU, each `[r, g, b, samples]`.
+/// The per-pixel sums read back from the GPU, each `[r, g, b, samples]` (the exact sums,
+/// rounded to f32 only here).
 #[derive(Clone, Debug)]
 pub struct AccumData {
     pub even: Vec<[f32; 4]>,
@@ -69,7 +73,7 @@ impl Accumulation {
         queue.write_buffer(&self.counters, 0, &[0u8; COUNTER_BYTES as usize]);
     }
 
-    /// Copies everything back to the host, hi + lo folded into one value per channel.
+    /// Copies everything back to the host and decodes the fixed-point sums.
     pub fn read(&self, ctx: &GpuContext) -> AccumData {
         let half = self.pixels * PIXEL_BYTES;
         let mut enc = ctx
@@ -95,16 +99,22 @@ impl Accumulation {
         let data = slice
             .get_mapped_range()
             .expect("the readback buffer is mapped");
-        let vec4s: &[[f32; 4]] = bytemuck::cast_slice(&data[..(2 * half) as usize]);
-        let fold = |pairs: &[[f32; 4]]| -> Vec<[f32; 4]> {
-            pairs
-                .chunks_exact(2)
-                .map(|p| std::array::from_fn(|c| (p[0][c] as f64 + p[1][c] as f64) as f32))
+        let words: &[u32] = bytemuck::cast_slice(&data[..(2 * half) as usize]);
+        let n = self.pixels as usize;
+        let decode = |w: &[u32]| -> Vec<[f32; 4]> {
+            w.chunks_exact(ACCUM_WORDS)
+                .map(|p| {
+                    let channel = |c: usize| {
+                        let (frac, low, high) = (p[3 * c], p[3 * c + 1], p[3 * c + 2]);
+                        (high as f64 * 4294967296.0 + low as f64 + frac as f64 / 4294967296.0)
+                            as f32
+                    };
+                    [channel(0), channel(1), channel(2), p[9] as f32]
+                })
                 .collect()
         };
-        let n = self.pixels as usize;
-        let even = fold(&vec4s[..2 * n]);
-        let odd = fold(&vec4s[2 * n..]);
+        let even = decode(&words[..n * ACCUM_WORDS]);
+        let odd = decode(&words[n * ACCUM_WORDS..]);
         let c: &[u32] = bytemuck::cast_slice(&data[(2 * half) as usize..]);
         let u64_of = |lo: u32, hi: u32| lo as u64 | (hi as u64) << 32;
         let out = AccumData {

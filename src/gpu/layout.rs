@@ -161,7 +161,7 @@ pub fn mirrors() -> Vec<MirrorLayout> {
         m!(
             "DispatchUniforms",
             DispatchUniforms,
-            [sample_base, sample_count, row_offset, row_count, accumulate,]
+            [sample_base, sample_count, row_offset, row_count, accumulate]
         ),
         m!(
             "Material",

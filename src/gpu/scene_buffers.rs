@@ -38,8 +38,9 @@ impl FrameSettings {
 }
 
 /// The camera of MODEL.md as the focus-plane frame the shader uses (Shirley, Ray Tracing in
-/// One Weekend §11–13), computed in f64 and relative to `look_from`.
-pub fn camera_uniforms(cam: &Camera, aspect: f64, u: &mut SceneUniforms) {
+/// One Weekend §11–13), computed in f64, relative to `look_from`, and its position relative
+/// to the scene's `origin` (see [`SceneBuffers`]).
+pub fn camera_uniforms(cam: &Camera, aspect: f64, origin: DVec3, u: &mut SceneUniforms) {
     let focus = cam.focus();
     let half_h = (cam.vfov.to_radians() / 2.0).tan();
     let view_h = 2.0 * half_h * focus;
@@ -50,7 +51,7 @@ pub fn camera_uniforms(cam: &Camera, aspect: f64, u: &mut SceneUniforms) {
     let horizontal = view_w * right;
     let vertical = view_h * up;
     let f = |v: DVec3| v.as_vec3().to_array();
-    u.cam_origin = f(cam.look_from);
+    u.cam_origin = f(cam.look_from - origin);
     u.lens_radius = (cam.aperture / 2.0) as f32;
     u.cam_to_corner = f(-focus * w - horizontal / 2.0 + vertical / 2.0);
     u.cam_horizontal = f(horizontal);
@@ -59,8 +60,8 @@ pub fn camera_uniforms(cam: &Camera, aspect: f64, u: &mut SceneUniforms) {
     u.cam_v = f(up);
 }
 
-/// The uniforms of a scene rendered with `s`.
-pub fn scene_uniforms(scene: &Scene, s: &FrameSettings) -> SceneUniforms {
+/// The uniforms of a scene rendered with `s`, positions relative to `origin`.
+pub fn scene_uniforms(scene: &Scene, s: &FrameSettings, origin: DVec3) -> SceneUniforms {
     let mut u = SceneUniforms {
         width: s.width,
         height: s.height,
@@ -68,7 +69,7 @@ pub fn scene_uniforms(scene: &Scene, s: &FrameSettings) -> SceneUniforms {
         seed: s.seed,
         ..Default::default()
     };
-    camera_uniforms(&scene.camera, s.aspect(), &mut u);
+    camera_uniforms(&scene.camera, s.aspect(), origin, &mut u);
     match &scene.sky {
         Sky::Uniform(c) => {
             u.sky_uniform = 1;
@@ -135,13 +136,24 @@ pub struct Primitives {
     pub bounds: Vec<Aabb>,
 }
 
+/// A vector (a direction or an extent) in f32: never moved by the origin.
+fn dir(v: DVec3) -> [f32; 3] {
+    v.as_vec3().to_array()
+}
+
+/// A position in f32 (callers subtract the origin first).
 fn f(v: DVec3) -> [f32; 3] {
     v.as_vec3().to_array()
 }
 
 impl Primitives {
-    pub fn of(scene: &Scene) -> Primitives {
+    /// The scene's primitives with positions relative to `origin`, subtracted in f64 before
+    /// the rounding to f32 (bounds stay in world coordinates relative to it too).
+    pub fn of(scene: &Scene, origin: DVec3) -> Primitives {
         let mut p = Primitives::default();
+        // Positions are taken relative to the origin (in f64, before rounding); directions
+        // and extents go through `dir` unchanged.
+        let pos = |v: DVec3| f(v - origin);
         for (i, o) in scene.objects.iter().enumerate() {
             p.materials.push(material(o));
             let mat = i as u32;
@@ -149,32 +161,34 @@ impl Primitives {
                 Shape::Sphere { center, radius } => {
                     let (a, n) = sphere_anchor(*center, *radius, scene.camera.look_at);
                     let r = DVec3::splat(radius.abs());
+                    let c = *center - origin;
                     p.push(
                         Kind::Sphere,
                         p.spheres.len(),
                         Aabb {
-                            min: *center - r,
-                            max: *center + r,
+                            min: c - r,
+                            max: c + r,
                         },
                     );
                     p.spheres.push(GpuSphere {
-                        anchor: f(a),
+                        anchor: pos(a),
                         radius: *radius as f32,
-                        anchor_normal: f(n),
+                        anchor_normal: dir(n),
                         material: mat,
                     });
                 }
                 Shape::Quad { q, u, v } => {
                     let n = u.cross(*v);
-                    let b = Aabb::of_points(&[*q, *q + *u, *q + *v, *q + *u + *v]);
+                    let q0 = *q - origin;
+                    let b = Aabb::of_points(&[q0, q0 + *u, q0 + *v, q0 + *u + *v]);
                     p.push(Kind::Quad, p.quads.len(), b);
                     p.quads.push(GpuQuad {
-                        q: f(*q),
+                        q: pos(*q),
                         material: mat,
-                        u: f(*u),
-                        v: f(*v),
-                        normal: f(n.normalize()),
-                        w: f(n / n.dot(n)),
+                        u: dir(*u),
+                        v: dir(*v),
+                        normal: dir(n.normalize()),
+                        w: dir(n / n.dot(n)),
                         ..Default::default()
                     });
                 }
@@ -192,32 +206,29 @@ impl Primitives {
                                 if k & 2 == 0 { -1.0 } else { 1.0 },
                                 if k & 4 == 0 { -1.0 } else { 1.0 },
                             );
-                            *center + r * (s * h)
+                            *center - origin + r * (s * h)
                         })
                         .collect();
                     p.push(Kind::Box, p.boxes.len(), Aabb::of_points(&corners));
                     p.boxes.push(GpuCuboid {
-                        center: f(*center),
+                        center: pos(*center),
                         material: mat,
-                        half_extents: f(h),
-                        axis_x: f(r.x_axis),
-                        axis_y: f(r.y_axis),
-                        axis_z: f(r.z_axis),
+                        half_extents: dir(h),
+                        axis_x: dir(r.x_axis),
+                        axis_y: dir(r.y_axis),
+                        axis_z: dir(r.z_axis),
                         ..Default::default()
                     });
                 }
                 Shape::Mesh { .. } => {
                     for [a, b, c] in o.shape.world_triangles() {
-                        p.push(
-                            Kind::Triangle,
-                            p.triangles.len(),
-                            Aabb::of_points(&[a, b, c]),
-                        );
+                        let local = [a - origin, b - origin, c - origin];
+                        p.push(Kind::Triangle, p.triangles.len(), Aabb::of_points(&local));
                         p.triangles.push(GpuTriangle {
-                            v0: f(a),
+                            v0: pos(a),
                             material: mat,
-                            e1: f(b - a),
-                            e2: f(c - a),
+                            e1: dir(b - a),
+                            e2: dir(c - a),
                             ..Default::default()
                         });
                     }
@@ -355,6 +366,10 @@ pub struct SceneBuffers {
     pub refs: wgpu::Buffer,
     geometry: u64,
     anchor_target: DVec3,
+    /// The point every position is taken relative to on the GPU (a floating origin): the
+    /// camera's target when the geometry was last uploaded, so that a scene far from the
+    /// world's origin is as precise as one at it. Kept while only camera and materials change.
+    origin: DVec3,
     /// Nodes of the BVH, for reports.
     pub node_count: usize,
     /// Seconds the last BVH build took.
@@ -363,7 +378,8 @@ pub struct SceneBuffers {
 
 impl SceneBuffers {
     pub fn new(device: &wgpu::Device, scene: &Scene, s: &FrameSettings) -> SceneBuffers {
-        let p = Primitives::of(scene);
+        let origin = scene.camera.look_at;
+        let p = Primitives::of(scene, origin);
         let t = std::time::Instant::now();
         let (nodes, refs) = gpu_bvh(&p);
         let build_seconds = t.elapsed().as_secs_f64();
@@ -373,8 +389,9 @@ impl SceneBuffers {
             nodes.len(),
             build_seconds * 1e3
         );
-        let u = scene_uniforms(scene, s);
+        let u = scene_uniforms(scene, s, origin);
         SceneBuffers {
+            origin,
             uniforms: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("scene.uniforms"),
                 contents: bytemuck::bytes_of(&u),
@@ -412,9 +429,9 @@ impl SceneBuffers {
         queue.write_buffer(
             &self.uniforms,
             0,
-            bytemuck::bytes_of(&scene_uniforms(scene, s)),
+            bytemuck::bytes_of(&scene_uniforms(scene, s, self.origin)),
         );
-        let p = Primitives::of(scene);
+        let p = Primitives::of(scene, self.origin);
         if !p.materials.is_empty() {
             queue.write_buffer(&self.materials, 0, bytemuck::cast_slice(&p.materials));
         }

@@ -4,6 +4,7 @@
 /// Every WGSL file under `shaders/`, by its path relative to that folder.
 pub const SOURCES: &[(&str, &str)] = &[
     ("trace.wgsl", include_str!("../../shaders/trace.wgsl")),
+    ("probe.wgsl", include_str!("../../shaders/probe.wgsl")),
     (
         "common/types.wgsl",
         include_str!("../../shaders/common/types.wgsl"),

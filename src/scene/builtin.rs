@@ -20,10 +20,87 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
     ("mesh", include_str!("../../scenes/mesh.toml")),
 ];
 
-/// The text of a built-in scene, by name.
+/// The extreme scenes of `scenes/extreme/` (numerical stability; `check --stress`).
+pub const EXTREME_SCENES: &[(&str, &str)] = &[
+    (
+        "extreme/bounces_0",
+        include_str!("../../scenes/extreme/bounces_0.toml"),
+    ),
+    (
+        "extreme/bounces_1",
+        include_str!("../../scenes/extreme/bounces_1.toml"),
+    ),
+    (
+        "extreme/bounces_1000",
+        include_str!("../../scenes/extreme/bounces_1000.toml"),
+    ),
+    (
+        "extreme/coincident",
+        include_str!("../../scenes/extreme/coincident.toml"),
+    ),
+    (
+        "extreme/far_camera",
+        include_str!("../../scenes/extreme/far_camera.toml"),
+    ),
+    (
+        "extreme/firefly",
+        include_str!("../../scenes/extreme/firefly.toml"),
+    ),
+    (
+        "extreme/fuzz_1",
+        include_str!("../../scenes/extreme/fuzz_1.toml"),
+    ),
+    (
+        "extreme/glass_iors",
+        include_str!("../../scenes/extreme/glass_iors.toml"),
+    ),
+    (
+        "extreme/grazing",
+        include_str!("../../scenes/extreme/grazing.toml"),
+    ),
+    (
+        "extreme/ground_1e3",
+        include_str!("../../scenes/extreme/ground_1e3.toml"),
+    ),
+    (
+        "extreme/ground_1e5",
+        include_str!("../../scenes/extreme/ground_1e5.toml"),
+    ),
+    (
+        "extreme/ground_1e6",
+        include_str!("../../scenes/extreme/ground_1e6.toml"),
+    ),
+    (
+        "extreme/hollow",
+        include_str!("../../scenes/extreme/hollow.toml"),
+    ),
+    (
+        "extreme/inside_diffuse",
+        include_str!("../../scenes/extreme/inside_diffuse.toml"),
+    ),
+    (
+        "extreme/inside_glass",
+        include_str!("../../scenes/extreme/inside_glass.toml"),
+    ),
+    (
+        "extreme/tiny_spheres",
+        include_str!("../../scenes/extreme/tiny_spheres.toml"),
+    ),
+    (
+        "extreme/tir_trap",
+        include_str!("../../scenes/extreme/tir_trap.toml"),
+    ),
+    (
+        "extreme/translated_1e4",
+        include_str!("../../scenes/extreme/translated_1e4.toml"),
+    ),
+];
+
+/// The text of a built-in scene, by name (`weekend`, `extreme/ground_1e6`).
 pub fn builtin_source(name: &str) -> Option<&'static str> {
     BUILTIN_SCENES
         .iter()
+        .chain(EXTREME_SCENES)
         .find(|(n, _)| *n == name)
         .map(|(_, s)| *s)
 }

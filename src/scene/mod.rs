@@ -12,7 +12,7 @@ mod parse;
 mod reader;
 mod write;
 
-pub use builtin::{BUILTIN_FILES, BUILTIN_SCENES, DEFAULT_SCENE, builtin_source};
+pub use builtin::{BUILTIN_FILES, BUILTIN_SCENES, DEFAULT_SCENE, EXTREME_SCENES, builtin_source};
 pub use error::{Diagnostic, SceneError};
 pub use mesh::Mesh;
 pub use write::to_toml;
@@ -81,7 +81,9 @@ impl Default for RenderSettings {
 
 /// Upper bounds that keep a scene file from asking for absurd work by mistake.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
-pub const MAX_BOUNCES: u32 = 100_000;
+/// llvmpipe (the software adapter) ends any shader loop after 65535 iterations; 10000
+/// bounces stays well inside that, and far beyond what any scene needs.
+pub const MAX_BOUNCES: u32 = 10_000;
 
 /// The optional sun of the gradient sky: `color * intensity * max(dot(direction, dir), 0)^size`.
 #[derive(Clone, Debug, PartialEq)]

@@ -55,7 +55,7 @@ pub fn render(toml: &str, w: u32, h: u32, spp: u32, max_bounces: u32) -> LinearI
 /// The camera frame the tracer uses, for host-side geometry.
 pub fn camera_frame(scene: &Scene, w: u32, h: u32) -> SceneUniforms {
     let mut u = SceneUniforms::default();
-    scene_buffers::camera_uniforms(&scene.camera, w as f64 / h as f64, &mut u);
+    scene_buffers::camera_uniforms(&scene.camera, w as f64 / h as f64, DVec3::ZERO, &mut u);
     u
 }
 
