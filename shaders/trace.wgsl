@@ -13,6 +13,7 @@ override HAS_BOXES: bool = true;
 override HAS_TRIANGLES: bool = true;
 override HAS_DIELECTRICS: bool = true;
 override HAS_EMITTERS: bool = true;
+override HAS_NEE: bool = true;
 override HAS_DOF: bool = true;
 override HAS_SUN: bool = true;
 // Counting path segments costs an atomic per workgroup; only `bench` turns it on.
@@ -37,6 +38,7 @@ override USE_BVH: bool = true;
 // Primitive references in leaf order: kind (KIND_* - 1) in the top two bits, index below.
 @group(0) @binding(10) var<storage, read> refs: array<u32>;
 @group(0) @binding(11) var<storage, read> triangles: array<Triangle>;
+@group(0) @binding(12) var<storage, read> lights: array<Light>;
 
 const KIND_NONE: u32 = 0u;
 const KIND_SPHERE: u32 = 1u;
@@ -161,6 +163,64 @@ fn intersect_scene(ray: Ray) -> Hit {
     return hit;
 }
 
+// Whether anything but primitive `skip` lies on the ray before t_max: shadow rays stop at the
+// first blocker, in any order, and never look past the light.
+fn occluded(ray: Ray, t_max: f32, skip: u32) -> bool {
+    if !USE_BVH {
+        let counts = array<u32, 4>(scene.n_spheres, scene.n_quads, scene.n_boxes, scene.n_triangles);
+        for (var kind = 0u; kind < 4u; kind++) {
+            for (var i = 0u; i < counts[kind]; i++) {
+                let r = kind << 30u | i;
+                if r != skip && hit_primitive(r, ray, t_max) > 0.0 {
+                    return true;
+                }
+            }
+        }
+        return false;
+    }
+    let inv = safe_inverse(ray.dir);
+    if hit_bounds(nodes[0].min, nodes[0].max, ray.origin, inv, t_max) < 0.0 {
+        return false;
+    }
+    var stack: array<u32, STACK_SIZE>;
+    var sp = 0u;
+    var node = 0u;
+    loop {
+        let n = nodes[node];
+        if n.count > 0u {
+            for (var i = n.first; i < n.first + n.count; i++) {
+                let r = refs[i];
+                if r != skip && hit_primitive(r, ray, t_max) > 0.0 {
+                    return true;
+                }
+            }
+        } else {
+            let l = nodes[n.first];
+            let rn = nodes[n.first + 1u];
+            let hl = hit_bounds(l.min, l.max, ray.origin, inv, t_max) >= 0.0;
+            let hr = hit_bounds(rn.min, rn.max, ray.origin, inv, t_max) >= 0.0;
+            if hl && hr && sp < STACK_SIZE {
+                stack[sp] = n.first + 1u;
+                sp += 1u;
+                node = n.first;
+                continue;
+            } else if hl {
+                node = n.first;
+                continue;
+            } else if hr {
+                node = n.first + 1u;
+                continue;
+            }
+        }
+        if sp == 0u {
+            break;
+        }
+        sp -= 1u;
+        node = stack[sp];
+    }
+    return false;
+}
+
 // The surface point, geometric normal and material of a hit.
 struct Surface {
     point: SurfacePoint,
@@ -217,6 +277,213 @@ fn camera_ray(px: vec2u, state: ptr<function, u32>) -> Ray {
     return Ray(scene.cam_origin + lens, normalize(target_rel - lens));
 }
 
+// ---- Next-event estimation with multiple importance sampling ----
+// At a bounce whose lobe has a density (the Lambertian lobe, and the specular lobe at
+// smoothness 0, which is the same cosine distribution), one light is sampled (picked by
+// power; a sphere within the cone it subtends, a quad by area) and, if unoccluded, weighted
+// against the BSDF sample that could have found it with Veach's power heuristic (Veach &
+// Guibas 1995; PBRT 4th ed. §13.4). Lobes without a usable density (the smoothness blend,
+// fuzzed and perfect mirrors, glass) are treated as delta lobes: no light sample, and a
+// light their bounce hits counts fully. The lobe is picked first (rand() < specular), so the
+// estimator is a one-sample mixture over lobes and stays unbiased.
+
+// Bounces after which Russian roulette may end a path, and the highest survival probability
+// (under 1, so that a lossless path, e.g. trapped by total internal reflection, still ends).
+const RR_START: u32 = 3u;
+const RR_MAX_SURVIVAL: f32 = 0.95;
+
+fn power_heuristic(a: f32, b: f32) -> f32 {
+    let a2 = a * a;
+    return a2 / (a2 + b * b);
+}
+
+// An orthonormal basis around a unit vector (Duff et al., "Building an Orthonormal Basis,
+// Revisited", JCGT 6(1), 2017).
+fn basis(n: vec3f) -> mat3x3f {
+    let s = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (s + n.z);
+    let b = n.x * n.y * a;
+    return mat3x3f(vec3f(1.0 + s * n.x * n.x * a, s * b, -s * n.x), vec3f(b, s + n.y * n.y * a, -n.y), n);
+}
+
+fn sphere_center(s: Sphere) -> vec3f {
+    return s.anchor - abs(s.radius) * s.anchor_normal;
+}
+
+// 1 - cos of the half-angle of the cone a sphere subtends from a point at squared distance
+// dist2 (r² < dist2), without cancellation: sin²/(1 + cos).
+fn cone_one_minus_cos(r2: f32, dist2: f32) -> f32 {
+    let sin2 = r2 / dist2;
+    return sin2 / (1.0 + sqrt(max(0.0, 1.0 - sin2)));
+}
+
+// Solid-angle density with which light sampling from `origin` produces the direction that
+// hit light primitive `hit` at `at` (0 if it could not have: from inside an emissive sphere).
+fn light_pdf(hit: Hit, origin: vec3f, at: vec3f) -> f32 {
+    if hit.kind == KIND_SPHERE {
+        let s = spheres[hit.index];
+        let d = sphere_center(s) - origin;
+        let dist2 = dot(d, d);
+        let r2 = s.radius * s.radius;
+        if dist2 <= r2 {
+            return 0.0;
+        }
+        return 1.0 / (2.0 * PI * cone_one_minus_cos(r2, dist2));
+    }
+    if hit.kind == KIND_QUAD {
+        let q = quads[hit.index];
+        let to = at - origin;
+        let dist2 = dot(to, to);
+        let cos_l = abs(dot(q.normal, to)) * inverseSqrt(dist2);
+        let area = length(cross(q.u, q.v));
+        return dist2 / max(area * cos_l, 1e-30);
+    }
+    return 0.0;
+}
+
+// Light selection. With few lights, each is weighted as seen from the shading point p with
+// normal n: its power (its share `pmf` of the total) over its squared distance (at least its
+// own radius²), times 0.1 + max(cos, 0) toward it: the power-proportional choice corrected
+// for distance and facing, so that a far bright panel does not draw the samples a near lamp
+// needs. The 0.1 keeps every light's probability above zero (the estimator stays unbiased).
+// With more than LOCAL_SELECTION_MAX lights the weights would cost a loop over all of them:
+// the choice is then by power alone, from the cumulative table.
+const LOCAL_SELECTION_MAX: u32 = 32u;
+const BACKFACE_WEIGHT: f32 = 0.1;
+
+fn light_weight(l: Light, p: vec3f, n: vec3f) -> f32 {
+    let kind = l.prim >> 30u;
+    let index = l.prim & 0x3fffffffu;
+    var center: vec3f;
+    var r2: f32;
+    if kind == 0u {
+        let s = spheres[index];
+        center = sphere_center(s);
+        r2 = s.radius * s.radius;
+    } else {
+        let q = quads[index];
+        center = q.q + 0.5 * (q.u + q.v);
+        r2 = 0.25 * dot(q.u + q.v, q.u + q.v);
+    }
+    let to = center - p;
+    let d2 = dot(to, to);
+    let cos_t = dot(n, to) * inverseSqrt(max(d2, 1e-30));
+    return l.pmf / max(d2, r2) * (BACKFACE_WEIGHT + max(cos_t, 0.0));
+}
+
+// Index of the light picked by u in [0, 1) from the cumulative power table.
+fn pick_light_by_power(u: f32) -> u32 {
+    var lo = 0u;
+    var hi = scene.n_lights - 1u;
+    while lo < hi {
+        let mid = (lo + hi) / 2u;
+        if lights[mid].cdf > u {
+            hi = mid;
+        } else {
+            lo = mid + 1u;
+        }
+    }
+    return lo;
+}
+
+struct LightChoice {
+    index: u32,
+    pmf: f32,
+}
+
+fn choose_light(u: f32, p: vec3f, n: vec3f) -> LightChoice {
+    if scene.n_lights > LOCAL_SELECTION_MAX {
+        let i = pick_light_by_power(u);
+        return LightChoice(i, lights[i].pmf);
+    }
+    var total = 0.0;
+    for (var i = 0u; i < scene.n_lights; i++) {
+        total += light_weight(lights[i], p, n);
+    }
+    let target_w = u * total;
+    var acc = 0.0;
+    for (var i = 0u; i < scene.n_lights; i++) {
+        let w = light_weight(lights[i], p, n);
+        acc += w;
+        if acc > target_w || i + 1u == scene.n_lights {
+            return LightChoice(i, w / total);
+        }
+    }
+    return LightChoice(0u, 0.0);
+}
+
+// The probability that choose_light at (p, n) picks light i.
+fn light_choice_pmf(i: u32, p: vec3f, n: vec3f) -> f32 {
+    if scene.n_lights > LOCAL_SELECTION_MAX {
+        return lights[i].pmf;
+    }
+    var total = 0.0;
+    for (var k = 0u; k < scene.n_lights; k++) {
+        total += light_weight(lights[k], p, n);
+    }
+    return light_weight(lights[i], p, n) / total;
+}
+
+// The light-sampled estimate at point p with facing normal n, for the Lambertian lobe
+// (its 1/π included, its tint not): emitted radiance × cos / π / pdf, MIS-weighted.
+fn sample_light(p: vec3f, n: vec3f, state: ptr<function, u32>) -> vec3f {
+    let choice = choose_light(rand(state), p, n);
+    if choice.pmf <= 0.0 {
+        return vec3f(0.0);
+    }
+    let light = lights[choice.index];
+    let kind = light.prim >> 30u;
+    let index = light.prim & 0x3fffffffu;
+    var dir: vec3f;
+    var pdf: f32;
+    var material: u32;
+    if kind == 0u {
+        let s = spheres[index];
+        let to = sphere_center(s) - p;
+        let dist2 = dot(to, to);
+        let r2 = s.radius * s.radius;
+        let u1 = rand(state);
+        let u2 = rand(state);
+        if dist2 <= r2 {
+            return vec3f(0.0);
+        }
+        let one_minus = cone_one_minus_cos(r2, dist2);
+        let cos_t = 1.0 - u1 * one_minus;
+        let sin_t = sqrt(max(0.0, 1.0 - cos_t * cos_t));
+        let phi = 2.0 * PI * u2;
+        dir = normalize(basis(to * inverseSqrt(dist2)) * vec3f(sin_t * cos(phi), sin_t * sin(phi), cos_t));
+        pdf = 1.0 / (2.0 * PI * one_minus);
+        material = s.material;
+    } else {
+        let q = quads[index];
+        let x = q.q + rand(state) * q.u + rand(state) * q.v;
+        let to = x - p;
+        let dist2 = dot(to, to);
+        dir = to * inverseSqrt(dist2);
+        let cos_l = abs(dot(q.normal, dir));
+        if cos_l < 1e-6 {
+            return vec3f(0.0);
+        }
+        pdf = dist2 / (light.area * cos_l);
+        material = q.material;
+    }
+    let cos_s = dot(n, dir);
+    if cos_s <= 0.0 {
+        return vec3f(0.0);
+    }
+    // Visible if nothing but the light lies between p and the light's own hit along dir (no
+    // distance epsilon: the light is skipped by identity, not by distance).
+    let shadow = Ray(offset_ray(p, n), dir);
+    let t_light = hit_primitive(light.prim, shadow, T_FAR);
+    if t_light <= 0.0 || occluded(shadow, t_light, light.prim) {
+        return vec3f(0.0);
+    }
+    let m = materials[material];
+    let pl = choice.pmf * pdf;
+    let bsdf_pdf = cos_s / PI;
+    return m.color * m.light * (cos_s / PI / pl * power_heuristic(pl, bsdf_pdf));
+}
+
 struct PathResult {
     radiance: vec3f,
     segments: u32,
@@ -229,6 +496,13 @@ fn trace_path(primary: Ray, state: ptr<function, u32>) -> PathResult {
     var throughput = vec3f(1.0);
     var radiance = vec3f(0.0);
     var segments = 0u;
+    let nee = HAS_NEE && scene.n_lights > 0u;
+    // MIS state: the solid-angle density with which the last bounce sampled the current ray
+    // (0: a delta lobe or the camera, which light sampling could not have matched), and the
+    // point and facing normal it sampled from (light selection depends on both).
+    var prev_pdf = 0.0;
+    var prev_point = ray.origin;
+    var prev_normal = vec3f(0.0, 1.0, 0.0);
     for (var bounce = 0u; bounce <= scene.max_bounces; bounce++) {
         segments += 1u;
         let hit = intersect_scene(ray);
@@ -239,24 +513,55 @@ fn trace_path(primary: Ray, state: ptr<function, u32>) -> PathResult {
         let surf = surface_at(hit, ray);
         let m = materials[surf.material];
         if HAS_EMITTERS && m.light > 0.0 {
-            radiance += throughput * m.color * m.light;
+            var w = 1.0;
+            if nee && prev_pdf > 0.0 && m.light_slot > 0u {
+                let choice = light_choice_pmf(m.light_slot - 1u, prev_point, prev_normal);
+                let pl = choice * light_pdf(hit, prev_point, surf.point.position);
+                w = power_heuristic(prev_pdf, pl);
+            }
+            radiance += throughput * m.color * m.light * w;
             break;
         }
         if bounce == scene.max_bounces {
             break;
         }
+        let n_out = surf.point.normal;
         var sc: Scatter;
+        prev_pdf = 0.0;
         if HAS_DIELECTRICS && m.smoothness < 0.0 {
-            sc = scatter_dielectric(m, ray.dir, surf.point.normal, state);
+            sc = scatter_dielectric(m, ray.dir, n_out, state);
         } else {
-            sc = scatter_surface(m, ray.dir, surf.point.normal, state);
+            let is_spec = rand(state) < m.specular;
+            let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);
+            // A lobe with the cosine density: the Lambertian one, or the specular one at
+            // smoothness 0 (the same distribution, its own tint).
+            let cosine_lobe = !is_spec || m.smoothness == 0.0;
+            if nee && cosine_lobe {
+                let tint = select(m.color, m.specular_color, is_spec);
+                radiance += throughput * tint * sample_light(surf.point.position, n, state);
+            }
+            sc = scatter_surface(m, ray.dir, n_out, is_spec, state);
+            if cosine_lobe {
+                prev_pdf = max(dot(sc.dir, n), 0.0) / PI;
+                prev_normal = n;
+            }
         }
         if sc.absorbed {
             break;
         }
         throughput *= sc.attenuation;
-        let n = surf.point.normal;
-        let side = select(-n, n, dot(sc.dir, n) > 0.0);
+        prev_point = surf.point.position;
+        // Russian roulette (Arvo & Kirk 1990), unbiased: a survivor's throughput is divided by
+        // its survival probability. With light sampling only, so that the exact furnace tests
+        // (no lights) keep zero variance.
+        if nee && bounce >= RR_START {
+            let q = min(max(max(throughput.x, throughput.y), throughput.z), RR_MAX_SURVIVAL);
+            if rand(state) >= q {
+                break;
+            }
+            throughput /= q;
+        }
+        let side = select(-n_out, n_out, dot(sc.dir, n_out) > 0.0);
         ray = Ray(offset_ray(surf.point.position, side), sc.dir);
     }
     return PathResult(radiance, segments);

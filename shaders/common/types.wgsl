@@ -5,7 +5,7 @@ struct SceneUniforms {
     cam_origin: vec3f,      //   0  look_from
     lens_radius: f32,       //  12  aperture / 2
     cam_to_corner: vec3f,   //  16  upper-left corner of the focus plane, relative to cam_origin
-    _pad0: f32,             //  28
+    n_lights: u32,          //  28  lights sampled by next-event estimation (0: none)
     cam_horizontal: vec3f,  //  32  full width of the focus plane
     _pad1: f32,             //  44
     cam_vertical: vec3f,    //  48  full height of the focus plane, pointing up
@@ -53,7 +53,7 @@ struct Material {
     specular: f32,          //  32  probability of the specular lobe
     light: f32,             //  36  emission strength
     ior: f32,               //  40  index of refraction
-    _pad0: f32,             //  44
+    light_slot: u32,        //  44  1 + this object's index in `lights`; 0: not sampled
 }                           //  48
 
 // A sphere stored by a point on its surface (the anchor, chosen near the part of the scene
@@ -111,3 +111,12 @@ struct BvhNode {
     max: vec3f,             //  16
     count: u32,             //  28
 }                           //  32
+
+// A light for next-event estimation: an emissive sphere or quad, picked in proportion to its
+// power (src/gpu/scene_buffers.rs: Lights).
+struct Light {
+    prim: u32,              //   0  a BVH reference: kind in the top two bits, index below
+    cdf: f32,               //   4  probability of picking this light or one before it
+    pmf: f32,               //   8  probability of picking this light
+    area: f32,              //  12  surface area (quads)
+}                           //  16

@@ -21,6 +21,9 @@ pub struct BenchArgs {
     /// Test every primitive instead of walking the BVH.
     #[arg(long)]
     pub no_bvh: bool,
+    /// No light sampling (next-event estimation).
+    #[arg(long)]
+    pub no_nee: bool,
     #[arg(long, default_value_t = 1280)]
     pub width: u32,
     #[arg(long, default_value_t = 720)]
@@ -49,7 +52,10 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         Some(n) => crate::scene::generate::sphere_field(n, 2024),
         None => load_scene(&a.scene)?,
     };
-    let settings = frame_settings(&scene, Some(a.width), Some(a.height), a.max_bounces, None);
+    let settings = crate::gpu::FrameSettings {
+        nee: !a.no_nee,
+        ..frame_settings(&scene, Some(a.width), Some(a.height), a.max_bounces, None)
+    };
     let ctx = Arc::new(GpuContext::new(g.adapter.as_deref())?);
     let options = RenderOptions {
         generic: a.generic,

@@ -37,12 +37,17 @@ pub struct ConvergeArgs {
     /// Do not read or write the reference cache.
     #[arg(long)]
     pub no_cache: bool,
+    /// Render the reference without light sampling (brute force), to check that light
+    /// sampling converges to the same image (with --bias-check).
+    #[arg(long)]
+    pub reference_no_nee: bool,
     /// Independent runs per variant (different seeds): the mean curve and its spread.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub runs: u32,
-    /// Variants to compare, each a quoted set of options, e.g. '--no-nee' '' '--generic'
-    /// (options: --generic, --no-bvh, --max-bounces N).
-    #[arg(long, num_args = 1.., value_name = "'OPTIONS'", allow_hyphen_values = true)]
+    /// A variant to compare, as a quoted set of options; repeat for each variant, e.g.
+    /// --compare '' --compare '--no-nee' (options: --generic, --no-bvh, --no-nee,
+    /// --max-bounces N; '' is the default).
+    #[arg(long, value_name = "'OPTIONS'", allow_hyphen_values = true, action = clap::ArgAction::Append)]
     pub compare: Vec<String>,
     /// Test every variant's final image against the reference, tile by tile (Welch t-test).
     #[arg(long)]
@@ -76,6 +81,8 @@ struct VariantArgs {
     #[arg(long)]
     no_bvh: bool,
     #[arg(long)]
+    no_nee: bool,
+    #[arg(long)]
     max_bounces: Option<u32>,
 }
 
@@ -95,6 +102,7 @@ fn variant(spec: &str) -> anyhow::Result<Variant> {
             ..Default::default()
         },
         max_bounces: a.max_bounces,
+        nee: !a.no_nee,
     })
 }
 
@@ -151,10 +159,14 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
                 a.reference_spp as u64,
                 "reference {elapsed_precise} [{wide_bar}] {pos}/{len} spp  ETA {eta}",
             );
+            let ref_settings = crate::gpu::FrameSettings {
+                nee: !a.reference_no_nee,
+                ..settings
+            };
             let r = reference::rendered(
                 &ctx,
                 &scene,
-                settings,
+                ref_settings,
                 a.reference_spp,
                 cache.as_deref(),
                 |done, _| pb.set_position(done as u64),

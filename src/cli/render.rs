@@ -52,6 +52,10 @@ pub struct RenderArgs {
     /// Use the generic tracer instead of one specialized for the scene.
     #[arg(long)]
     pub generic: bool,
+    /// No light sampling: the brute-force path tracer of the lecture (no next-event
+    /// estimation, no multiple importance sampling, no Russian roulette).
+    #[arg(long)]
+    pub no_nee: bool,
     /// Stop once the estimated relative RMSE (from the difference of two independent halves
     /// of the samples) falls below this, e.g. 0.01 for 1 %.
     #[arg(long, value_name = "E", value_parser = super::positive)]
@@ -111,7 +115,10 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     if let Some(exr) = &a.exr {
         check_writable(exr)?;
     }
-    let settings = frame_settings(&scene, a.width, a.height, a.max_bounces, a.seed);
+    let settings = FrameSettings {
+        nee: !a.no_nee,
+        ..frame_settings(&scene, a.width, a.height, a.max_bounces, a.seed)
+    };
     let ctx = Arc::new(GpuContext::new(g.adapter.as_deref())?);
     let options = RenderOptions {
         generic: a.generic,

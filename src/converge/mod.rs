@@ -29,6 +29,8 @@ pub struct Variant {
     pub label: String,
     pub options: RenderOptions,
     pub max_bounces: Option<u32>,
+    /// Next-event estimation.
+    pub nee: bool,
 }
 
 impl Default for Variant {
@@ -37,6 +39,7 @@ impl Default for Variant {
             label: "default".into(),
             options: RenderOptions::default(),
             max_bounces: None,
+            nee: true,
         }
     }
 }
@@ -80,6 +83,7 @@ pub fn run_once(
     let s = FrameSettings {
         max_bounces: variant.max_bounces.unwrap_or(setup.settings.max_bounces),
         seed: setup.settings.seed.wrapping_add(run),
+        nee: variant.nee,
         ..setup.settings
     };
     let mut r = Renderer::new(setup.ctx.clone(), setup.scene, s, variant.options);

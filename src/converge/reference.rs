@@ -83,6 +83,7 @@ pub fn cache_key(scene: &Scene, s: &FrameSettings, spp: u32, adapter: &str) -> u
         s.height,
         s.max_bounces,
         s.pixel_aspect.to_bits(),
+        s.nee,
         spp,
         REFERENCE_SEED,
     )

@@ -16,6 +16,9 @@ pub struct Features {
     pub triangles: bool,
     pub dielectrics: bool,
     pub emitters: bool,
+    /// Next-event estimation: the scene has lights to sample (emissive spheres or quads)
+    /// and the settings ask for it.
+    pub nee: bool,
     pub dof: bool,
     pub sun: bool,
     /// Counts path segments (benchmarks only); not a scene feature.
@@ -34,6 +37,7 @@ impl Features {
             triangles: true,
             dielectrics: true,
             emitters: true,
+            nee: true,
             dof: true,
             sun: true,
             count_segments: false,
@@ -50,6 +54,7 @@ impl Features {
             triangles: false,
             dielectrics: false,
             emitters: false,
+            nee: false,
             dof: scene.camera.aperture > 0.0,
             sun: matches!(&scene.sky, Sky::Gradient { sun: Some(s), .. } if s.intensity > 0.0),
             count_segments: false,
@@ -64,6 +69,8 @@ impl Features {
             }
             f.dielectrics |= o.material.is_dielectric();
             f.emitters |= o.material.is_emitter();
+            f.nee |= o.material.is_emitter()
+                && matches!(o.shape, Shape::Sphere { .. } | Shape::Quad { .. });
         }
         f
     }
@@ -77,6 +84,7 @@ impl Features {
             triangles: self.triangles | other.triangles,
             dielectrics: self.dielectrics | other.dielectrics,
             emitters: self.emitters | other.emitters,
+            nee: self.nee | other.nee,
             dof: self.dof | other.dof,
             sun: self.sun | other.sun,
             count_segments: self.count_segments | other.count_segments,
@@ -99,6 +107,7 @@ impl Features {
             ("HAS_TRIANGLES", b(self.triangles)),
             ("HAS_DIELECTRICS", b(self.dielectrics)),
             ("HAS_EMITTERS", b(self.emitters)),
+            ("HAS_NEE", b(self.nee)),
             ("HAS_DOF", b(self.dof)),
             ("HAS_SUN", b(self.sun)),
             ("COUNT_SEGMENTS", b(self.count_segments)),
@@ -115,6 +124,7 @@ impl Features {
             (self.triangles, "triangles"),
             (self.dielectrics, "dielectrics"),
             (self.emitters, "emitters"),
+            (self.nee, "nee"),
             (self.dof, "dof"),
             (self.sun, "sun"),
         ];

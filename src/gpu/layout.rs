@@ -9,7 +9,7 @@ pub struct SceneUniforms {
     pub cam_origin: [f32; 3],
     pub lens_radius: f32,
     pub cam_to_corner: [f32; 3],
-    pub _pad0: f32,
+    pub n_lights: u32,
     pub cam_horizontal: [f32; 3],
     pub _pad1: f32,
     pub cam_vertical: [f32; 3],
@@ -57,7 +57,7 @@ pub struct GpuMaterial {
     pub specular: f32,
     pub light: f32,
     pub ior: f32,
-    pub _pad0: f32,
+    pub light_slot: u32,
 }
 
 #[repr(C)]
@@ -119,6 +119,15 @@ pub struct GpuBvhNode {
     pub count: u32,
 }
 
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuLight {
+    pub prim: u32,
+    pub cdf: f32,
+    pub pmf: f32,
+    pub area: f32,
+}
+
 /// A mirror's WGSL struct name, its size, and `(field, byte offset)` of each named field.
 pub type MirrorLayout = (&'static str, usize, Vec<(&'static str, usize)>);
 
@@ -138,6 +147,7 @@ pub fn mirrors() -> Vec<MirrorLayout> {
                 cam_origin,
                 lens_radius,
                 cam_to_corner,
+                n_lights,
                 cam_horizontal,
                 cam_vertical,
                 cam_u,
@@ -174,6 +184,7 @@ pub fn mirrors() -> Vec<MirrorLayout> {
                 specular,
                 light,
                 ior,
+                light_slot,
             ]
         ),
         m!(
@@ -189,6 +200,7 @@ pub fn mirrors() -> Vec<MirrorLayout> {
         ),
         m!("Triangle", GpuTriangle, [v0, material, e1, e2]),
         m!("BvhNode", GpuBvhNode, [min, first, max, count]),
+        m!("Light", GpuLight, [prim, cdf, pmf, area]),
     ]
 }
 
@@ -201,4 +213,5 @@ const _: () = {
     assert!(std::mem::size_of::<GpuCuboid>() == 80);
     assert!(std::mem::size_of::<GpuTriangle>() == 48);
     assert!(std::mem::size_of::<GpuBvhNode>() == 32);
+    assert!(std::mem::size_of::<GpuLight>() == 16);
 };

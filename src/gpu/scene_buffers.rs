@@ -17,6 +17,9 @@ pub struct FrameSettings {
     pub seed: u32,
     /// Width / height of one pixel: 1 for images; a terminal's pixels are taller than wide.
     pub pixel_aspect: f64,
+    /// Next-event estimation (light sampling with MIS, and Russian roulette) where the scene
+    /// has lights; off gives the lecture's brute-force path tracer.
+    pub nee: bool,
 }
 
 impl FrameSettings {
@@ -28,6 +31,7 @@ impl FrameSettings {
             max_bounces,
             seed,
             pixel_aspect: 1.0,
+            nee: true,
         }
     }
 
@@ -85,6 +89,7 @@ pub fn scene_uniforms(scene: &Scene, s: &FrameSettings, origin: DVec3) -> SceneU
             }
         }
     }
+    u.n_lights = lights(scene, s.nee).0.len() as u32;
     let n = scene.counts();
     u.n_spheres = n.spheres as u32;
     u.n_quads = n.quads as u32;
@@ -131,6 +136,7 @@ pub struct Primitives {
     pub quads: Vec<GpuQuad>,
     pub boxes: Vec<GpuCuboid>,
     pub triangles: Vec<GpuTriangle>,
+    pub lights: Vec<GpuLight>,
     /// The reference and bounds of every primitive.
     pub refs: Vec<u32>,
     pub bounds: Vec<Aabb>,
@@ -149,13 +155,18 @@ fn f(v: DVec3) -> [f32; 3] {
 impl Primitives {
     /// The scene's primitives with positions relative to `origin`, subtracted in f64 before
     /// the rounding to f32 (bounds stay in world coordinates relative to it too).
-    pub fn of(scene: &Scene, origin: DVec3) -> Primitives {
+    pub fn of(scene: &Scene, origin: DVec3, nee: bool) -> Primitives {
         let mut p = Primitives::default();
+        let (lights, slots) = lights(scene, nee);
+        p.lights = lights;
         // Positions are taken relative to the origin (in f64, before rounding); directions
         // and extents go through `dir` unchanged.
         let pos = |v: DVec3| f(v - origin);
         for (i, o) in scene.objects.iter().enumerate() {
-            p.materials.push(material(o));
+            p.materials.push(GpuMaterial {
+                light_slot: slots[i],
+                ..material(o)
+            });
             let mat = i as u32;
             match &o.shape {
                 Shape::Sphere { center, radius } => {
@@ -244,6 +255,75 @@ impl Primitives {
     }
 }
 
+/// The lights next-event estimation samples: every emissive sphere and quad with its share
+/// of the total power (luminance × light × emitting area, both faces of a quad) and the
+/// cumulative table of those shares; and each object's slot (1 + its index in the table; 0
+/// for objects that are not sampled: non-emitters, emissive boxes and meshes, which paths
+/// still reach by scattering). Empty when `nee` is off.
+pub fn lights(scene: &Scene, nee: bool) -> (Vec<GpuLight>, Vec<u32>) {
+    let mut slots = vec![0u32; scene.objects.len()];
+    if !nee {
+        return (Vec::new(), slots);
+    }
+    let (mut spheres, mut quads) = (0usize, 0usize);
+    // (reference, object, power, area)
+    let mut found = Vec::new();
+    for (i, o) in scene.objects.iter().enumerate() {
+        let m = &o.material;
+        let lum = |c: glam::Vec3| (0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z) as f64;
+        match &o.shape {
+            Shape::Sphere { radius, .. } => {
+                if m.is_emitter() {
+                    let area = 4.0 * std::f64::consts::PI * radius * radius;
+                    found.push((
+                        encode_ref(Kind::Sphere, spheres),
+                        i,
+                        lum(m.color) * m.light as f64 * area,
+                        area,
+                    ));
+                }
+                spheres += 1;
+            }
+            Shape::Quad { u, v, .. } => {
+                if m.is_emitter() {
+                    let area = u.cross(*v).length();
+                    found.push((
+                        encode_ref(Kind::Quad, quads),
+                        i,
+                        2.0 * lum(m.color) * m.light as f64 * area,
+                        area,
+                    ));
+                }
+                quads += 1;
+            }
+            _ => {}
+        }
+    }
+    let total: f64 = found.iter().map(|l| l.2).sum();
+    if found.is_empty() || total <= 0.0 {
+        return (Vec::new(), slots);
+    }
+    let mut cdf = 0.0;
+    let n = found.len();
+    let table = found
+        .iter()
+        .enumerate()
+        .map(|(k, &(prim, object, power, area))| {
+            let p = power / total;
+            cdf += p;
+            slots[object] = k as u32 + 1;
+            GpuLight {
+                prim,
+                // The last entry is exactly 1, whatever the rounding.
+                cdf: if k + 1 == n { 1.0 } else { cdf as f32 },
+                pmf: p as f32,
+                area: area as f32,
+            }
+        })
+        .collect();
+    (table, slots)
+}
+
 /// f32 bounds that contain the f64 ones: padded by a millionth of their extent and
 /// magnitude, far more than the rounding to f32 (2^-24 relative), so that no hit is lost to
 /// rounding and a flat box (an axis-aligned quad) still has a thickness.
@@ -289,7 +369,7 @@ fn material(o: &Object) -> GpuMaterial {
         specular: m.specular,
         light: m.light,
         ior: m.ior,
-        _pad0: 0.0,
+        light_slot: 0,
     }
 }
 
@@ -364,6 +444,7 @@ pub struct SceneBuffers {
     pub triangles: wgpu::Buffer,
     pub nodes: wgpu::Buffer,
     pub refs: wgpu::Buffer,
+    pub lights: wgpu::Buffer,
     geometry: u64,
     anchor_target: DVec3,
     /// The point every position is taken relative to on the GPU (a floating origin): the
@@ -374,12 +455,14 @@ pub struct SceneBuffers {
     pub node_count: usize,
     /// Seconds the last BVH build took.
     pub build_seconds: f64,
+    /// Whether the lights were built for next-event estimation.
+    nee: bool,
 }
 
 impl SceneBuffers {
     pub fn new(device: &wgpu::Device, scene: &Scene, s: &FrameSettings) -> SceneBuffers {
         let origin = scene.camera.look_at;
-        let p = Primitives::of(scene, origin);
+        let p = Primitives::of(scene, origin, s.nee);
         let t = std::time::Instant::now();
         let (nodes, refs) = gpu_bvh(&p);
         let build_seconds = t.elapsed().as_secs_f64();
@@ -405,6 +488,8 @@ impl SceneBuffers {
             node_count: nodes.len(),
             nodes: storage(device, "scene.bvh_nodes", &nodes),
             refs: storage(device, "scene.bvh_refs", &refs),
+            lights: storage(device, "scene.lights", &p.lights),
+            nee: s.nee,
             geometry: geometry_hash(scene),
             anchor_target: scene.camera.look_at,
             build_seconds,
@@ -412,9 +497,9 @@ impl SceneBuffers {
     }
 
     /// Brings the buffers up to date with `scene`. With the same geometry only the uniforms,
-    /// the materials and (when the camera's target moved) the sphere anchors are rewritten,
-    /// and the BVH is kept; otherwise everything is rebuilt. Returns true if the buffers were
-    /// replaced (bind groups must be made again).
+    /// the materials, the lights and (when the camera's target moved) the sphere anchors are
+    /// rewritten, and the BVH is kept; otherwise everything is rebuilt. Returns true if the
+    /// buffers were replaced (bind groups must be made again).
     pub fn update(
         &mut self,
         device: &wgpu::Device,
@@ -422,16 +507,24 @@ impl SceneBuffers {
         scene: &Scene,
         s: &FrameSettings,
     ) -> bool {
-        if geometry_hash(scene) != self.geometry {
+        let p = Primitives::of(scene, self.origin, s.nee);
+        let light_count = |l: &[GpuLight]| l.len().max(1);
+        if geometry_hash(scene) != self.geometry
+            || s.nee != self.nee
+            || light_count(&p.lights) * std::mem::size_of::<GpuLight>()
+                > self.lights.size() as usize
+        {
             *self = SceneBuffers::new(device, scene, s);
             return true;
+        }
+        if !p.lights.is_empty() {
+            queue.write_buffer(&self.lights, 0, bytemuck::cast_slice(&p.lights));
         }
         queue.write_buffer(
             &self.uniforms,
             0,
             bytemuck::bytes_of(&scene_uniforms(scene, s, self.origin)),
         );
-        let p = Primitives::of(scene, self.origin);
         if !p.materials.is_empty() {
             queue.write_buffer(&self.materials, 0, bytemuck::cast_slice(&p.materials));
         }

@@ -97,6 +97,7 @@ impl TracePass {
                 entry(9, ro),
                 entry(10, ro),
                 entry(11, ro),
+                entry(12, ro),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -186,6 +187,7 @@ impl TracePass {
             &scene.nodes,
             &scene.refs,
             &scene.triangles,
+            &scene.lights,
         ];
         let entries: Vec<wgpu::BindGroupEntry> = buffers
             .iter()

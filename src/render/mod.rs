@@ -92,7 +92,7 @@ impl Renderer {
     ) -> Renderer {
         let device = &ctx.device;
         let mut trace = TracePass::new(device);
-        let features = Self::features_for(scene, &options);
+        let features = Self::features_for(scene, &options, &settings);
         trace.prepare(device, features);
         if options.compile_in_background {
             // The fallback for the feature sets edits will introduce.
@@ -129,12 +129,13 @@ impl Renderer {
         }
     }
 
-    fn features_for(scene: &Scene, o: &RenderOptions) -> Features {
+    fn features_for(scene: &Scene, o: &RenderOptions, s: &FrameSettings) -> Features {
         let mut f = if o.generic {
             Features::generic()
         } else {
             Features::of(scene)
         };
+        f.nee &= s.nee || o.generic;
         f.count_segments = o.count_segments;
         f.bvh = !o.no_bvh;
         f
@@ -202,7 +203,7 @@ impl Renderer {
     /// Replaces the scene (and settings); resizes the accumulation if needed; resets.
     pub fn set_scene(&mut self, scene: &Scene, settings: FrameSettings) {
         let device = &self.ctx.device;
-        self.features = Self::features_for(scene, &self.options);
+        self.features = Self::features_for(scene, &self.options, &settings);
         if self.options.compile_in_background {
             self.trace.prepare_in_background(device, self.features);
         } else {

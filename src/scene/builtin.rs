@@ -18,6 +18,7 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
     ("cornell", include_str!("../../scenes/cornell.toml")),
     ("weekend", include_str!("../../scenes/weekend.toml")),
     ("mesh", include_str!("../../scenes/mesh.toml")),
+    ("lamp", include_str!("../../scenes/lamp.toml")),
 ];
 
 /// The extreme scenes of `scenes/extreme/` (numerical stability; `check --stress`).

@@ -61,6 +61,8 @@ pub struct App {
     pub param: Param,
     pub mode: Mode,
     pub cells: CellMode,
+    /// Next-event estimation (light sampling) in the preview.
+    pub nee: bool,
     /// The adapter, as the status line names it.
     pub adapter: String,
     pub stats: Stats,
@@ -83,6 +85,7 @@ impl App {
             param: Param::Smoothness,
             mode: Mode::Preview,
             cells,
+            nee: true,
             adapter,
             stats: Stats::default(),
             image: None,
@@ -197,6 +200,15 @@ impl App {
             Action::CycleCells => {
                 self.cells = self.cells.next();
                 Effect::Relayout
+            }
+            Action::ToggleNee => {
+                self.nee = !self.nee;
+                self.say(if self.nee {
+                    "light sampling on"
+                } else {
+                    "light sampling off (brute force)"
+                });
+                Effect::SceneChanged
             }
             Action::ToggleHelp => {
                 self.mode = Mode::Help;
@@ -509,6 +521,9 @@ mod tests {
         assert_eq!(press(&mut a, KeyCode::Char('w')), Effect::WriteScene);
         assert_eq!(press(&mut a, KeyCode::Char('c')), Effect::Relayout);
         assert_eq!(a.cells, CellMode::Quadrant);
+        assert!(a.nee);
+        assert_eq!(press(&mut a, KeyCode::Char('e')), Effect::SceneChanged);
+        assert!(!a.nee);
         assert_eq!(press(&mut a, KeyCode::Char('q')), Effect::Quit);
         assert_eq!(press(&mut a, KeyCode::Esc), Effect::Quit);
         let ctrl_c = KeyEvent::new(KeyCode::Char('c'), KeyModifiers::CONTROL);

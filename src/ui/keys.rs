@@ -94,6 +94,8 @@ pub enum Action {
     SavePng,
     WriteScene,
     CycleCells,
+    /// Next-event estimation on or off.
+    ToggleNee,
     ToggleHelp,
     /// Esc: closes the help, else quits.
     Back,
@@ -171,6 +173,10 @@ pub const BINDINGS: &[Binding] = &[
     Binding {
         keys: "c",
         help: "cycle cells: half blocks, quadrants, sextants, ASCII",
+    },
+    Binding {
+        keys: "e",
+        help: "light sampling (next-event estimation) on / off",
     },
     Binding {
         keys: "?",
@@ -251,6 +257,7 @@ pub fn action(key: KeyEvent) -> Option<Action> {
         KeyCode::Char('p') => SavePng,
         KeyCode::Char('w') => WriteScene,
         KeyCode::Char('c') => CycleCells,
+        KeyCode::Char('e') => ToggleNee,
         KeyCode::Char('?') => ToggleHelp,
         KeyCode::Char('q') => Quit,
         KeyCode::Esc => Back,

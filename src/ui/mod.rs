@@ -107,6 +107,7 @@ fn preview_settings(
     mode: CellMode,
     kitty: bool,
     ss: u32,
+    nee: bool,
     area: Rect,
 ) -> Option<FrameSettings> {
     if area.width == 0 || area.height == 0 {
@@ -133,6 +134,7 @@ fn preview_settings(
         max_bounces: scene.render.max_bounces,
         seed: scene.render.seed,
         pixel_aspect,
+        nee,
     })
 }
 
@@ -215,6 +217,7 @@ impl Ui {
             self.app.cells,
             self.kitty,
             self.opts.supersample,
+            self.app.nee,
             image,
         );
         self.settings = s;

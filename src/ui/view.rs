@@ -132,6 +132,9 @@ pub fn stats_line(app: &App) -> Line<'static> {
     if s.invalid > 0 {
         parts.push(format!("{} invalid", s.invalid));
     }
+    if !app.nee {
+        parts.push("NEE off".into());
+    }
     let mut spans = Vec::new();
     if let Some(m) = app.current_message() {
         let style = if m.starts_with("error") {
