@@ -31,9 +31,12 @@ override USE_BVH: bool = true;
 // ACCUM_WORDS words per pixel, [r.frac, r.low, r.high, g…, b…, samples].
 @group(0) @binding(6) var<storage, read_write> accum_even: array<u32>;
 @group(0) @binding(7) var<storage, read_write> accum_odd: array<u32>;
-// [0, 1]: invalid (NaN/inf) samples discarded, as lo/hi words of a u64;
-// [2, 3]: path segments traced (only with COUNT_SEGMENTS).
-@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 4>;
+// [0, 1]: invalid (NaN/inf) samples discarded, as lo/hi words of a u64; with COUNT_SEGMENTS
+// also [2, 3] path segments, [4, 5] BVH nodes visited, [6, 7] primitives tested (benchmarks).
+@group(0) @binding(8) var<storage, read_write> counters: array<atomic<u32>, 8>;
+// Per-invocation tallies of node visits and primitive tests (COUNT_SEGMENTS only).
+var<private> visits: u32;
+var<private> tests: u32;
 @group(0) @binding(9) var<storage, read> nodes: array<BvhNode>;
 // Primitive references in leaf order: kind (KIND_* - 1) in the top two bits, index below.
 @group(0) @binding(10) var<storage, read> refs: array<u32>;
@@ -120,6 +123,10 @@ fn intersect_scene(ray: Ray) -> Hit {
     loop {
         let n = nodes[node];
         var next_found = false;
+        if COUNT_SEGMENTS {
+            visits += 1u;
+            tests += n.count;
+        }
         if n.count > 0u {
             for (var i = n.first; i < n.first + n.count; i++) {
                 let r = refs[i];
@@ -187,6 +194,10 @@ fn occluded(ray: Ray, t_max: f32, skip: u32) -> bool {
     var node = 0u;
     loop {
         let n = nodes[node];
+        if COUNT_SEGMENTS {
+            visits += 1u;
+            tests += n.count;
+        }
         if n.count > 0u {
             for (var i = n.first; i < n.first + n.count; i++) {
                 let r = refs[i];
@@ -642,6 +653,8 @@ fn add_u64(lo_index: u32, n: u32) {
 }
 
 var<workgroup> wg_segments: atomic<u32>;
+var<workgroup> wg_visits: atomic<u32>;
+var<workgroup> wg_tests: atomic<u32>;
 
 @compute @workgroup_size(8, 8, 1)
 fn trace(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_index) lid: u32) {
@@ -679,12 +692,18 @@ fn trace(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_in
     if COUNT_SEGMENTS {
         if lid == 0u {
             atomicStore(&wg_segments, 0u);
+            atomicStore(&wg_visits, 0u);
+            atomicStore(&wg_tests, 0u);
         }
         workgroupBarrier();
         atomicAdd(&wg_segments, segments);
+        atomicAdd(&wg_visits, visits);
+        atomicAdd(&wg_tests, tests);
         workgroupBarrier();
         if lid == 0u {
             add_u64(2u, atomicLoad(&wg_segments));
+            add_u64(4u, atomicLoad(&wg_visits));
+            add_u64(6u, atomicLoad(&wg_tests));
         }
     }
 }

@@ -140,6 +140,14 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     } else {
         println!("gpu time     not measured (no timestamp queries on this adapter)");
     }
+    if segments > 0 && !a.no_bvh {
+        let per = |x: u64| x as f64 / segments as f64;
+        println!(
+            "traversal    {:.1} BVH nodes visited and {:.1} primitives tested per segment (shadow rays included)",
+            per(snap.data.node_visits),
+            per(snap.data.primitive_tests)
+        );
+    }
     println!("invalid      {}", snap.invalid_samples());
     Ok(ExitCode::SUCCESS)
 }

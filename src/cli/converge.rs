@@ -348,6 +348,8 @@ fn pseudo_snapshot(img: &crate::output::LinearImage) -> crate::render::Snapshot 
             odd: px,
             invalid: 0,
             segments: 0,
+            node_visits: 0,
+            primitive_tests: 0,
         },
     }
 }

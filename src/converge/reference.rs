@@ -133,6 +133,8 @@ fn read_cache(path: &Path, width: u32, height: u32) -> Option<Snapshot> {
             odd: floats[n..].to_vec(),
             invalid: 0,
             segments: 0,
+            node_visits: 0,
+            primitive_tests: 0,
         },
     })
 }

@@ -8,8 +8,9 @@ use super::GpuContext;
 /// the integer part) and the sample count (ACCUM_WORDS in trace.wgsl).
 pub const ACCUM_WORDS: usize = 10;
 const PIXEL_BYTES: u64 = 4 * ACCUM_WORDS as u64;
-/// Four u32 counters: invalid samples (lo, hi) and path segments (lo, hi).
-const COUNTER_BYTES: u64 = 16;
+/// Four u64 counters as (lo, hi) u32 pairs: invalid samples, path segments, BVH node visits,
+/// primitive tests.
+const COUNTER_BYTES: u64 = 32;
 
 /// The per-pixel sums read back from the GPU, each `[r, g, b, samples]` (the exact sums,
 /// rounded to f32 only here).
@@ -21,6 +22,9 @@ pub struct AccumData {
     pub invalid: u64,
     /// Path segments traced since the last reset (counted only when asked for).
     pub segments: u64,
+    /// BVH nodes visited and primitives tested since the last reset (likewise).
+    pub node_visits: u64,
+    pub primitive_tests: u64,
 }
 
 pub struct Accumulation {
@@ -122,6 +126,8 @@ impl Accumulation {
             odd,
             invalid: u64_of(c[0], c[1]),
             segments: u64_of(c[2], c[3]),
+            node_visits: u64_of(c[4], c[5]),
+            primitive_tests: u64_of(c[6], c[7]),
         };
         drop(data);
         self.staging.unmap();
