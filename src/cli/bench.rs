@@ -40,6 +40,11 @@ pub struct BenchArgs {
     /// Measure the generic tracer instead of the specialized one.
     #[arg(long)]
     pub generic: bool,
+    /// Compile these features in although the scene does not need them (comma-separated:
+    /// spheres, quads, boxes, triangles, dielectrics, emitters, nee, dof, sun), to measure
+    /// what each costs.
+    #[arg(long, value_name = "LIST", value_parser = crate::gpu::Features::parse_list)]
+    pub with: Option<crate::gpu::Features>,
 }
 
 pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
@@ -62,6 +67,7 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         count_segments: true,
         no_bvh: a.no_bvh,
         gpu_timing: true,
+        extra: a.with,
         ..Default::default()
     };
     let mut r = Renderer::new(ctx.clone(), &scene, settings, options);
@@ -91,7 +97,13 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         settings.width,
         settings.height,
         settings.max_bounces,
-        if a.generic { "generic" } else { "specialized" },
+        if a.generic {
+            "generic"
+        } else if a.with.is_some() {
+            "specialized+extra"
+        } else {
+            "specialized"
+        },
         r.features().summary()
     );
     let n = scene.counts();

@@ -45,6 +45,50 @@ impl Features {
         }
     }
 
+    /// Nothing at all: the sky-only tracer.
+    pub fn none() -> Features {
+        Features {
+            spheres: false,
+            quads: false,
+            boxes: false,
+            triangles: false,
+            dielectrics: false,
+            emitters: false,
+            nee: false,
+            dof: false,
+            sun: false,
+            count_segments: false,
+            bvh: false,
+        }
+    }
+
+    /// Features named in a comma-separated list (`quads,nee`), as [`Features::summary`]
+    /// spells them; for benchmarks that add features one at a time.
+    pub fn parse_list(list: &str) -> Result<Features, String> {
+        let mut f = Features::none();
+        for name in list.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            let flag = match name {
+                "spheres" => &mut f.spheres,
+                "quads" => &mut f.quads,
+                "boxes" => &mut f.boxes,
+                "triangles" => &mut f.triangles,
+                "dielectrics" => &mut f.dielectrics,
+                "emitters" => &mut f.emitters,
+                "nee" => &mut f.nee,
+                "dof" => &mut f.dof,
+                "sun" => &mut f.sun,
+                _ => {
+                    return Err(format!(
+                        "unknown feature `{name}` (expected spheres, quads, boxes, triangles, \
+                         dielectrics, emitters, nee, dof or sun)"
+                    ));
+                }
+            };
+            *flag = true;
+        }
+        Ok(f)
+    }
+
     /// Exactly what `scene` uses.
     pub fn of(scene: &Scene) -> Features {
         let mut f = Features {

@@ -1,5 +1,9 @@
 //! WGSL sources, compiled into the binary, and the `// #include "path"` resolver that
 //! assembles one module from a file and the shared files it names (`shaders/common/`).
+//! For shader work without rebuilding, `TERMTRACE_SHADER_DIR=shaders` reads the files from
+//! that folder instead (any file it lacks comes from the binary).
+
+use std::borrow::Cow;
 
 /// Every WGSL file under `shaders/`, by its path relative to that folder.
 pub const SOURCES: &[(&str, &str)] = &[
@@ -29,9 +33,22 @@ pub const SOURCES: &[(&str, &str)] = &[
 
 const INCLUDE: &str = "// #include \"";
 
-/// The source of one file, by path relative to `shaders/`.
+/// The source of one file compiled into the binary, by path relative to `shaders/`.
 pub fn source(name: &str) -> Option<&'static str> {
     SOURCES.iter().find(|(n, _)| *n == name).map(|(_, s)| *s)
+}
+
+/// The source the tracer uses: from `TERMTRACE_SHADER_DIR` when it is set and has the file,
+/// else compiled in.
+fn current_source(name: &str) -> Option<Cow<'static, str>> {
+    if let Some(dir) = std::env::var_os("TERMTRACE_SHADER_DIR") {
+        let path = std::path::Path::new(&dir).join(name);
+        if let Ok(text) = std::fs::read_to_string(&path) {
+            tracing::info!("shader {name} read from {}", path.display());
+            return Some(Cow::Owned(text));
+        }
+    }
+    source(name).map(Cow::Borrowed)
 }
 
 /// `name` with every file it includes (transitively) placed before it, each once.
@@ -54,7 +71,7 @@ fn visit(
     if stack.iter().any(|d| d == name) {
         return Err(format!("include cycle: {} -> {name}", stack.join(" -> ")));
     }
-    let src = source(name).ok_or_else(|| {
+    let src = current_source(name).ok_or_else(|| {
         let from = stack
             .last()
             .map_or(String::new(), |s| format!(" (included from {s})"));

@@ -14,8 +14,20 @@ use super::timer::GpuTimer;
 use std::collections::{HashMap, HashSet};
 use std::sync::{Arc, Mutex};
 
-/// Invocations per workgroup side (`@workgroup_size(8, 8, 1)` in trace.wgsl).
-pub const WORKGROUP: u32 = 8;
+/// The `@workgroup_size(x, y, 1)` of the entry point `fn trace`, read from the WGSL so that
+/// the shader stays the one place it is written.
+fn workgroup_size(src: &str) -> (u32, u32) {
+    let at = src.find("fn trace(").expect("trace.wgsl has fn trace");
+    let attr = src[..at]
+        .rfind("@workgroup_size(")
+        .map(|i| &src[i + "@workgroup_size(".len()..at])
+        .expect("fn trace has @workgroup_size");
+    let mut dims = attr[..attr.find(')').expect("closed @workgroup_size")]
+        .split(',')
+        .map(|d| d.trim().parse::<u32>().expect("a literal workgroup size"));
+    let x = dims.next().expect("a workgroup width");
+    (x, dims.next().unwrap_or(1))
+}
 
 /// One dispatch of the tracer: which pipeline, over what, which rows and samples.
 pub struct TraceDispatch<'a> {
@@ -31,6 +43,8 @@ pub struct TracePass {
     layout: wgpu::BindGroupLayout,
     pipeline_layout: wgpu::PipelineLayout,
     module: wgpu::ShaderModule,
+    /// Invocations per workgroup in x and y.
+    workgroup: (u32, u32),
     pipelines: Arc<Mutex<HashMap<Features, wgpu::ComputePipeline>>>,
     /// Feature sets being compiled on other threads.
     pending: Arc<Mutex<HashSet<Features>>>,
@@ -106,6 +120,7 @@ impl TracePass {
             immediate_size: 0,
         });
         let src = shader::assemble("trace.wgsl").expect("trace.wgsl assembles");
+        let workgroup = workgroup_size(&src);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("trace.wgsl"),
             source: wgpu::ShaderSource::Wgsl(src.into()),
@@ -120,6 +135,7 @@ impl TracePass {
             layout,
             pipeline_layout,
             module,
+            workgroup,
             pipelines: Arc::default(),
             pending: Arc::default(),
             dispatch,
@@ -222,9 +238,20 @@ impl TracePass {
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, d.bind_group, &[]);
         pass.dispatch_workgroups(
-            d.width.div_ceil(WORKGROUP),
-            d.uniforms.row_count.div_ceil(WORKGROUP),
+            d.width.div_ceil(self.workgroup.0),
+            d.uniforms.row_count.div_ceil(self.workgroup.1),
             1,
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_workgroup_size_is_read_from_the_shader() {
+        let src = super::shader::assemble("trace.wgsl").unwrap();
+        assert_eq!(super::workgroup_size(&src), (8, 8));
+        let other = "@compute @workgroup_size(16, 4)\nfn trace(a: u32) {}";
+        assert_eq!(super::workgroup_size(other), (16, 4));
     }
 }

@@ -32,6 +32,8 @@ pub struct RenderOptions {
     /// Never wait for a new pipeline: trace with the generic one (same image) while the
     /// specialized one compiles in the background (the live preview).
     pub compile_in_background: bool,
+    /// Features compiled in beyond what the scene needs (benchmarks of one feature's cost).
+    pub extra: Option<Features>,
 }
 
 impl Default for RenderOptions {
@@ -43,6 +45,7 @@ impl Default for RenderOptions {
             gpu_timing: false,
             submission: Duration::from_millis(100),
             compile_in_background: false,
+            extra: None,
         }
     }
 }
@@ -136,6 +139,9 @@ impl Renderer {
             Features::of(scene)
         };
         f.nee &= s.nee || o.generic;
+        if let Some(extra) = o.extra {
+            f = f.union(extra);
+        }
         f.count_segments = o.count_segments;
         f.bvh = !o.no_bvh;
         f
