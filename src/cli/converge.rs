@@ -180,13 +180,18 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         "reference: {}{}",
         reference.source,
         reference.noise().map_or(String::new(), |n| format!(
-            "; its own relative RMSE ≈ {:.3}% (errors below it are not measurable)",
+            "; its own relative RMSE ≈ {:.3}%, taken out of the errors below (MAE excepted)",
             n * 100.0
         ))
     );
 
     let time = Duration::from_secs_f64(a.time);
+    let reference_variance = reference
+        .snapshot
+        .as_ref()
+        .map(converge::metrics::mean_variance);
     let setup = converge::Setup {
+        reference_variance: reference_variance.as_deref(),
         ctx: &ctx,
         scene: &scene,
         settings,
@@ -245,10 +250,11 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     println!();
     for s in &summaries {
         println!(
-            "{}: slope {} (log-log fit of relative RMSE against time, spp ≥ {}); 5% in {}, 1% in {}",
+            "{}: slope {} (log-log fit of relative RMSE against time, spp ≥ {}, from {}% of the run); 5% in {}, 1% in {}",
             s.label,
             s.slope.map_or("–".into(), |x| format!("{x:.3}")),
             converge::FIT_MIN_SPP,
+            converge::FIT_MIN_FRACTION * 100.0,
             converge::fmt_time_to(s.to_5),
             converge::fmt_time_to(s.to_1)
         );

@@ -2,7 +2,7 @@
 
 use crate::output::LinearImage;
 use crate::render::{REL_MSE_EPSILON, Snapshot};
-use statrs::distribution::{ContinuousCDF, StudentsT};
+use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
 
 /// Errors of one image against a reference, over every pixel and channel.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -21,23 +21,61 @@ impl Errors {
     }
 }
 
-/// Errors of `img` against `reference` (same size).
+/// Errors of `img` against `reference` (same size), taking the reference as exact.
 pub fn errors(img: &LinearImage, reference: &LinearImage) -> Errors {
+    errors_against_noisy(img, reference, None)
+}
+
+/// The variance of each pixel's mean, per channel, estimated from the difference of its two
+/// halves: for a mean m = (nₑ·mₑ + nₒ·mₒ)/(nₑ + nₒ) of independent halves,
+/// E[(mₑ − mₒ)²]·nₑnₒ/(nₑ + nₒ)² = Var(m).
+pub fn mean_variance(snap: &Snapshot) -> Vec<[f32; 3]> {
+    snap.data
+        .even
+        .iter()
+        .zip(&snap.data.odd)
+        .map(|(e, o)| {
+            let (ne, no) = (e[3] as f64, o[3] as f64);
+            if ne < 1.0 || no < 1.0 {
+                return [0.0; 3];
+            }
+            let k = ne * no / ((ne + no) * (ne + no));
+            std::array::from_fn(|c| ((e[c] as f64 / ne - o[c] as f64 / no).powi(2) * k) as f32)
+        })
+        .collect()
+}
+
+/// Errors of `img` against a reference that is itself a Monte Carlo estimate. With the
+/// reference's per-pixel variance `reference_variance` (from [`mean_variance`]), the squared
+/// differences are corrected for the reference's own noise: for independent unbiased images,
+/// E[(v − r)²] = (v − v̄)² terms + Var(r), so subtracting Var(r) leaves an unbiased estimate of
+/// the image's own MSE and relMSE (summed over many pixels; the total is floored at zero).
+/// Without it the measured error levels off at the reference's noise, which would flatten the
+/// convergence slope. MAE has no such correction and is reported as measured.
+pub fn errors_against_noisy(
+    img: &LinearImage,
+    reference: &LinearImage,
+    reference_variance: Option<&[[f32; 3]]>,
+) -> Errors {
     assert_eq!((img.width, img.height), (reference.width, reference.height));
+    if let Some(v) = reference_variance {
+        assert_eq!(v.len(), reference.pixels.len());
+    }
     let (mut se, mut rel, mut ae) = (0.0f64, 0.0f64, 0.0f64);
-    for (p, r) in img.pixels.iter().zip(&reference.pixels) {
+    for (i, (p, r)) in img.pixels.iter().zip(&reference.pixels).enumerate() {
         for c in 0..3 {
             let (v, rv) = (p[c] as f64, r[c] as f64);
             let d = v - rv;
-            se += d * d;
-            rel += d * d / (rv * rv + REL_MSE_EPSILON);
+            let var = reference_variance.map_or(0.0, |vs| vs[i][c] as f64);
+            se += d * d - var;
+            rel += (d * d - var) / (rv * rv + REL_MSE_EPSILON);
             ae += d.abs();
         }
     }
     let n = (3 * img.pixels.len()).max(1) as f64;
     Errors {
-        rmse: (se / n).sqrt(),
-        relmse: rel / n,
+        rmse: (se / n).max(0.0).sqrt(),
+        relmse: (rel / n).max(0.0),
         mae: ae / n,
     }
 }
@@ -81,6 +119,10 @@ pub struct BiasReport {
     /// The smallest p-value seen.
     pub min_p: f64,
 }
+
+/// Relative difference below which two f32 means count as equal in the bias check (about 8
+/// ulps of an f32).
+pub const F32_RESOLUTION: f64 = 1e-6;
 
 /// Per-tile Welch t-test of the mean luminance of `img` against `reference`: catches an
 /// image that converges fast to the wrong answer. The variance of each tile's mean comes
@@ -140,7 +182,11 @@ pub fn bias_check(
             } else {
                 f64::INFINITY
             };
-            let var = va + vb;
+            // The means are read back as f32 (sums rounded, then divided): a difference of a
+            // few ulps is rounding, not bias, even in a tile with no noise at all (a uniform
+            // sky, where every sample is the same number).
+            let rounding = (F32_RESOLUTION * ma.abs().max(mb.abs())).powi(2);
+            let var = va + vb + rounding;
             let (t, dof, p) = if var <= 0.0 {
                 // No noise at all: any difference is significant, none is not.
                 let t = if ma == mb { 0.0 } else { f64::INFINITY };
@@ -149,8 +195,16 @@ pub fn bias_check(
                 let t = (ma - mb) / var.sqrt();
                 let vb_term = if reference_exact { 0.0 } else { vb * vb / dfb };
                 let dof = (var * var / (va * va / dfa + vb_term)).max(1.0);
-                let dist = StudentsT::new(0.0, 1.0, dof).expect("valid t distribution");
-                (t, dof, 2.0 * (1.0 - dist.cdf(t.abs())))
+                // Past 1e6 degrees of freedom (or with only the rounding term) the t
+                // distribution is the normal one.
+                let cdf = if dof.is_finite() && dof < 1e6 {
+                    StudentsT::new(0.0, 1.0, dof)
+                        .expect("valid t distribution")
+                        .cdf(t.abs())
+                } else {
+                    Normal::new(0.0, 1.0).expect("standard normal").cdf(t.abs())
+                };
+                (t, dof, 2.0 * (1.0 - cdf))
             };
             tests.push(TileTest {
                 x: bx,
@@ -237,6 +291,73 @@ mod tests {
         assert!((e.rmse - (0.01f64 / 2.0).sqrt()).abs() < 1e-7);
         assert!((e.mae - 0.05).abs() < 1e-7);
         assert!((e.relmse - 0.01 / 0.01 / 2.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_reference_noise_is_taken_out_of_the_error() {
+        // A reference pixel with halves 0.9 and 1.1 (one sample each): mean 1, variance of
+        // the mean (0.2)² · 1/4 = 0.01. An image at 1.2 differs by 0.2 (0.04 squared), of
+        // which 0.01 is the reference's noise.
+        let snap = Snapshot {
+            width: 1,
+            height: 1,
+            samples: 2,
+            data: crate::gpu::AccumData {
+                even: vec![[0.9, 0.9, 0.9, 1.0]],
+                odd: vec![[1.1, 1.1, 1.1, 1.0]],
+                invalid: 0,
+                segments: 0,
+                node_visits: 0,
+                primitive_tests: 0,
+            },
+        };
+        let var = mean_variance(&snap);
+        assert!((var[0][0] - 0.01).abs() < 1e-7);
+        let r = snap.image();
+        let i = LinearImage {
+            width: 1,
+            height: 1,
+            pixels: vec![[1.2; 3]],
+        };
+        let raw = errors(&i, &r);
+        let e = errors_against_noisy(&i, &r, Some(&var));
+        assert!((raw.rmse - 0.2).abs() < 1e-6);
+        assert!((e.rmse - 0.03f64.sqrt()).abs() < 1e-6);
+        assert!((e.relmse - 0.03 / 1.01).abs() < 1e-6);
+        assert_eq!(e.mae, raw.mae);
+        // An image closer than the reference's own noise: floored at zero, never negative.
+        let near = LinearImage {
+            width: 1,
+            height: 1,
+            pixels: vec![[1.05; 3]],
+        };
+        assert_eq!(errors_against_noisy(&near, &r, Some(&var)).relmse, 0.0);
+    }
+
+    /// A uniform tile (every sample the same number) whose means differ by f32 rounding only
+    /// is not biased; a difference of 1e-4 is.
+    #[test]
+    fn the_bias_check_forgives_rounding_but_not_a_real_difference() {
+        let snap = |v: f32, n: f32| Snapshot {
+            width: 4,
+            height: 4,
+            samples: 2 * n as u32,
+            data: crate::gpu::AccumData {
+                even: vec![[v * n, v * n, v * n, n]; 16],
+                odd: vec![[v * n, v * n, v * n, n]; 16],
+                invalid: 0,
+                segments: 0,
+                node_visits: 0,
+                primitive_tests: 0,
+            },
+        };
+        let reference = snap(0.010_72, 4096.0);
+        let one_ulp = snap(f32::from_bits(0.010_72f32.to_bits() + 1), 1000.0);
+        let r = bias_check(&one_ulp, &reference, false, 4, 0.01);
+        assert!(r.significant.is_empty(), "{:?}", r.significant);
+        let off = snap(0.010_72 * (1.0 + 1e-4), 1000.0);
+        let r = bias_check(&off, &reference, false, 4, 0.01);
+        assert_eq!(r.significant.len(), 1);
     }
 
     #[test]

@@ -9,7 +9,7 @@ pub mod reference;
 use crate::gpu::{FrameSettings, GpuContext};
 use crate::render::{RenderOptions, Renderer, Snapshot};
 use crate::scene::Scene;
-use metrics::{Errors, errors, log_log_fit, time_to};
+use metrics::{Errors, errors_against_noisy, log_log_fit, time_to};
 use std::io::Write;
 use std::path::Path;
 use std::sync::Arc;
@@ -20,8 +20,11 @@ pub const FIRST_CHECKPOINT: f64 = 0.05;
 /// Checkpoints are this factor apart: two per doubling of time.
 pub const CHECKPOINT_FACTOR: f64 = std::f64::consts::SQRT_2;
 /// Checkpoints with fewer samples per pixel are left out of the slope fit (the first
-/// samples' error is dominated by a few pixels).
-pub const FIT_MIN_SPP: u64 = 4;
+/// samples' error is dominated by a few pixels)…
+pub const FIT_MIN_SPP: u64 = 16;
+/// … and so are those before this fraction of the run (there a submission's fixed cost
+/// weighs on the time axis, which would steepen the slope).
+pub const FIT_MIN_FRACTION: f64 = 0.01;
 
 /// One way of rendering to compare (`--compare '--no-nee'`).
 #[derive(Clone, Debug)]
@@ -69,6 +72,9 @@ pub struct Setup<'a> {
     pub scene: &'a Scene,
     pub settings: FrameSettings,
     pub reference: &'a crate::output::LinearImage,
+    /// The reference's own per-pixel variance, when it is a rendered one: taken out of the
+    /// measured errors ([`metrics::errors_against_noisy`]).
+    pub reference_variance: Option<&'a [[f32; 3]]>,
 }
 
 /// Renders `variant` from zero for `time` seconds of rendering and measures it against the
@@ -89,14 +95,18 @@ pub fn run_once(
     let mut r = Renderer::new(setup.ctx.clone(), setup.scene, s, variant.options);
     let total = time.as_secs_f64();
     let mut next = FIRST_CHECKPOINT.min(total);
+    // Checkpoints also come at 1, 2, 4, … samples per pixel, whichever is due first: on a
+    // fast GPU the first time checkpoint would already hold hundreds of samples, leaving the
+    // early curve (and the time to 5 %) unmeasured.
+    let mut next_spp = 1u32;
     let mut seconds = 0.0;
     let mut checkpoints = Vec::new();
     loop {
         let left = (next - seconds).max(0.0);
-        let step = r.step(Duration::from_secs_f64(left.min(0.25)), u32::MAX);
+        let step = r.step(Duration::from_secs_f64(left.min(0.25)), next_spp);
         seconds += step.elapsed.as_secs_f64();
         progress(seconds, r.samples());
-        if seconds + 1e-9 < next {
+        if seconds + 1e-9 < next && r.samples() < next_spp {
             continue;
         }
         let snap = r.snapshot();
@@ -105,7 +115,7 @@ pub fn run_once(
             run,
             seconds,
             spp: snap.min_samples(),
-            errors: errors(&snap.image(), setup.reference),
+            errors: errors_against_noisy(&snap.image(), setup.reference, setup.reference_variance),
             estimated_rel_rmse: snap.noise_estimate(),
         });
         if seconds >= total {
@@ -118,6 +128,9 @@ pub fn run_once(
             next *= CHECKPOINT_FACTOR;
         }
         next = next.min(total);
+        while next_spp <= r.samples() {
+            next_spp = next_spp.saturating_mul(2);
+        }
     }
 }
 
@@ -151,9 +164,10 @@ pub fn summarize(label: &str, runs: &[Run]) -> Summary {
         })
         .collect();
     let curve: Vec<(f64, f64)> = points.iter().map(|p| (p.0, p.1)).collect();
+    let end = points.last().map_or(0.0, |p| p.0);
     let fit: Vec<(f64, f64)> = points
         .iter()
-        .filter(|p| p.4 >= FIT_MIN_SPP)
+        .filter(|p| p.4 >= FIT_MIN_SPP && p.0 >= FIT_MIN_FRACTION * end)
         .map(|p| (p.0, p.1))
         .collect();
     Summary {
