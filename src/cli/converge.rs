@@ -349,13 +349,6 @@ fn pseudo_snapshot(img: &crate::output::LinearImage) -> crate::render::Snapshot 
         width: img.width,
         height: img.height,
         samples: 2,
-        data: crate::gpu::AccumData {
-            even: px.clone(),
-            odd: px,
-            invalid: 0,
-            segments: 0,
-            node_visits: 0,
-            primitive_tests: 0,
-        },
+        data: crate::gpu::AccumData::from_halves(px.clone(), px),
     }
 }

@@ -302,14 +302,10 @@ mod tests {
             width: 1,
             height: 1,
             samples: 2,
-            data: crate::gpu::AccumData {
-                even: vec![[0.9, 0.9, 0.9, 1.0]],
-                odd: vec![[1.1, 1.1, 1.1, 1.0]],
-                invalid: 0,
-                segments: 0,
-                node_visits: 0,
-                primitive_tests: 0,
-            },
+            data: crate::gpu::AccumData::from_halves(
+                vec![[0.9, 0.9, 0.9, 1.0]],
+                vec![[1.1, 1.1, 1.1, 1.0]],
+            ),
         };
         let var = mean_variance(&snap);
         assert!((var[0][0] - 0.01).abs() < 1e-7);
@@ -342,14 +338,10 @@ mod tests {
             width: 4,
             height: 4,
             samples: 2 * n as u32,
-            data: crate::gpu::AccumData {
-                even: vec![[v * n, v * n, v * n, n]; 16],
-                odd: vec![[v * n, v * n, v * n, n]; 16],
-                invalid: 0,
-                segments: 0,
-                node_visits: 0,
-                primitive_tests: 0,
-            },
+            data: crate::gpu::AccumData::from_halves(
+                vec![[v * n, v * n, v * n, n]; 16],
+                vec![[v * n, v * n, v * n, n]; 16],
+            ),
         };
         let reference = snap(0.010_72, 4096.0);
         let one_ulp = snap(f32::from_bits(0.010_72f32.to_bits() + 1), 1000.0);

@@ -128,14 +128,7 @@ fn read_cache(path: &Path, width: u32, height: u32) -> Option<Snapshot> {
         width: w,
         height: h,
         samples,
-        data: AccumData {
-            even: floats[..n].to_vec(),
-            odd: floats[n..].to_vec(),
-            invalid: 0,
-            segments: 0,
-            node_visits: 0,
-            primitive_tests: 0,
-        },
+        data: AccumData::from_halves(floats[..n].to_vec(), floats[n..].to_vec()),
     })
 }
 

@@ -27,6 +27,20 @@ pub struct AccumData {
     pub primitive_tests: u64,
 }
 
+impl AccumData {
+    /// Sums from elsewhere (a cache, a test), with every counter at zero.
+    pub fn from_halves(even: Vec<[f32; 4]>, odd: Vec<[f32; 4]>) -> AccumData {
+        AccumData {
+            even,
+            odd,
+            invalid: 0,
+            segments: 0,
+            node_visits: 0,
+            primitive_tests: 0,
+        }
+    }
+}
+
 pub struct Accumulation {
     pub even: wgpu::Buffer,
     pub odd: wgpu::Buffer,

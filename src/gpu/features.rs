@@ -92,17 +92,10 @@ impl Features {
     /// Exactly what `scene` uses.
     pub fn of(scene: &Scene) -> Features {
         let mut f = Features {
-            spheres: false,
-            quads: false,
-            boxes: false,
-            triangles: false,
-            dielectrics: false,
-            emitters: false,
-            nee: false,
             dof: scene.camera.aperture > 0.0,
             sun: matches!(&scene.sky, Sky::Gradient { sun: Some(s), .. } if s.intensity > 0.0),
-            count_segments: false,
             bvh: true,
+            ..Features::none()
         };
         for o in &scene.objects {
             match o.shape {
