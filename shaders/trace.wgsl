@@ -102,6 +102,14 @@ fn intersect_all(ray: Ray) -> Hit {
     return hit;
 }
 
+// Tallies one BVH node visit and its primitive tests (benchmarks only).
+fn count_visit(n: BvhNode) {
+    if COUNT_SEGMENTS {
+        visits += 1u;
+        tests += n.count;
+    }
+}
+
 // The nearest hit, by walking the BVH nearest child first with a short stack; a node popped
 // from the stack is skipped if its entry distance is beyond the nearest hit found since.
 fn intersect_scene(ray: Ray) -> Hit {
@@ -123,10 +131,7 @@ fn intersect_scene(ray: Ray) -> Hit {
     loop {
         let n = nodes[node];
         var next_found = false;
-        if COUNT_SEGMENTS {
-            visits += 1u;
-            tests += n.count;
-        }
+        count_visit(n);
         if n.count > 0u {
             for (var i = n.first; i < n.first + n.count; i++) {
                 let r = refs[i];
@@ -194,10 +199,7 @@ fn occluded(ray: Ray, t_max: f32, skip: u32) -> bool {
     var node = 0u;
     loop {
         let n = nodes[node];
-        if COUNT_SEGMENTS {
-            visits += 1u;
-            tests += n.count;
-        }
+        count_visit(n);
         if n.count > 0u {
             for (var i = n.first; i < n.first + n.count; i++) {
                 let r = refs[i];

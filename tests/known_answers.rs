@@ -180,24 +180,19 @@ fn total_internal_reflection_is_exact() {
     let img = render(toml, w, h, 1, 1);
     let frame = camera_frame(&s, w, h);
     let mut worst = 0.0f64;
-    for y in 0..h {
-        for x in 0..w {
-            let mut rng = HostRng::new(y * w + x, 0, 1);
-            let (jx, jy) = (rng.rand(), rng.rand());
-            let d = pinhole_dir(&frame, w, h, x as f64 + jx as f64, y as f64 + jy as f64);
-            assert!(
-                1.5 * (1.0 - d.y * d.y).sqrt() > 1.0,
-                "test geometry: no TIR at ({x},{y})"
-            );
-            let expected = [(0.5 * (1.0 - d.y)) as f32; 3];
-            let e = rel_err(img.get(x, y), expected);
-            worst = worst.max(e);
-            assert!(
-                e < 2e-5,
-                "pixel ({x},{y}): {:?} vs {expected:?}",
-                img.get(x, y)
-            );
-        }
+    for (x, y, d) in first_sample_dirs(&frame, w, h) {
+        assert!(
+            1.5 * (1.0 - d.y * d.y).sqrt() > 1.0,
+            "test geometry: no TIR at ({x},{y})"
+        );
+        let expected = [(0.5 * (1.0 - d.y)) as f32; 3];
+        let e = rel_err(img.get(x, y), expected);
+        worst = worst.max(e);
+        assert!(
+            e < 2e-5,
+            "pixel ({x},{y}): {:?} vs {expected:?}",
+            img.get(x, y)
+        );
     }
     eprintln!("total internal reflection: worst relative error {worst:e}");
 }
@@ -214,20 +209,15 @@ fn unobstructed_pixels_see_exactly_the_sky_formula() {
     let img = render(toml, w, h, 1, 4);
     let frame = camera_frame(&s, w, h);
     let mut worst = 0.0f64;
-    for y in 0..h {
-        for x in 0..w {
-            let mut rng = HostRng::new(y * w + x, 0, 1);
-            let (jx, jy) = (rng.rand(), rng.rand());
-            let dir = pinhole_dir(&frame, w, h, x as f64 + jx as f64, y as f64 + jy as f64);
-            let expected = s.sky.radiance(dir).as_vec3().to_array();
-            let e = rel_err(img.get(x, y), expected);
-            worst = worst.max(e);
-            assert!(
-                e < 2e-5,
-                "pixel ({x},{y}): {:?} vs {expected:?}",
-                img.get(x, y)
-            );
-        }
+    for (x, y, dir) in first_sample_dirs(&frame, w, h) {
+        let expected = s.sky.radiance(dir).as_vec3().to_array();
+        let e = rel_err(img.get(x, y), expected);
+        worst = worst.max(e);
+        assert!(
+            e < 2e-5,
+            "pixel ({x},{y}): {:?} vs {expected:?}",
+            img.get(x, y)
+        );
     }
     eprintln!(
         "sky formula: worst relative error {worst:e} over {} pixels",

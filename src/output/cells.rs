@@ -152,6 +152,21 @@ fn luminance(c: [f32; 3]) -> f32 {
     0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
 
+/// Fills `out` with the `sx × sy` block of pixels whose top-left is `(x0, y0)`, row by row.
+fn gather_block(
+    img: &LinearImage,
+    (x0, y0): (u32, u32),
+    (sx, sy): (u32, u32),
+    out: &mut Vec<[f32; 3]>,
+) {
+    out.clear();
+    for dy in 0..sy {
+        for dx in 0..sx {
+            out.push(img.get(x0 + dx, y0 + dy));
+        }
+    }
+}
+
 /// Downsamples by an integer factor in linear light (box filter).
 pub fn downsample(img: &LinearImage, factor: u32) -> LinearImage {
     if factor <= 1 {
@@ -162,12 +177,7 @@ pub fn downsample(img: &LinearImage, factor: u32) -> LinearImage {
     let mut block = Vec::with_capacity((factor * factor) as usize);
     for y in 0..h {
         for x in 0..w {
-            block.clear();
-            for dy in 0..factor {
-                for dx in 0..factor {
-                    block.push(img.get(x * factor + dx, y * factor + dy));
-                }
-            }
+            gather_block(img, (x * factor, y * factor), (factor, factor), &mut block);
             out.pixels[(y * w + x) as usize] = mean(&block);
         }
     }
@@ -291,13 +301,8 @@ pub fn encode(img: &LinearImage, mode: CellMode, color: ColorMode) -> Vec<Cell> 
     let mut px = Vec::with_capacity((sx * sy) as usize);
     for row in 0..rows {
         for col in 0..cols {
-            px.clear();
-            for dy in 0..sy {
-                for dx in 0..sx {
-                    px.push(img.get(col * sx + dx, row * sy + dy));
-                }
-            }
             let (x, y) = (col * sx, row * sy);
+            gather_block(img, (x, y), (sx, sy), &mut px);
             let cell = match mode {
                 CellMode::Half => Cell {
                     glyph: '▀',

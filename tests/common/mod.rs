@@ -102,6 +102,24 @@ pub fn sphere_coverage(
     }
 }
 
+/// The jittered camera ray of every pixel's first sample (seed 1, sample 0), replayed on the
+/// host with the tracer's random stream: `(x, y, direction)` in row order.
+pub fn first_sample_dirs(u: &SceneUniforms, w: u32, h: u32) -> Vec<(u32, u32, DVec3)> {
+    let mut out = Vec::with_capacity((w * h) as usize);
+    for y in 0..h {
+        for x in 0..w {
+            let mut rng = HostRng::new(y * w + x, 0, 1);
+            let (jx, jy) = (rng.rand(), rng.rand());
+            out.push((
+                x,
+                y,
+                pinhole_dir(u, w, h, x as f64 + jx as f64, y as f64 + jy as f64),
+            ));
+        }
+    }
+    out
+}
+
 /// Largest relative difference between two colours.
 pub fn rel_err(a: [f32; 3], b: [f32; 3]) -> f64 {
     (0..3)
