@@ -3,8 +3,9 @@
 // #include "common/sampling.wgsl"
 // #include "common/intersect.wgsl"
 // #include "common/material.wgsl"
-// The path tracer: one invocation traces `sample_count` paths through one pixel and adds them
-// to that pixel's running sums (src/gpu/trace.rs drives it).
+// #include "common/fixed.wgsl"
+// The path tracer: one invocation traces its share of a round's `sample_count` paths through
+// one pixel and adds them to that pixel's running sums (src/gpu/trace.rs drives it).
 
 // Per-scene specialization (src/gpu/features.rs): what a scene does not use is compiled out.
 override HAS_SPHERES: bool = true;
@@ -42,6 +43,8 @@ var<private> tests: u32;
 @group(0) @binding(10) var<storage, read> refs: array<u32>;
 @group(0) @binding(11) var<storage, read> triangles: array<Triangle>;
 @group(0) @binding(12) var<storage, read> lights: array<Light>;
+// Per-lane sums when a pixel's samples are traced by several lanes (see fn trace).
+@group(0) @binding(13) var<storage, read_write> scratch: array<u32>;
 
 const KIND_NONE: u32 = 0u;
 const KIND_SPHERE: u32 = 1u;
@@ -580,60 +583,35 @@ fn trace_path(primary: Ray, state: ptr<function, u32>) -> PathResult {
     return PathResult(radiance, segments);
 }
 
-// The accumulation is integer arithmetic, exact and independent of order: a compiler may
-// reassociate float arithmetic (WGSL has no `precise`), and Mesa's does, which removes the
-// error term of compensated sums such as Knuth's TwoSum (measured: a million frames drifted by
-// 3.7e-3, exactly a plain f32 sum). Radiance is never negative, so each channel of each sample
-// becomes an unsigned 96-bit fixed-point number with 32 fraction bits (exact for any f32
-// ≥ 2^-8; below that truncated by < 2^-32) and is added with explicit carries.
-const ACCUM_WORDS: u32 = 10u;
-// The largest f32 below 2^32: samples are clamped to it (a radiance of 4e9 is no radiance).
-const FIXED_MAX: f32 = 4294967040.0;
-
-struct Fixed {
-    frac: vec3u,
-    low: vec3u,
-    high: vec3u,
-    samples: u32,
-}
-
-fn fixed_add(acc: ptr<function, Fixed>, v: vec3f) {
-    let c = clamp(v, vec3f(0.0), vec3f(FIXED_MAX));
-    let whole = floor(c);
-    let add_frac = vec3u((c - whole) * 4294967296.0);
-    let add_low = vec3u(whole);
-    let frac = (*acc).frac + add_frac;
-    let carry0 = select(vec3u(0u), vec3u(1u), frac < add_frac);
-    let low1 = (*acc).low + add_low;
-    let carry1 = select(vec3u(0u), vec3u(1u), low1 < add_low);
-    let low = low1 + carry0;
-    let carry2 = select(vec3u(0u), vec3u(1u), low < carry0);
-    (*acc).frac = frac;
-    (*acc).low = low;
-    (*acc).high += carry1 + carry2;
-    (*acc).samples += 1u;
-}
-
 fn fixed_load(buf: u32, pixel: u32) -> Fixed {
     let b = pixel * ACCUM_WORDS;
     var w: array<u32, 10>;
     for (var i = 0u; i < ACCUM_WORDS; i++) {
         w[i] = select(accum_odd[b + i], accum_even[b + i], buf == 0u);
     }
-    return Fixed(vec3u(w[0], w[3], w[6]), vec3u(w[1], w[4], w[7]), vec3u(w[2], w[5], w[8]), w[9]);
+    return fixed_from_words(w);
 }
 
 fn fixed_store(buf: u32, pixel: u32, f: Fixed) {
     let b = pixel * ACCUM_WORDS;
-    let w = array<u32, 10>(
-        f.frac.x, f.low.x, f.high.x, f.frac.y, f.low.y, f.high.y, f.frac.z, f.low.z, f.high.z, f.samples
-    );
+    let w = fixed_to_words(f);
     for (var i = 0u; i < ACCUM_WORDS; i++) {
         if buf == 0u {
             accum_even[b + i] = w[i];
         } else {
             accum_odd[b + i] = w[i];
         }
+    }
+}
+
+// One lane's sums of its samples of a pixel, even then odd: 2 * ACCUM_WORDS words per slot.
+fn scratch_store(slot: u32, even: Fixed, odd: Fixed) {
+    let b = slot * 2u * ACCUM_WORDS;
+    let e = fixed_to_words(even);
+    let o = fixed_to_words(odd);
+    for (var i = 0u; i < ACCUM_WORDS; i++) {
+        scratch[b + i] = e[i];
+        scratch[b + ACCUM_WORDS + i] = o[i];
     }
 }
 
@@ -658,21 +636,29 @@ var<workgroup> wg_segments: atomic<u32>;
 var<workgroup> wg_visits: atomic<u32>;
 var<workgroup> wg_tests: atomic<u32>;
 
+// One invocation per pixel and lane: lane `gid.z` of `batch.lanes` traces samples
+// sample_base + lane, + lanes, … of the round's sample_count. With one lane it adds them to
+// the pixel's sums; with more, each lane writes its own sums to `scratch` and the reduce pass
+// (src/gpu/reduce.rs) adds the lanes into the accumulation. Fixed-point sums are exact and
+// every sample has its own random stream, so the result is the same bit for bit however the
+// samples are spread over lanes, rounds and submissions.
 @compute @workgroup_size(8, 8, 1)
 fn trace(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_index) lid: u32) {
     let px = vec2u(gid.x, gid.y + batch.row_offset);
-    let in_image = gid.x < scene.width && gid.y < batch.row_count && px.y < scene.height;
+    let lane = gid.z;
+    let in_image = gid.x < scene.width && gid.y < batch.row_count && px.y < scene.height
+        && lane < batch.lanes;
     var segments = 0u;
     if in_image {
         let pixel = px.y * scene.width + px.x;
-        var even = Fixed(vec3u(0u), vec3u(0u), vec3u(0u), 0u);
+        var even = fixed_zero();
         var odd = even;
-        if batch.accumulate != 0u {
+        if batch.lanes == 1u && batch.accumulate != 0u {
             even = fixed_load(0u, pixel);
             odd = fixed_load(1u, pixel);
         }
         var invalid = 0u;
-        for (var i = 0u; i < batch.sample_count; i++) {
+        for (var i = lane; i < batch.sample_count; i += batch.lanes) {
             let sample = batch.sample_base + i;
             var state = rng_init(pixel, sample, scene.seed);
             let path = trace_path(camera_ray(px, &state), &state);
@@ -687,8 +673,12 @@ fn trace(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_in
                 fixed_add(&odd, path.radiance);
             }
         }
-        fixed_store(0u, pixel, even);
-        fixed_store(1u, pixel, odd);
+        if batch.lanes == 1u {
+            fixed_store(0u, pixel, even);
+            fixed_store(1u, pixel, odd);
+        } else {
+            scratch_store((lane * batch.row_count + gid.y) * scene.width + gid.x, even, odd);
+        }
         add_u64(0u, invalid);
     }
     if COUNT_SEGMENTS {

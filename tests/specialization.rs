@@ -151,3 +151,43 @@ fn a_pipeline_compiled_in_the_background_changes_nothing_in_the_image() {
     let (differ, worst, _) = image_diff(&switched, &fresh);
     assert_eq!(differ, 0, "{differ} pixels differ by up to {worst:e}");
 }
+
+#[test]
+fn samples_traced_on_several_lanes_sum_to_the_same_accumulation() {
+    // A pixel's samples spread over lanes whose fixed-point sums the reduce pass adds: the
+    // sums must be the same words as one lane's, halves and counters included. `lamp` has
+    // light sampling and Russian roulette (random path lengths).
+    for name in ["lamp", "dielectric"] {
+        let scene = Scene::load(name).unwrap();
+        let s = settings(24, 16, 8);
+        let one = snapshot_with(
+            &scene,
+            s,
+            13,
+            RenderOptions {
+                lanes: Some(1),
+                ..Default::default()
+            },
+        );
+        for lanes in [2, 5, 64] {
+            let many = snapshot_with(
+                &scene,
+                s,
+                13,
+                RenderOptions {
+                    lanes: Some(lanes),
+                    ..Default::default()
+                },
+            );
+            let bits = |v: &Vec<[f32; 4]>| -> Vec<[u32; 4]> {
+                v.iter().map(|p| p.map(f32::to_bits)).collect()
+            };
+            assert!(
+                bits(&one.data.even) == bits(&many.data.even)
+                    && bits(&one.data.odd) == bits(&many.data.odd),
+                "{name}: {lanes} lanes give other sums than one"
+            );
+            assert_eq!(one.data.invalid, many.data.invalid);
+        }
+    }
+}

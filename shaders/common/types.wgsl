@@ -40,6 +40,18 @@ struct DispatchUniforms {
     row_offset: u32,        //   8
     row_count: u32,         //  12
     accumulate: u32,        //  16  the lecture's should_accumulate: 0 starts the sums afresh
+    lanes: u32,             //  20  invocations per pixel (samples traced in parallel; 1: none)
+    _pad1: u32,             //  24
+    _pad2: u32,             //  28
+}                           //  32
+
+// The preview's resolve pass (shaders/resolve.wgsl).
+struct ResolveUniforms {
+    width: u32,             //   0  the traced image
+    height: u32,            //   4
+    factor: u32,            //   8  traced pixels per output pixel, each way
+    out_width: u32,         //  12
+    out_height: u32,        //  16
     _pad0: u32,             //  20
     _pad1: u32,             //  24
     _pad2: u32,             //  28

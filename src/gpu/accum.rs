@@ -1,6 +1,7 @@
 //! The accumulation buffers (running sums of the even and odd samples of every pixel, in
-//! 96-bit fixed point: see `fixed_add` in trace.wgsl), the invalid-sample and segment
-//! counters, and their readback.
+//! 96-bit fixed point: see `fixed_add` in common/fixed.wgsl), the per-lane scratch sums that
+//! the reduce pass adds into them, the invalid-sample and segment counters, and their
+//! readback.
 
 use super::GpuContext;
 
@@ -8,6 +9,8 @@ use super::GpuContext;
 /// the integer part) and the sample count (ACCUM_WORDS in trace.wgsl).
 pub const ACCUM_WORDS: usize = 10;
 const PIXEL_BYTES: u64 = 4 * ACCUM_WORDS as u64;
+/// One lane's sums of one pixel in `scratch`: both halves.
+const SLOT_BYTES: u64 = 2 * PIXEL_BYTES;
 /// Four u64 counters as (lo, hi) u32 pairs: invalid samples, path segments, BVH node visits,
 /// primitive tests.
 const COUNTER_BYTES: u64 = 32;
@@ -45,13 +48,19 @@ pub struct Accumulation {
     pub even: wgpu::Buffer,
     pub odd: wgpu::Buffer,
     pub counters: wgpu::Buffer,
+    /// Per-lane sums of the pixels of one submission (`scratch_slots` of them).
+    pub scratch: wgpu::Buffer,
+    pub scratch_slots: u64,
     staging: wgpu::Buffer,
     pixels: u64,
 }
 
 impl Accumulation {
-    pub fn new(device: &wgpu::Device, width: u32, height: u32) -> Accumulation {
+    /// Sums for `width × height` pixels, and scratch for `scratch_slots` lane-pixels (at
+    /// least one, so that the buffer can be bound).
+    pub fn new(device: &wgpu::Device, width: u32, height: u32, scratch_slots: u64) -> Accumulation {
         let pixels = width as u64 * height as u64;
+        let scratch_slots = scratch_slots.max(1);
         let half = |label| {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -71,6 +80,13 @@ impl Accumulation {
                     | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
+            scratch: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("accum.scratch"),
+                size: scratch_slots * SLOT_BYTES,
+                usage: wgpu::BufferUsages::STORAGE,
+                mapped_at_creation: false,
+            }),
+            scratch_slots,
             staging: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("accum.staging"),
                 size: 2 * pixels * PIXEL_BYTES + COUNTER_BYTES,
@@ -81,9 +97,9 @@ impl Accumulation {
         }
     }
 
-    /// Bytes the accumulation holds on the GPU (sums, counters and the readback copy).
+    /// Bytes the accumulation holds on the GPU (sums, counters, the readback copy, scratch).
     pub fn gpu_bytes(&self) -> u64 {
-        2 * (2 * self.pixels * PIXEL_BYTES + COUNTER_BYTES)
+        2 * (2 * self.pixels * PIXEL_BYTES + COUNTER_BYTES) + self.scratch_slots * SLOT_BYTES
     }
 
     /// Zeroes the counters (the sums are restarted by the tracer's `accumulate = 0`).

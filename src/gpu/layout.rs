@@ -44,6 +44,19 @@ pub struct DispatchUniforms {
     pub row_offset: u32,
     pub row_count: u32,
     pub accumulate: u32,
+    /// Invocations per pixel, each tracing its share of the samples (1: no reduce pass).
+    pub lanes: u32,
+    pub _pad: [u32; 2],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct ResolveUniforms {
+    pub width: u32,
+    pub height: u32,
+    pub factor: u32,
+    pub out_width: u32,
+    pub out_height: u32,
     pub _pad: [u32; 3],
 }
 
@@ -171,7 +184,19 @@ pub fn mirrors() -> Vec<MirrorLayout> {
         m!(
             "DispatchUniforms",
             DispatchUniforms,
-            [sample_base, sample_count, row_offset, row_count, accumulate]
+            [
+                sample_base,
+                sample_count,
+                row_offset,
+                row_count,
+                accumulate,
+                lanes
+            ]
+        ),
+        m!(
+            "ResolveUniforms",
+            ResolveUniforms,
+            [width, height, factor, out_width, out_height]
         ),
         m!(
             "Material",
@@ -207,6 +232,7 @@ pub fn mirrors() -> Vec<MirrorLayout> {
 const _: () = {
     assert!(std::mem::size_of::<SceneUniforms>() == 192);
     assert!(std::mem::size_of::<DispatchUniforms>() == 32);
+    assert!(std::mem::size_of::<ResolveUniforms>() == 32);
     assert!(std::mem::size_of::<GpuMaterial>() == 48);
     assert!(std::mem::size_of::<GpuSphere>() == 32);
     assert!(std::mem::size_of::<GpuQuad>() == 80);

@@ -9,6 +9,12 @@ use std::borrow::Cow;
 pub const SOURCES: &[(&str, &str)] = &[
     ("trace.wgsl", include_str!("../../shaders/trace.wgsl")),
     ("probe.wgsl", include_str!("../../shaders/probe.wgsl")),
+    ("reduce.wgsl", include_str!("../../shaders/reduce.wgsl")),
+    ("resolve.wgsl", include_str!("../../shaders/resolve.wgsl")),
+    (
+        "common/fixed.wgsl",
+        include_str!("../../shaders/common/fixed.wgsl"),
+    ),
     (
         "common/types.wgsl",
         include_str!("../../shaders/common/types.wgsl"),

@@ -9,8 +9,8 @@ use super::accum::Accumulation;
 use super::features::Features;
 use super::layout::DispatchUniforms;
 use super::scene_buffers::SceneBuffers;
-use super::shader;
 use super::timer::GpuTimer;
+use super::{bind_buffers, layout_entry as entry, shader};
 use std::collections::{HashMap, HashSet};
 use std::sync::{Arc, Mutex};
 
@@ -78,19 +78,6 @@ fn compile(
     p
 }
 
-fn entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
 impl TracePass {
     pub fn new(device: &wgpu::Device) -> TracePass {
         use wgpu::BufferBindingType::{Storage, Uniform};
@@ -112,6 +99,7 @@ impl TracePass {
                 entry(10, ro),
                 entry(11, ro),
                 entry(12, ro),
+                entry(13, rw),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -190,34 +178,32 @@ impl TracePass {
         scene: &SceneBuffers,
         accum: &Accumulation,
     ) -> wgpu::BindGroup {
-        let buffers = [
-            &scene.uniforms,
-            &self.dispatch,
-            &scene.materials,
-            &scene.spheres,
-            &scene.quads,
-            &scene.boxes,
-            &accum.even,
-            &accum.odd,
-            &accum.counters,
-            &scene.nodes,
-            &scene.refs,
-            &scene.triangles,
-            &scene.lights,
-        ];
-        let entries: Vec<wgpu::BindGroupEntry> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("trace.bind_group"),
-            layout: &self.layout,
-            entries: &entries,
-        })
+        bind_buffers(
+            device,
+            "trace.bind_group",
+            &self.layout,
+            &[
+                &scene.uniforms,
+                &self.dispatch,
+                &scene.materials,
+                &scene.spheres,
+                &scene.quads,
+                &scene.boxes,
+                &accum.even,
+                &accum.odd,
+                &accum.counters,
+                &scene.nodes,
+                &scene.refs,
+                &scene.triangles,
+                &scene.lights,
+                &accum.scratch,
+            ],
+        )
+    }
+
+    /// The per-submission uniforms buffer (the reduce pass reads it too).
+    pub fn dispatch_buffer(&self) -> &wgpu::Buffer {
+        &self.dispatch
     }
 
     /// Writes the dispatch's uniforms and records it. The uniforms are per submission:
@@ -240,7 +226,7 @@ impl TracePass {
         pass.dispatch_workgroups(
             d.width.div_ceil(self.workgroup.0),
             d.uniforms.row_count.div_ceil(self.workgroup.1),
-            1,
+            d.uniforms.lanes.max(1),
         );
     }
 }

@@ -1,6 +1,12 @@
 //! The progressive renderer: owns the GPU passes and buffers of one scene, advances the
 //! accumulation in watchdog-safe submissions, and resets it on any change (the lecture's
 //! `should_accumulate`).
+//!
+//! Submissions are pipelined: [`Renderer::submit`] queues one and returns at once, and
+//! [`Renderer::wait`] lets at most a given number stay in flight, so the GPU has the next
+//! one before it finishes the last. A small image fills the GPU by tracing several samples
+//! of each pixel in parallel ("lanes", see `fn trace` in trace.wgsl), whose exact
+//! fixed-point sums the reduce pass adds up: the image is the same bit for bit.
 
 mod schedule;
 mod snapshot;
@@ -9,12 +15,19 @@ pub use schedule::Schedule;
 pub use snapshot::{ErrorEstimate, REL_MSE_EPSILON, Snapshot};
 
 use crate::gpu::layout::DispatchUniforms;
+use crate::gpu::reduce::ReducePass;
 use crate::gpu::timer::GpuTimer;
 use crate::gpu::trace::TraceDispatch;
 use crate::gpu::{Accumulation, Features, FrameSettings, GpuContext, SceneBuffers, TracePass};
 use crate::scene::Scene;
+use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+
+/// Invocations a dispatch should have to fill a large GPU: an H100/H200 holds about 270 000
+/// resident threads (132 SMs × 2048); twice that evens out the paths' unequal lengths.
+/// Lanes are added until a submission has about this many.
+pub const LANE_INVOCATIONS: u64 = 1 << 19;
 
 /// How a renderer specializes and sizes its work.
 #[derive(Clone, Copy, Debug)]
@@ -34,6 +47,10 @@ pub struct RenderOptions {
     pub compile_in_background: bool,
     /// Features compiled in beyond what the scene needs (benchmarks of one feature's cost).
     pub extra: Option<Features>,
+    /// Samples of a pixel traced in parallel, at most: `None` chooses by the adapter (on a
+    /// GPU enough lanes to fill it, see [`LANE_INVOCATIONS`]; on a CPU adapter, whose few
+    /// cores a small image already fills, one); `Some(n)` uses up to `n` (tests).
+    pub lanes: Option<u32>,
 }
 
 impl Default for RenderOptions {
@@ -46,6 +63,7 @@ impl Default for RenderOptions {
             submission: Duration::from_millis(100),
             compile_in_background: false,
             extra: None,
+            lanes: None,
         }
     }
 }
@@ -68,12 +86,21 @@ struct Round {
     next_row: u32,
 }
 
+/// A submission the GPU has not finished.
+struct InFlight {
+    index: wgpu::SubmissionIndex,
+    paths: u64,
+    submitted: Instant,
+}
+
 pub struct Renderer {
     ctx: Arc<GpuContext>,
     trace: TracePass,
     scene: SceneBuffers,
     accum: Accumulation,
     bind_group: wgpu::BindGroup,
+    reduce: ReducePass,
+    reduce_bind_group: wgpu::BindGroup,
     settings: FrameSettings,
     options: RenderOptions,
     features: Features,
@@ -84,6 +111,9 @@ pub struct Renderer {
     /// The next round restarts the sums (`should_accumulate = 0`).
     fresh: bool,
     timer: Option<GpuTimer>,
+    in_flight: VecDeque<InFlight>,
+    /// When the GPU last finished a submission (as seen by `wait`).
+    last_done: Instant,
 }
 
 impl Renderer {
@@ -107,8 +137,16 @@ impl Renderer {
             trace.prepare_in_background(device, generic);
         }
         let buffers = SceneBuffers::new(device, scene, &settings);
-        let accum = Accumulation::new(device, settings.width, settings.height);
+        let accum = Accumulation::new(
+            device,
+            settings.width,
+            settings.height,
+            Self::scratch_slots(&ctx, &options, &settings),
+        );
         let bind_group = trace.bind_group(device, &buffers, &accum);
+        let reduce = ReducePass::new(device);
+        let reduce_bind_group =
+            reduce.bind_group(device, &buffers, trace.dispatch_buffer(), &accum);
         accum.reset_counters(&ctx.queue);
         let timer = if options.gpu_timing {
             GpuTimer::new(&ctx)
@@ -121,6 +159,8 @@ impl Renderer {
             scene: buffers,
             accum,
             bind_group,
+            reduce,
+            reduce_bind_group,
             settings,
             options,
             features,
@@ -129,7 +169,32 @@ impl Renderer {
             round: None,
             fresh: true,
             ctx,
+            in_flight: VecDeque::new(),
+            last_done: Instant::now(),
         }
+    }
+
+    /// Lane-pixels of scratch: none where one lane per pixel is all a dispatch needs.
+    fn scratch_slots(ctx: &GpuContext, o: &RenderOptions, s: &FrameSettings) -> u64 {
+        let pixels = s.width as u64 * s.height as u64;
+        match o.lanes {
+            Some(n) if n > 1 => pixels * n as u64,
+            Some(_) => 0,
+            None if ctx.is_software() || 2 * pixels > LANE_INVOCATIONS => 0,
+            None => LANE_INVOCATIONS,
+        }
+    }
+
+    /// Lanes per pixel of a submission of `rows` rows at `k` samples per pixel.
+    fn lanes(&self, rows: u32, k: u32) -> u32 {
+        let pixels = self.settings.width as u64 * rows as u64;
+        let fit = self.accum.scratch_slots / pixels.max(1);
+        let wanted = match self.options.lanes {
+            Some(n) => n as u64,
+            None => LANE_INVOCATIONS.div_ceil(pixels.max(1)),
+        };
+        let lanes = fit.min(wanted).min(k as u64);
+        if lanes < 2 { 1 } else { lanes as u32 }
     }
 
     fn features_for(scene: &Scene, o: &RenderOptions, s: &FrameSettings) -> Features {
@@ -217,90 +282,153 @@ impl Renderer {
         }
         let mut rebind = self.scene.update(device, &self.ctx.queue, scene, &settings);
         if (settings.width, settings.height) != (self.settings.width, self.settings.height) {
-            self.accum = Accumulation::new(device, settings.width, settings.height);
+            self.accum = Accumulation::new(
+                device,
+                settings.width,
+                settings.height,
+                Self::scratch_slots(&self.ctx, &self.options, &settings),
+            );
             rebind = true;
         }
         self.settings = settings;
         if rebind {
             self.bind_group = self.trace.bind_group(device, &self.scene, &self.accum);
+            self.reduce_bind_group = self.reduce.bind_group(
+                device,
+                &self.scene,
+                self.trace.dispatch_buffer(),
+                &self.accum,
+            );
         }
         self.reset();
     }
 
+    /// Queues the next submission (part of a round: some rows at `k` samples per pixel) and
+    /// returns the paths it traces, without waiting for the GPU; `None` once every pixel has
+    /// `max_samples`. `samples()` advances when a round's last submission is queued: work
+    /// submitted later (a readback) sees it complete.
+    pub fn submit(&mut self, max_samples: u32) -> Option<u64> {
+        if self.samples >= max_samples {
+            return None;
+        }
+        let (w, h) = (self.settings.width, self.settings.height);
+        let features = self.pipeline_features();
+        let round = match self.round {
+            Some(r) => r,
+            // The first round after a reset takes one sample, so that a first image exists
+            // as soon as possible.
+            None if self.fresh => Round { k: 1, next_row: 0 },
+            None => Round {
+                k: self
+                    .schedule
+                    .samples_per_round(w, h, max_samples - self.samples),
+                next_row: 0,
+            },
+        };
+        let rows = self.schedule.rows(w, round.k, h - round.next_row);
+        let lanes = self.lanes(rows, round.k);
+        let d = DispatchUniforms {
+            sample_base: self.samples,
+            sample_count: round.k,
+            row_offset: round.next_row,
+            row_count: rows,
+            accumulate: u32::from(!self.fresh),
+            lanes,
+            _pad: [0; 2],
+        };
+        let mut enc = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("trace.submission"),
+            });
+        self.trace.encode(
+            &self.ctx.queue,
+            &mut enc,
+            &TraceDispatch {
+                features,
+                bind_group: &self.bind_group,
+                width: w,
+                uniforms: d,
+                timer: self.timer.as_ref(),
+            },
+        );
+        if lanes > 1 {
+            self.reduce
+                .encode(&mut enc, &self.reduce_bind_group, w * rows);
+        }
+        if let Some(t) = &self.timer {
+            t.resolve(&mut enc);
+        }
+        let index = self.ctx.queue.submit([enc.finish()]);
+        let paths = w as u64 * rows as u64 * round.k as u64;
+        self.in_flight.push_back(InFlight {
+            index,
+            paths,
+            submitted: Instant::now(),
+        });
+        let next_row = round.next_row + rows;
+        if next_row >= h {
+            self.samples += round.k;
+            self.round = None;
+            self.fresh = false;
+        } else {
+            self.round = Some(Round {
+                k: round.k,
+                next_row,
+            });
+        }
+        Some(paths)
+    }
+
+    /// Waits until at most `keep` submissions are in flight, and learns from each finished
+    /// one how long a path takes (its time on the GPU: from when it was submitted, or from
+    /// when the GPU finished the one before it, whichever is later).
+    pub fn wait(&mut self, keep: usize) {
+        while self.in_flight.len() > keep {
+            let f = self.in_flight.pop_front().expect("a submission in flight");
+            self.ctx
+                .device
+                .poll(wgpu::PollType::Wait {
+                    submission_index: Some(f.index),
+                    timeout: None,
+                })
+                .expect("the GPU stopped answering");
+            let now = Instant::now();
+            let started = f.submitted.max(self.last_done);
+            self.schedule.observe(f.paths, now - started);
+            self.last_done = now;
+        }
+    }
+
+    /// Submissions the GPU has not finished (as far as `wait` knows).
+    pub fn in_flight(&self) -> usize {
+        self.in_flight.len()
+    }
+
     /// Traces for about `budget` (at least one submission), never past `max_samples` per
-    /// pixel. Returns what was done; `samples()` advances when a round completes.
+    /// pixel, keeping one submission queued behind the running one. Returns what was done;
+    /// every submission has finished when it returns.
     pub fn step(&mut self, budget: Duration, max_samples: u32) -> StepStats {
         let start = Instant::now();
         let mut stats = StepStats::default();
-        let (w, h) = (self.settings.width, self.settings.height);
-        let features = self.pipeline_features();
-        while self.samples < max_samples {
-            let round = match self.round {
-                Some(r) => r,
-                None => Round {
-                    k: self
-                        .schedule
-                        .samples_per_round(w, h, max_samples - self.samples),
-                    next_row: 0,
-                },
-            };
-            let rows = self.schedule.rows(w, round.k, h - round.next_row);
-            let d = DispatchUniforms {
-                sample_base: self.samples,
-                sample_count: round.k,
-                row_offset: round.next_row,
-                row_count: rows,
-                accumulate: u32::from(!self.fresh),
-                _pad: [0; 3],
-            };
-            let t = Instant::now();
-            let mut enc = self
-                .ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("trace.submission"),
-                });
-            self.trace.encode(
-                &self.ctx.queue,
-                &mut enc,
-                &TraceDispatch {
-                    features,
-                    bind_group: &self.bind_group,
-                    width: w,
-                    uniforms: d,
-                    timer: self.timer.as_ref(),
-                },
-            );
-            if let Some(t) = &self.timer {
-                t.resolve(&mut enc);
-            }
-            self.ctx.queue.submit([enc.finish()]);
-            self.ctx
-                .device
-                .poll(wgpu::PollType::wait_indefinitely())
-                .expect("the GPU stopped answering");
-            if let Some(t) = &self.timer {
-                stats.gpu_seconds += t.read_seconds(&self.ctx);
-            }
-            let paths = w as u64 * rows as u64 * round.k as u64;
-            self.schedule.observe(paths, t.elapsed());
+        while let Some(paths) = self.submit(max_samples) {
             stats.paths += paths;
             stats.submissions += 1;
-            let next_row = round.next_row + rows;
-            if next_row >= h {
-                self.samples += round.k;
-                self.round = None;
-                self.fresh = false;
+            if self.timer.is_some() {
+                // One query set: read each submission's time before the next.
+                self.wait(0);
+                if let Some(t) = &self.timer {
+                    stats.gpu_seconds += t.read_seconds(&self.ctx);
+                }
             } else {
-                self.round = Some(Round {
-                    k: round.k,
-                    next_row,
-                });
+                self.wait(1);
             }
             if start.elapsed() >= budget {
                 break;
             }
         }
+        self.wait(0);
         stats.elapsed = start.elapsed();
         stats
     }
@@ -310,6 +438,11 @@ impl Renderer {
         while self.samples < spp {
             self.step(Duration::from_secs(1), spp);
         }
+    }
+
+    /// The accumulation (for passes that read it, such as the preview's resolve).
+    pub fn accumulation(&self) -> &Accumulation {
+        &self.accum
     }
 
     /// Reads the accumulation back.

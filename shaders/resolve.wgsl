@@ -1,0 +1,73 @@
+// #include "common/types.wgsl"
+// #include "common/fixed.wgsl"
+// The preview's image, made on the GPU from the accumulation so that only the small image is
+// read back (src/gpu/resolve.rs drives it): one invocation per output pixel averages the
+// `factor × factor` block of traced pixels below it in linear light (each pixel its sum over
+// its weight, the lecture's `accumulated / peso`), and sums the block's terms of the
+// two-halves noise estimate (src/render/snapshot.rs, `error_estimate`, says why they are
+// unbiased).
+
+
+// pbrt's relative-MSE epsilon (src/render/snapshot.rs: REL_MSE_EPSILON).
+const REL_MSE_EPSILON: f32 = 0.01;
+
+@group(0) @binding(0) var<uniform> params: ResolveUniforms;
+@group(0) @binding(1) var<storage, read> accum_even: array<u32>;
+@group(0) @binding(2) var<storage, read> accum_odd: array<u32>;
+// Two vec4f per output pixel: (r, g, b, fewest samples in either half of any block pixel)
+// and (squared-error sum, relative squared-error sum, 0, 0).
+@group(0) @binding(3) var<storage, read_write> out: array<vec4f>;
+
+fn load(buf: u32, pixel: u32) -> Fixed {
+    var w: array<u32, 10>;
+    for (var i = 0u; i < ACCUM_WORDS; i++) {
+        w[i] = select(accum_odd[pixel * ACCUM_WORDS + i], accum_even[pixel * ACCUM_WORDS + i], buf == 0u);
+    }
+    return fixed_from_words(w);
+}
+
+// The sums as floats (exact in the fixed point, rounded to f32 only here).
+fn fixed_value(f: Fixed) -> vec3f {
+    return vec3f(f.high) * 4294967296.0 + vec3f(f.low) + vec3f(f.frac) * (1.0 / 4294967296.0);
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn resolve(@builtin(global_invocation_id) gid: vec3u) {
+    if gid.x >= params.out_width || gid.y >= params.out_height {
+        return;
+    }
+    var rgb = vec3f(0.0);
+    var fewest = 4294967295.0;
+    var mse = 0.0;
+    var rel = 0.0;
+    for (var dy = 0u; dy < params.factor; dy++) {
+        for (var dx = 0u; dx < params.factor; dx++) {
+            let x = gid.x * params.factor + dx;
+            let y = gid.y * params.factor + dy;
+            let pixel = y * params.width + x;
+            let e = load(0u, pixel);
+            let o = load(1u, pixel);
+            let ne = f32(e.samples);
+            let no = f32(o.samples);
+            let se = fixed_value(e);
+            let so = fixed_value(o);
+            if ne + no > 0.0 {
+                rgb += (se + so) / (ne + no);
+            }
+            fewest = min(fewest, min(ne, no));
+            if ne >= 1.0 && no >= 1.0 {
+                let k = ne * no / ((ne + no) * (ne + no));
+                let d = se / ne - so / no;
+                let v = d * d * k;
+                mse += v.x + v.y + v.z;
+                let r2 = max((se / ne) * (so / no), vec3f(0.0)) + REL_MSE_EPSILON;
+                let rv = v / r2;
+                rel += rv.x + rv.y + rv.z;
+            }
+        }
+    }
+    let n = f32(params.factor * params.factor);
+    let i = gid.y * params.out_width + gid.x;
+    out[2u * i] = vec4f(rgb / n, fewest);
+    out[2u * i + 1u] = vec4f(mse, rel, 0.0, 0.0);
+}

@@ -1,0 +1,248 @@
+//! The preview's resolve pass (`shaders/resolve.wgsl`): makes the small image that the
+//! terminal shows, and the terms of its noise estimate, on the GPU from the accumulation, and
+//! reads it back asynchronously through two staging buffers: the render thread requests a
+//! frame, goes on tracing, and takes the frame once its copy has landed.
+
+use super::accum::Accumulation;
+use super::layout::ResolveUniforms;
+use super::{GpuContext, bind_buffers, layout_entry, shader};
+use crate::output::LinearImage;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, Ordering};
+
+/// Staging buffers: one frame can land while the next is in flight.
+pub const SLOTS: usize = 2;
+/// Bytes per output pixel: two vec4f (see resolve.wgsl).
+const OUT_BYTES: u64 = 32;
+/// Bytes of the invalid-sample counter copied behind the image.
+const COUNTER_BYTES: u64 = 8;
+
+const FREE: u8 = 0;
+const PENDING: u8 = 1;
+const MAPPED: u8 = 2;
+const FAILED: u8 = 3;
+
+/// One resolved frame on the host.
+#[derive(Clone, Debug)]
+pub struct Resolved {
+    pub image: LinearImage,
+    /// The traced image's estimated relative RMSE (see `Snapshot::error_estimate`); `None`
+    /// until every pixel has a sample in each half.
+    pub noise: Option<f64>,
+    /// Samples discarded as NaN or infinite since the last reset.
+    pub invalid: u64,
+}
+
+struct Slot {
+    buffer: Option<wgpu::Buffer>,
+    state: Arc<AtomicU8>,
+    out: (u32, u32),
+    traced_pixels: u64,
+}
+
+pub struct ResolvePass {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    uniforms: wgpu::Buffer,
+    output: Option<wgpu::Buffer>,
+    slots: Vec<Slot>,
+}
+
+impl ResolvePass {
+    pub fn new(device: &wgpu::Device) -> ResolvePass {
+        use wgpu::BufferBindingType::{Storage, Uniform};
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("resolve.layout"),
+            entries: &[
+                layout_entry(0, Uniform),
+                layout_entry(1, Storage { read_only: true }),
+                layout_entry(2, Storage { read_only: true }),
+                layout_entry(3, Storage { read_only: false }),
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("resolve.pipeline_layout"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let src = shader::assemble("resolve.wgsl").expect("resolve.wgsl assembles");
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("resolve.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(src.into()),
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("resolve.pipeline"),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("resolve"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("resolve.uniforms"),
+            size: std::mem::size_of::<ResolveUniforms>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let slots = (0..SLOTS)
+            .map(|_| Slot {
+                buffer: None,
+                state: Arc::new(AtomicU8::new(FREE)),
+                out: (0, 0),
+                traced_pixels: 0,
+            })
+            .collect();
+        ResolvePass {
+            layout,
+            pipeline,
+            uniforms,
+            output: None,
+            slots,
+        }
+    }
+
+    /// Whether some slot can take a request.
+    pub fn has_free_slot(&self) -> bool {
+        self.slots
+            .iter()
+            .any(|s| s.state.load(Ordering::Acquire) == FREE)
+    }
+
+    /// Resolves the `width × height` accumulation to `width / factor × height / factor` in its
+    /// own submission (after all work submitted before) and starts its readback. Returns the
+    /// slot to [`ResolvePass::take`] it from, or `None` when both slots are busy.
+    pub fn request(
+        &mut self,
+        ctx: &GpuContext,
+        accum: &Accumulation,
+        (width, height): (u32, u32),
+        factor: u32,
+    ) -> Option<usize> {
+        let slot = self
+            .slots
+            .iter()
+            .position(|s| s.state.load(Ordering::Acquire) == FREE)?;
+        let factor = factor.max(1);
+        let out = ((width / factor).max(1), (height / factor).max(1));
+        let bytes = out.0 as u64 * out.1 as u64 * OUT_BYTES;
+        let device = &ctx.device;
+        if self.output.as_ref().is_none_or(|b| b.size() < bytes) {
+            self.output = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("resolve.output"),
+                size: bytes,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }));
+        }
+        let s = &mut self.slots[slot];
+        if s.buffer
+            .as_ref()
+            .is_none_or(|b| b.size() < bytes + COUNTER_BYTES)
+        {
+            s.buffer = Some(device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("resolve.staging"),
+                size: bytes + COUNTER_BYTES,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }));
+        }
+        let output = self.output.as_ref().expect("output buffer");
+        let staging = s.buffer.as_ref().expect("staging buffer");
+        let u = ResolveUniforms {
+            width,
+            height,
+            factor,
+            out_width: out.0,
+            out_height: out.1,
+            _pad: [0; 3],
+        };
+        ctx.queue
+            .write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&u));
+        let bind_group = bind_buffers(
+            device,
+            "resolve.bind_group",
+            &self.layout,
+            &[&self.uniforms, &accum.even, &accum.odd, output],
+        );
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("resolve.submission"),
+        });
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("resolve"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind_group, &[]);
+            pass.dispatch_workgroups(out.0.div_ceil(8), out.1.div_ceil(8), 1);
+        }
+        enc.copy_buffer_to_buffer(output, 0, staging, 0, bytes);
+        enc.copy_buffer_to_buffer(&accum.counters, 0, staging, bytes, COUNTER_BYTES);
+        ctx.queue.submit([enc.finish()]);
+        s.state.store(PENDING, Ordering::Release);
+        s.out = out;
+        s.traced_pixels = width as u64 * height as u64;
+        let state = s.state.clone();
+        staging
+            .slice(..bytes + COUNTER_BYTES)
+            .map_async(wgpu::MapMode::Read, move |r| {
+                state.store(if r.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
+            });
+        Some(slot)
+    }
+
+    /// Whether `slot`'s readback has landed (poll the device to make progress).
+    pub fn ready(&self, slot: usize) -> bool {
+        matches!(
+            self.slots[slot].state.load(Ordering::Acquire),
+            MAPPED | FAILED
+        )
+    }
+
+    /// The frame of `slot` once it has landed (`None` before, or if mapping failed); frees
+    /// the slot.
+    pub fn take(&mut self, slot: usize) -> Option<Resolved> {
+        let s = &mut self.slots[slot];
+        match s.state.load(Ordering::Acquire) {
+            MAPPED => {}
+            FAILED => {
+                s.state.store(FREE, Ordering::Release);
+                return None;
+            }
+            _ => return None,
+        }
+        let staging = s.buffer.as_ref().expect("a mapped slot has a buffer");
+        let n = s.out.0 as usize * s.out.1 as usize;
+        let bytes = n as u64 * OUT_BYTES;
+        let resolved = {
+            let data = staging
+                .slice(..bytes + COUNTER_BYTES)
+                .get_mapped_range()
+                .expect("the staging buffer is mapped");
+            let words: &[[f32; 8]] = bytemuck::cast_slice(&data[..bytes as usize]);
+            let c: &[u32] = bytemuck::cast_slice(&data[bytes as usize..]);
+            let (mut rel, mut fewest) = (0.0f64, f32::INFINITY);
+            let pixels = words
+                .iter()
+                .map(|w| {
+                    fewest = fewest.min(w[3]);
+                    rel += w[5] as f64;
+                    [w[0], w[1], w[2]]
+                })
+                .collect();
+            let channels = 3.0 * s.traced_pixels.max(1) as f64;
+            Resolved {
+                image: LinearImage {
+                    width: s.out.0,
+                    height: s.out.1,
+                    pixels,
+                },
+                noise: (fewest >= 1.0).then(|| (rel / channels).sqrt()),
+                invalid: c[0] as u64 | (c[1] as u64) << 32,
+            }
+        };
+        staging.unmap();
+        s.state.store(FREE, Ordering::Release);
+        Some(resolved)
+    }
+}

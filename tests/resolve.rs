@@ -1,0 +1,70 @@
+//! The preview's resolve pass: the small image and noise estimate it makes on the GPU equal
+//! what the host computes from the whole accumulation (`Snapshot::image`, the cells'
+//! `downsample` in linear light, `Snapshot::noise_estimate`), up to f32 rounding.
+
+mod common;
+use common::*;
+use termtrace::gpu::resolve::ResolvePass;
+use termtrace::output::cells;
+use termtrace::render::{RenderOptions, Renderer};
+use termtrace::scene::Scene;
+
+#[test]
+fn the_gpu_resolve_matches_the_host_downsample_and_noise_estimate() {
+    let ctx = ctx();
+    let scene = Scene::load("showcase").unwrap();
+    for factor in [1, 2, 3] {
+        let s = settings(12 * factor, 6 * factor, 6);
+        let mut r = Renderer::new(ctx.clone(), &scene, s, RenderOptions::default());
+        r.render_spp(6);
+        let snap = r.snapshot();
+        let host = cells::downsample(&snap.image(), factor);
+        let mut pass = ResolvePass::new(&ctx.device);
+        let slot = pass
+            .request(&ctx, r.accumulation(), (s.width, s.height), factor)
+            .expect("a free slot");
+        let gpu = loop {
+            ctx.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .unwrap();
+            if pass.ready(slot) {
+                break pass.take(slot).expect("the readback maps");
+            }
+        };
+        assert_eq!((gpu.image.width, gpu.image.height), (12, 6));
+        for (i, (a, b)) in gpu.image.pixels.iter().zip(&host.pixels).enumerate() {
+            let close = (0..3).all(|c| (a[c] - b[c]).abs() <= 1e-5 * b[c].abs().max(1e-3));
+            assert!(close, "factor {factor}, pixel {i}: GPU {a:?}, host {b:?}");
+        }
+        let (g, h) = (gpu.noise.unwrap(), snap.noise_estimate().unwrap());
+        assert!(
+            (g - h).abs() <= 1e-4 * h,
+            "factor {factor}: noise {g} on the GPU, {h} on the host"
+        );
+        assert_eq!(gpu.invalid, snap.invalid_samples());
+    }
+}
+
+#[test]
+fn the_noise_estimate_waits_for_a_sample_in_each_half() {
+    let ctx = ctx();
+    let scene = Scene::load("basic").unwrap();
+    let s = settings(8, 8, 4);
+    let mut r = Renderer::new(ctx.clone(), &scene, s, RenderOptions::default());
+    r.render_spp(1);
+    let mut pass = ResolvePass::new(&ctx.device);
+    let slot = pass
+        .request(&ctx, r.accumulation(), (8, 8), 1)
+        .expect("a free slot");
+    // A second request takes the other slot; a third finds none until one is taken.
+    let other = pass.request(&ctx, r.accumulation(), (8, 8), 1).unwrap();
+    assert_ne!(slot, other);
+    assert!(pass.request(&ctx, r.accumulation(), (8, 8), 1).is_none());
+    ctx.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .unwrap();
+    let one = pass.take(slot).expect("landed");
+    assert!(one.noise.is_none(), "one sample: no odd half yet");
+    assert!(pass.take(other).is_some());
+    assert!(pass.has_free_slot());
+}
