@@ -1,4 +1,6 @@
-//! `termtrace bench`: samples/s and path segments/s of one scene on the chosen adapter.
+//! `termtrace bench`: samples/s and path segments/s of one scene on the chosen adapter, or
+//! with `--preview` the live preview's key → frame latency and frame rate in a
+//! pseudo-terminal (`preview_bench`).
 
 use super::render::{frame_settings, rate_text};
 use super::{GlobalArgs, load_scene};
@@ -45,6 +47,31 @@ pub struct BenchArgs {
     /// what each costs.
     #[arg(long, value_name = "LIST", value_parser = crate::gpu::Features::parse_list)]
     pub with: Option<crate::gpu::Features>,
+    /// Measure the live preview instead: run it in a pseudo-terminal of --cols × --rows,
+    /// type an edit key --presses times and time each until the screen shows the edit.
+    #[arg(long)]
+    pub preview: bool,
+    /// Terminal columns for --preview.
+    #[arg(long, default_value_t = 120)]
+    pub cols: u16,
+    /// Terminal rows for --preview.
+    #[arg(long, default_value_t = 40)]
+    pub rows: u16,
+    /// Key presses to time with --preview.
+    #[arg(long, default_value_t = 10)]
+    pub presses: usize,
+    /// With --preview: seconds the accumulation runs before each press.
+    #[arg(long, default_value_t = 0.5)]
+    pub settle: f64,
+    /// With --preview: a press not shown within this many seconds is a miss.
+    #[arg(long, default_value_t = 1.0)]
+    pub timeout: f64,
+    /// With --preview: the preview's frame cap (its --fps).
+    #[arg(long)]
+    pub fps: Option<f64>,
+    /// With --preview: the termtrace binary to measure [default: this one].
+    #[arg(long, value_name = "PATH")]
+    pub exe: Option<std::path::PathBuf>,
 }
 
 pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
@@ -52,6 +79,9 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         a.time > 0.0 && a.warmup >= 0.0,
         "--time must be positive, --warmup non-negative"
     );
+    if a.preview {
+        return run_preview(&a, g);
+    }
     let prepare = Instant::now();
     let scene = match a.spheres {
         Some(n) => crate::scene::generate::sphere_field(n, 2024),
@@ -161,5 +191,41 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         );
     }
     println!("invalid      {}", snap.invalid_samples());
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `bench --preview`: the preview in a pseudo-terminal (`preview_bench`).
+fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(
+        a.settle >= 0.0 && a.timeout > 0.0,
+        "--settle must be non-negative, --timeout positive"
+    );
+    // Frames/s are measured while converging: never stop accumulating on a fast GPU.
+    let mut args = vec!["--max-spp".to_string(), u32::MAX.to_string()];
+    if let Some(adapter) = &g.adapter {
+        args.extend(["--adapter".to_string(), adapter.clone()]);
+    }
+    if let Some(fps) = a.fps {
+        args.extend(["--fps".to_string(), fps.to_string()]);
+    }
+    if a.generic {
+        args.push("--generic".to_string());
+    }
+    let b = super::preview_bench::PreviewBench {
+        exe: match &a.exe {
+            Some(p) => p.clone(),
+            None => std::env::current_exe()?,
+        },
+        scene: a.scene.clone(),
+        cols: a.cols,
+        rows: a.rows,
+        presses: a.presses,
+        settle: Duration::from_secs_f64(a.settle),
+        timeout: Duration::from_secs_f64(a.timeout),
+        window: Duration::from_secs_f64(a.time),
+        args,
+    };
+    let report = b.run()?;
+    super::preview_bench::print(&b, &report);
     Ok(ExitCode::SUCCESS)
 }

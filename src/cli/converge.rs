@@ -25,8 +25,9 @@ pub struct ConvergeArgs {
     /// Directory for convergence.csv, convergence.png, final.png and reference.exr.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Measure against this linear EXR (the same size as the runs).
-    #[arg(long, value_name = "EXR", conflicts_with = "reference_spp")]
+    /// Measure against this linear EXR, or a cached rendered reference (`reference-….bin`,
+    /// which keeps its own noise for the bias check), of the same size as the runs.
+    #[arg(long, value_name = "FILE", conflicts_with = "reference_spp")]
     pub reference: Option<PathBuf>,
     /// Render the reference with this many samples per pixel (cached for later runs).
     #[arg(long, value_name = "N", default_value_t = 4096)]
@@ -143,7 +144,7 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     );
 
     let reference = match &a.reference {
-        Some(p) => reference::from_exr(p, settings.width, settings.height)?,
+        Some(p) => reference::from_file(p, settings.width, settings.height)?,
         None => {
             let cache = if a.no_cache {
                 None

@@ -4,6 +4,7 @@ mod adapters;
 mod bench;
 mod check;
 mod converge;
+pub mod preview_bench;
 mod render;
 
 use crate::output::cells::{CellMode, ColorMode};

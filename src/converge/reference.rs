@@ -32,6 +32,27 @@ impl Reference {
     }
 }
 
+/// Reads a reference file: a rendered reference from the cache (`reference-….bin`, with its
+/// two halves, so that its own noise is known: how a reference made by an earlier build is
+/// kept for the bias check of a new one), or else a linear EXR, taken as exact. Its size
+/// must be the render's.
+pub fn from_file(path: &Path, width: u32, height: u32) -> anyhow::Result<Reference> {
+    if path.extension().is_some_and(|e| e == "bin") {
+        let snap = read_cache(path, width, height).with_context(|| {
+            format!(
+                "{} is not a cached termtrace reference of {width}x{height}",
+                path.display()
+            )
+        })?;
+        return Ok(Reference {
+            image: snap.image(),
+            source: format!("{} spp, from {}", snap.samples, path.display()),
+            snapshot: Some(snap),
+        });
+    }
+    from_exr(path, width, height)
+}
+
 /// Reads a linear EXR; its size must be the render's.
 pub fn from_exr(path: &Path, width: u32, height: u32) -> anyhow::Result<Reference> {
     let img = image::open(path)

@@ -397,6 +397,12 @@ impl Renderer {
             let now = Instant::now();
             let started = f.submitted.max(self.last_done);
             self.schedule.observe(f.paths, now - started);
+            tracing::debug!(
+                "submission of {} paths took {:.2} ms ({} queued behind it)",
+                f.paths,
+                (now - started).as_secs_f64() * 1e3,
+                self.in_flight.len()
+            );
             self.last_done = now;
         }
     }

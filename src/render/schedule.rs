@@ -6,6 +6,10 @@ use std::time::Duration;
 
 /// Pixels in the first, probing submission of a fresh renderer.
 const PROBE_PIXELS: u64 = 4096;
+/// Fewest paths one submission traces once the cost is known: a submission has a fixed cost
+/// (measured on lavapipe: about 5 ms however small), which a cost per path learned from tiny
+/// submissions would count again and again, shrinking them to a row each.
+const MIN_PATHS: u64 = 4096;
 /// Most samples per pixel one round takes (keeps the preview's rounds short).
 const MAX_SAMPLES_PER_ROUND: u32 = 256;
 
@@ -50,10 +54,15 @@ impl Schedule {
             None => PROBE_PIXELS / width.max(1) as u64,
             Some(cost) => {
                 let per_row = cost * width as f64 * k as f64;
-                whole(self.target.as_secs_f64() / per_row) as u64
+                let fewest = MIN_PATHS.div_ceil(width.max(1) as u64 * k.max(1) as u64);
+                (whole(self.target.as_secs_f64() / per_row) as u64).max(fewest)
             }
         };
-        (rows.max(1) as u32).min(left)
+        // Rows left over are spread evenly: a last sliver of a round would cost a whole
+        // submission's overhead.
+        let rows = (rows.max(1) as u32).min(left);
+        let parts = left.div_ceil(rows);
+        left.div_ceil(parts)
     }
 }
 

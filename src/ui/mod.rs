@@ -204,6 +204,10 @@ struct Ui {
     /// Settings of the latest scene request, to recognise its frames.
     settings: Option<FrameSettings>,
     fresh_image: bool,
+    /// A frame that shows an edit arrived: draw it now.
+    urgent: bool,
+    /// The generation of the last frame taken.
+    shown_generation: u64,
     quit: bool,
     /// Messages to print once the terminal is restored.
     farewell: Vec<String>,
@@ -226,6 +230,8 @@ impl Ui {
             let _ = self.to_worker.send(Request::Scene {
                 scene: Box::new(self.app.scene.clone()),
                 settings,
+                // Cells average `--ss` traced pixels each way (kitty shows every pixel).
+                factor: if self.kitty { 1 } else { self.opts.supersample },
                 generation: self.generation,
             });
         }
@@ -239,7 +245,10 @@ impl Ui {
                 };
                 match self.app.apply(action) {
                     Effect::None => {}
-                    Effect::SceneChanged | Effect::Relayout => self.send_scene(area),
+                    Effect::SceneChanged | Effect::Relayout => {
+                        tracing::debug!("key: scene changed");
+                        self.send_scene(area)
+                    }
                     Effect::Reset => {
                         let _ = self.to_worker.send(Request::Reset);
                     }
@@ -254,10 +263,11 @@ impl Ui {
             Event::Input(TermEvent::Resize(..)) => self.send_scene(area),
             Event::Input(_) => {}
             Event::Frame(f) => {
-                let expected = self.settings.map(|s| (s.width, s.height));
-                if f.generation == self.generation
-                    && expected == Some((f.image.width, f.image.height))
-                {
+                if f.generation == self.generation {
+                    // The first frame of an edit is drawn at once, not at the next slot.
+                    self.urgent |=
+                        f.stats.spp < self.app.stats.spp || self.shown_generation != f.generation;
+                    self.shown_generation = f.generation;
                     self.app.stats = f.stats;
                     self.app.image = Some(f.image);
                     self.fresh_image = true;
@@ -318,10 +328,10 @@ impl Ui {
                 .update(image.width, image.height, vec![blank; n], 0);
             return;
         }
-        let small = cells::downsample(img, self.opts.supersample);
-        let encoded = cells::encode(&small, self.app.cells, self.color);
+        // The render thread sends the image already averaged down to the cells' pixels.
+        let encoded = cells::encode(img, self.app.cells, self.color);
         let (sx, sy) = self.app.cells.subpixels();
-        let (cols, rows) = ((small.width / sx) as u16, (small.height / sy) as u16);
+        let (cols, rows) = ((img.width / sx) as u16, (img.height / sy) as u16);
         self.grid.update(cols, rows, encoded, self.opts.threshold);
     }
 }
@@ -400,6 +410,8 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         generation: 0,
         settings: None,
         fresh_image: false,
+        urgent: false,
+        shown_generation: 0,
         quit: false,
         farewell: Vec::new(),
     };
@@ -445,9 +457,16 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         if opts.exit_after.is_some_and(|t| started.elapsed() >= t) {
             ui.quit = true;
         }
-        if ui.quit || !dirty || Instant::now() < next_draw {
+        if ui.quit || !dirty || (Instant::now() < next_draw && !ui.urgent) {
             continue;
         }
+        if ui.urgent {
+            tracing::debug!(
+                "drawing the first frame of generation {}",
+                ui.shown_generation
+            );
+        }
+        ui.urgent = false;
         let before = bytes.load(Ordering::Relaxed);
         let kitty_frame = ui.kitty && ui.fresh_image;
         ui.encode(area);

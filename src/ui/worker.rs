@@ -1,8 +1,16 @@
-//! The render thread: owns the GPU, traces the preview a frame's time at a time, and renders
-//! PNGs in the background on the same device, interleaved with the preview.
+//! The render thread: owns the GPU, keeps it busy with short pipelined submissions of the
+//! preview, and renders PNGs in the background on the same device, interleaved with it.
+//!
+//! Frames never stop the tracing: a frame is made on the GPU by the resolve pass (the small
+//! image the terminal shows, and its noise estimate) and read back asynchronously through two
+//! staging buffers; the thread takes it once it has landed. A submission is a few
+//! milliseconds of work and at most two are queued, so an edit waits behind little: its
+//! first round is one sample per pixel, and its frame is requested as soon as that round is
+//! queued, whatever the frame rate. Frames of an older state still in flight are dropped.
 
 use super::Event;
 use super::app::Stats;
+use crate::gpu::resolve::{ResolvePass, SLOTS};
 use crate::gpu::{FrameSettings, GpuContext};
 use crate::output::{LinearImage, Transfer, write_png};
 use crate::render::{RenderOptions, Renderer};
@@ -13,15 +21,21 @@ use std::sync::mpsc::{Receiver, Sender, TryRecvError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-/// Share of a frame spent tracing.
-const TRACE_SHARE: f64 = 0.6;
+/// GPU time one preview submission should take: short, so that an edit waits behind little.
+const PREVIEW_SUBMISSION: Duration = Duration::from_millis(5);
+/// Submissions queued on the GPU at once: one running, one waiting behind it.
+const QUEUED: usize = 2;
+/// Tracing time given to a background save between preview submissions.
+const SAVE_SLICE: Duration = Duration::from_millis(8);
 
 /// What the UI asks of the render thread.
 pub enum Request {
-    /// Render this scene at these settings from now on (restarts the accumulation).
+    /// Render this scene at these settings from now on (restarts the accumulation); frames
+    /// average `factor × factor` traced pixels per image pixel.
     Scene {
         scene: Box<Scene>,
         settings: FrameSettings,
+        factor: u32,
         generation: u64,
     },
     /// Restart the accumulation.
@@ -34,6 +48,7 @@ pub enum Request {
 
 /// One preview frame.
 pub struct Frame {
+    /// The traced image averaged down by the request's `factor`.
     pub image: LinearImage,
     pub stats: Stats,
     /// The `Request::Scene` this frame renders.
@@ -54,14 +69,38 @@ struct SaveJob {
     total: u32,
 }
 
+/// What a frame in flight shows.
+#[derive(Clone, Copy)]
+struct FrameTag {
+    generation: u64,
+    epoch: u64,
+    spp: u32,
+    paths: u64,
+}
+
+/// The preview's state since its last reset.
+struct Preview {
+    renderer: Renderer,
+    factor: u32,
+    since_reset: Instant,
+    /// Paths submitted since the reset.
+    paths: u64,
+    /// When the last frame was requested, and how many paths it showed.
+    last_frame: Option<(Instant, u64)>,
+}
+
 struct Worker {
     ctx: Arc<GpuContext>,
     opts: WorkerOptions,
     events: Sender<Event>,
-    preview: Option<Renderer>,
+    preview: Option<Preview>,
+    resolve: ResolvePass,
+    /// The frame each staging slot is bringing back.
+    pending: [Option<FrameTag>; SLOTS],
+    /// The UI's number of the scene request being traced.
     generation: u64,
-    since_reset: Instant,
-    paths: u64,
+    /// Counts every restart of the accumulation: frames of an older epoch are dropped.
+    epoch: u64,
     save: Option<SaveJob>,
 }
 
@@ -76,13 +115,14 @@ pub fn spawn(
         .name("render".into())
         .spawn(move || {
             let mut w = Worker {
+                resolve: ResolvePass::new(&ctx.device),
                 ctx,
                 opts,
                 events,
                 preview: None,
+                pending: [None; SLOTS],
                 generation: 0,
-                since_reset: Instant::now(),
-                paths: 0,
+                epoch: 0,
                 save: None,
             };
             w.run(rx);
@@ -92,16 +132,16 @@ pub fn spawn(
 }
 
 impl Worker {
-    /// Tracing time per preview frame: most of a frame, leaving room for the readback and
-    /// the encoding so that frames keep up with `--fps`.
-    fn frame_time(&self) -> Duration {
-        Duration::from_secs_f64(TRACE_SHARE / self.opts.fps.max(1.0))
+    /// Time between frame requests: half the UI's frame time, so that a fresh frame is
+    /// waiting at each of its draws (a frame is small: reading it back costs little).
+    fn frame_interval(&self) -> Duration {
+        Duration::from_secs_f64(0.5 / self.opts.fps.max(1.0))
     }
 
     fn options(&self) -> RenderOptions {
         RenderOptions {
             generic: self.opts.generic,
-            submission: self.frame_time(),
+            submission: PREVIEW_SUBMISSION,
             compile_in_background: true,
             ..Default::default()
         }
@@ -110,14 +150,30 @@ impl Worker {
     fn preview_busy(&self) -> bool {
         self.preview
             .as_ref()
-            .is_some_and(|r| r.samples() < self.opts.max_spp)
+            .is_some_and(|p| p.renderer.samples() < self.opts.max_spp)
+    }
+
+    fn frames_pending(&self) -> bool {
+        self.pending.iter().any(Option::is_some)
+    }
+
+    /// Whether the preview holds samples that no frame has shown yet (from its first whole
+    /// sample per pixel on; later frames may show a round in progress, as its rows land).
+    fn unshown(&self) -> bool {
+        self.preview.as_ref().is_some_and(|p| {
+            p.renderer.samples() > 0 && p.last_frame.is_none_or(|(_, shown)| shown != p.paths)
+        })
     }
 
     fn run(&mut self, rx: Receiver<Request>) {
         loop {
-            // Wait when there is nothing to trace; otherwise take what has arrived.
+            // Wait when there is nothing to do; otherwise take what has arrived.
             let mut requests = Vec::new();
-            if !self.preview_busy() && self.save.is_none() {
+            let idle = !self.preview_busy()
+                && !self.frames_pending()
+                && !self.unshown()
+                && self.save.is_none();
+            if idle {
                 match rx.recv() {
                     Ok(r) => requests.push(r),
                     Err(_) => return,
@@ -140,73 +196,163 @@ impl Worker {
                     Request::Scene {
                         scene,
                         settings,
+                        factor,
                         generation,
-                    } => self.set_scene(&scene, settings, generation),
-                    Request::Reset => {
-                        if let Some(p) = &mut self.preview {
-                            p.reset();
-                        }
-                        self.since_reset = Instant::now();
-                        self.paths = 0;
-                    }
+                    } => self.set_scene(&scene, settings, factor, generation),
+                    Request::Reset => self.reset(),
                     Request::Save { scene, path } => self.start_save(&scene, path),
                     Request::Quit => return self.finish_save(),
                 }
             }
-            let budget = if self.save.is_some() {
-                self.frame_time() / 2
-            } else {
-                self.frame_time()
-            };
-            if self.preview_busy() && !self.step_preview(budget) {
+            if self.preview_busy()
+                && let Some(p) = &mut self.preview
+            {
+                p.renderer.wait(QUEUED - 1);
+                if let Some(paths) = p.renderer.submit(self.opts.max_spp) {
+                    p.paths += paths;
+                }
+            }
+            self.request_frame();
+            if !self.deliver_frames() {
                 return self.finish_save();
             }
             if self.save.is_some() {
-                self.step_save(budget);
+                self.step_save();
             }
         }
     }
 
-    fn set_scene(&mut self, scene: &Scene, settings: FrameSettings, generation: u64) {
+    fn set_scene(&mut self, scene: &Scene, settings: FrameSettings, factor: u32, generation: u64) {
+        tracing::debug!("scene request {generation}");
         match &mut self.preview {
-            Some(r) => r.set_scene(scene, settings),
+            Some(p) => {
+                p.renderer.set_scene(scene, settings);
+                p.factor = factor;
+            }
             None => {
-                self.preview = Some(Renderer::new(
-                    self.ctx.clone(),
-                    scene,
-                    settings,
-                    self.options(),
-                ))
+                self.preview = Some(Preview {
+                    renderer: Renderer::new(self.ctx.clone(), scene, settings, self.options()),
+                    factor,
+                    since_reset: Instant::now(),
+                    paths: 0,
+                    last_frame: None,
+                })
             }
         }
         self.generation = generation;
-        self.since_reset = Instant::now();
-        self.paths = 0;
+        self.restart_clock();
     }
 
-    /// Traces for `budget` and sends the frame; false when the UI has gone.
-    fn step_preview(&mut self, budget: Duration) -> bool {
-        let Some(r) = &mut self.preview else {
-            return true;
+    fn reset(&mut self) {
+        if let Some(p) = &mut self.preview {
+            p.renderer.reset();
+        }
+        self.restart_clock();
+    }
+
+    /// After any restart of the accumulation; frames in flight show the old one and are
+    /// dropped when they land.
+    fn restart_clock(&mut self) {
+        self.epoch += 1;
+        if let Some(p) = &mut self.preview {
+            p.since_reset = Instant::now();
+            p.paths = 0;
+            p.last_frame = None;
+        }
+    }
+
+    /// Requests a frame when one is due: the first of a new state as soon as its first
+    /// round is queued, later ones at the frame rate, and a last one when tracing stops.
+    fn request_frame(&mut self) {
+        let interval = self.frame_interval();
+        let busy = self.preview_busy();
+        let unshown = self.unshown();
+        let Some(p) = &mut self.preview else { return };
+        let spp = p.renderer.samples();
+        let due = match p.last_frame {
+            _ if !unshown => false,
+            None => true,
+            Some(_) if !busy => true,
+            Some((at, _)) => at.elapsed() >= interval,
         };
-        self.paths += r.step(budget, self.opts.max_spp).paths;
-        let snap = r.snapshot();
-        let elapsed = self.since_reset.elapsed();
-        let s = r.settings();
-        let frame = Frame {
-            image: snap.image(),
-            stats: Stats {
-                width: s.width,
-                height: s.height,
-                spp: r.samples(),
-                samples_per_second: self.paths as f64 / elapsed.as_secs_f64().max(1e-9),
-                elapsed,
-                noise: snap.noise_estimate(),
-                invalid: snap.invalid_samples(),
-            },
+        if !due {
+            return;
+        }
+        let s = p.renderer.settings();
+        let Some(slot) = self.resolve.request(
+            &self.ctx,
+            p.renderer.accumulation(),
+            (s.width, s.height),
+            p.factor,
+        ) else {
+            return;
+        };
+        tracing::debug!(
+            "frame requested at {spp} spp, {:.1} ms after the reset",
+            p.since_reset.elapsed().as_secs_f64() * 1e3
+        );
+        p.last_frame = Some((Instant::now(), p.paths));
+        self.pending[slot] = Some(FrameTag {
             generation: self.generation,
+            epoch: self.epoch,
+            spp,
+            paths: p.paths,
+        });
+    }
+
+    /// Sends every frame that has landed; false when the UI has gone.
+    fn deliver_frames(&mut self) -> bool {
+        if !self.frames_pending() {
+            return true;
+        }
+        // Nothing else to do: wait for the frame rather than spin.
+        let block = !self.preview_busy() && self.save.is_none();
+        let poll = if block {
+            wgpu::PollType::wait_indefinitely()
+        } else {
+            wgpu::PollType::Poll
         };
-        self.events.send(Event::Frame(Box::new(frame))).is_ok()
+        let _ = self.ctx.device.poll(poll);
+        for slot in 0..SLOTS {
+            let Some(tag) = self.pending[slot] else {
+                continue;
+            };
+            if !self.resolve.ready(slot) {
+                continue;
+            }
+            self.pending[slot] = None;
+            let Some(resolved) = self.resolve.take(slot) else {
+                continue;
+            };
+            let Some(p) = &self.preview else { continue };
+            if tag.epoch != self.epoch {
+                continue;
+            }
+            let elapsed = p.since_reset.elapsed();
+            tracing::debug!(
+                "frame at {} spp delivered {:.1} ms after the reset",
+                tag.spp,
+                elapsed.as_secs_f64() * 1e3
+            );
+            let s = p.renderer.settings();
+            let frame = Frame {
+                image: resolved.image,
+                stats: Stats {
+                    width: s.width,
+                    height: s.height,
+                    spp: tag.spp,
+                    samples_per_second: tag.paths as f64 / elapsed.as_secs_f64().max(1e-9),
+                    elapsed,
+                    noise: resolved.noise,
+                    invalid: resolved.invalid,
+                },
+                generation: tag.generation,
+            };
+            if self.events.send(Event::Frame(Box::new(frame))).is_err() {
+                return false;
+            }
+        }
+        true
     }
 
     fn start_save(&mut self, scene: &Scene, path: PathBuf) {
@@ -217,7 +363,7 @@ impl Worker {
             scene.render.seed,
         );
         let options = RenderOptions {
-            submission: self.frame_time() / 2,
+            submission: SAVE_SLICE,
             ..self.options()
         };
         self.save = Some(SaveJob {
@@ -227,9 +373,9 @@ impl Worker {
         });
     }
 
-    fn step_save(&mut self, budget: Duration) {
+    fn step_save(&mut self) {
         let Some(job) = &mut self.save else { return };
-        job.renderer.step(budget, job.total);
+        job.renderer.step(SAVE_SLICE, job.total);
         let done = job.renderer.samples();
         let _ = self.events.send(Event::SaveProgress {
             done,
