@@ -49,6 +49,10 @@ pub struct PreviewReport {
     pub restarts: Vec<(u64, u64)>,
     /// The parameter line before and after each press.
     pub edits: Vec<(String, String)>,
+    /// Output bytes from each press until its frame had been read.
+    pub edit_bytes: Vec<u64>,
+    /// Of each latency, the seconds the terminal emulator spent parsing that output.
+    pub edit_parse: Vec<f64>,
 }
 
 impl PreviewReport {
@@ -70,11 +74,14 @@ struct Seen {
     size: String,
     rate: String,
     params: String,
-    /// Output bytes and synchronized updates (frames) so far.
+    /// Output bytes and synchronized updates (frames) so far, and the time the emulator has
+    /// spent parsing them (a terminal's share of the latency, not termtrace's).
     bytes: u64,
+    parse: Duration,
     frames: u64,
-    /// Every change of what the screen shows of spp or parameters, when it was read.
-    history: Vec<(Instant, Option<u64>, String)>,
+    /// Every change of what the screen shows of spp or parameters: when it was read, and
+    /// the output bytes by then.
+    history: Vec<(Instant, Option<u64>, String, u64, Duration)>,
     exited: bool,
 }
 
@@ -151,7 +158,9 @@ impl PreviewBench {
                     Ok(0) | Err(_) => break,
                     Ok(n) => n,
                 };
+                let parse_start = Instant::now();
                 parser.process(&buf[..n]);
+                let parsed = parse_start.elapsed();
                 tail.extend_from_slice(&buf[..n]);
                 let frames = tail
                     .windows(SYNC_BEGIN.len())
@@ -162,9 +171,10 @@ impl PreviewBench {
                 let before = (s.spp, s.params.clone());
                 read_status(parser.screen(), &mut s);
                 s.bytes += n as u64;
+                s.parse += parsed;
                 s.frames += frames;
                 if (s.spp, s.params.clone()) != before {
-                    let change = (Instant::now(), s.spp, s.params.clone());
+                    let change = (Instant::now(), s.spp, s.params.clone(), s.bytes, s.parse);
                     s.history.push(change);
                 }
                 sh.cond.notify_all();
@@ -251,15 +261,19 @@ impl PreviewBench {
                     let at = after
                         .history
                         .iter()
-                        .find(|(t, spp, params)| {
+                        .find(|(t, spp, params, _, _)| {
                             *t >= t0
                                 && *params != before.params
                                 && spp.is_some_and(|n| n < spp_before)
                         })
-                        .map_or(now, |h| h.0);
+                        .map_or((now, after.bytes, after.parse), |h| (h.0, h.3, h.4));
                     report
                         .latencies
-                        .push(at.saturating_duration_since(t0).as_secs_f64());
+                        .push(at.0.saturating_duration_since(t0).as_secs_f64());
+                    report.edit_bytes.push(at.1 - before.bytes);
+                    report
+                        .edit_parse
+                        .push((at.2 - before.parse).as_secs_f64());
                     report.restarts.push((spp_before, after.spp.unwrap_or(0)));
                     report.edits.push((before.params.clone(), after.params));
                 }
@@ -314,6 +328,17 @@ pub fn print(b: &PreviewBench, r: &PreviewReport) {
         .map(|v| format!("{:.0}", v * 1e3))
         .collect();
     println!("latencies    {} ms", all.join(" "));
+    let mut bytes = r.edit_bytes.clone();
+    bytes.sort_unstable();
+    let mut parse = r.edit_parse.clone();
+    parse.sort_by(f64::total_cmp);
+    if let (Some(b), Some(p)) = (bytes.get(bytes.len() / 2), parse.get(parse.len() / 2)) {
+        println!(
+            "edit frames  {:.0} kB of output from a key to its frame, {:.0} ms of it parsing in the emulator (medians)",
+            *b as f64 / 1e3,
+            p * 1e3
+        );
+    }
     println!(
         "converging   {:.1} frames/s, {:.1} kB/s of output, status line {}",
         r.fps,

@@ -115,14 +115,20 @@ fn restore_stderr() {}
 
 /// Stdout that counts the bytes written through it (for `--max-kbps` and the benchmark).
 pub struct CountingWriter {
-    inner: io::Stdout,
+    /// A frame is hundreds of small writes (a cursor move, colours, a glyph per cell): they
+    /// collect here and reach the terminal in a few large writes when the frame is flushed,
+    /// not in 1 KiB pieces through stdout's line buffer.
+    inner: io::BufWriter<io::Stdout>,
     count: Arc<AtomicU64>,
 }
+
+/// Bytes a frame may collect before they are written: a whole noisy 240×70 frame.
+const FRAME_BUFFER: usize = 1 << 20;
 
 impl CountingWriter {
     pub fn new(count: Arc<AtomicU64>) -> CountingWriter {
         CountingWriter {
-            inner: io::stdout(),
+            inner: io::BufWriter::with_capacity(FRAME_BUFFER, io::stdout()),
             count,
         }
     }
