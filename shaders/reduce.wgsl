@@ -28,7 +28,8 @@ fn reduce(@builtin(global_invocation_id) gid: vec3u) {
     if gid.x >= row_pixels {
         return;
     }
-    let pixel = batch.row_offset * scene.width + gid.x;
+    let row = batch.row_offset + (gid.x / scene.width) * batch.row_stride;
+    let pixel = row * scene.width + gid.x % scene.width;
     var even = fixed_zero();
     var odd = even;
     if batch.accumulate != 0u {

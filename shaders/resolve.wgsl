@@ -53,6 +53,18 @@ fn resolve(@builtin(global_invocation_id) gid: vec3u) {
             let so = fixed_value(o);
             if ne + no > 0.0 {
                 rgb += (se + so) / (ne + no);
+            } else {
+                // A row the first look has not reached yet (src/render: `first_look`): show
+                // the row above (below, for the first), for display only.
+                let near = select(pixel - params.width, pixel + params.width, y == 0u);
+                if near < params.width * params.height {
+                    let e2 = load(0u, near);
+                    let o2 = load(1u, near);
+                    let n2 = f32(e2.samples + o2.samples);
+                    if n2 > 0.0 {
+                        rgb += (fixed_value(e2) + fixed_value(o2)) / n2;
+                    }
+                }
             }
             fewest = min(fewest, min(ne, no));
             if ne >= 1.0 && no >= 1.0 {

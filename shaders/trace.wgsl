@@ -644,7 +644,7 @@ var<workgroup> wg_tests: atomic<u32>;
 // samples are spread over lanes, rounds and submissions.
 @compute @workgroup_size(8, 8, 1)
 fn trace(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_index) lid: u32) {
-    let px = vec2u(gid.x, gid.y + batch.row_offset);
+    let px = vec2u(gid.x, batch.row_offset + gid.y * batch.row_stride);
     let lane = gid.z;
     let in_image = gid.x < scene.width && gid.y < batch.row_count && px.y < scene.height
         && lane < batch.lanes;

@@ -169,13 +169,15 @@ fn samples_traced_on_several_lanes_sum_to_the_same_accumulation() {
                 ..Default::default()
             },
         );
-        for lanes in [2, 5, 64] {
+        // Lanes, and the preview's first look (even rows, then odd ones, for the first sample).
+        for (lanes, first_look) in [(2, false), (5, true), (64, false), (1, true)] {
             let many = snapshot_with(
                 &scene,
                 s,
                 13,
                 RenderOptions {
                     lanes: Some(lanes),
+                    first_look,
                     ..Default::default()
                 },
             );
@@ -185,7 +187,7 @@ fn samples_traced_on_several_lanes_sum_to_the_same_accumulation() {
             assert!(
                 bits(&one.data.even) == bits(&many.data.even)
                     && bits(&one.data.odd) == bits(&many.data.odd),
-                "{name}: {lanes} lanes give other sums than one"
+                "{name}: {lanes} lanes (first look {first_look}) give other sums than one"
             );
             assert_eq!(one.data.invalid, many.data.invalid);
         }

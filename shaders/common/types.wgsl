@@ -41,7 +41,7 @@ struct DispatchUniforms {
     row_count: u32,         //  12
     accumulate: u32,        //  16  the lecture's should_accumulate: 0 starts the sums afresh
     lanes: u32,             //  20  invocations per pixel (samples traced in parallel; 1: none)
-    _pad1: u32,             //  24
+    row_stride: u32,        //  24  the rows are row_offset, + row_stride, …
     _pad2: u32,             //  28
 }                           //  32
 

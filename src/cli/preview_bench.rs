@@ -271,9 +271,7 @@ impl PreviewBench {
                         .latencies
                         .push(at.0.saturating_duration_since(t0).as_secs_f64());
                     report.edit_bytes.push(at.1 - before.bytes);
-                    report
-                        .edit_parse
-                        .push((at.2 - before.parse).as_secs_f64());
+                    report.edit_parse.push((at.2 - before.parse).as_secs_f64());
                     report.restarts.push((spp_before, after.spp.unwrap_or(0)));
                     report.edits.push((before.params.clone(), after.params));
                 }

@@ -46,7 +46,9 @@ pub struct DispatchUniforms {
     pub accumulate: u32,
     /// Invocations per pixel, each tracing its share of the samples (1: no reduce pass).
     pub lanes: u32,
-    pub _pad: [u32; 2],
+    /// The submission's rows are `row_offset`, `row_offset + row_stride`, … (1: contiguous).
+    pub row_stride: u32,
+    pub _pad: u32,
 }
 
 #[repr(C)]
@@ -190,7 +192,8 @@ pub fn mirrors() -> Vec<MirrorLayout> {
                 row_offset,
                 row_count,
                 accumulate,
-                lanes
+                lanes,
+                row_stride
             ]
         ),
         m!(

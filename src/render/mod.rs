@@ -51,6 +51,10 @@ pub struct RenderOptions {
     /// GPU enough lanes to fill it, see [`LANE_INVOCATIONS`]; on a CPU adapter, whose few
     /// cores a small image already fills, one); `Some(n)` uses up to `n` (tests).
     pub lanes: Option<u32>,
+    /// The first round after a reset traces the even rows, then the odd ones, so that a
+    /// first image (every other row, the rows between filled in for display) exists in half
+    /// the time of a whole sample per pixel (the preview on a slow adapter).
+    pub first_look: bool,
 }
 
 impl Default for RenderOptions {
@@ -64,6 +68,7 @@ impl Default for RenderOptions {
             compile_in_background: false,
             extra: None,
             lanes: None,
+            first_look: false,
         }
     }
 }
@@ -84,6 +89,9 @@ pub struct StepStats {
 struct Round {
     k: u32,
     next_row: u32,
+    /// 1: submissions take contiguous rows from `next_row` on; n > 1: each takes every n-th
+    /// row from `next_row` (the first look), and the round ends when `next_row` reaches n.
+    stride: u32,
 }
 
 /// A submission the GPU has not finished.
@@ -317,15 +325,24 @@ impl Renderer {
             Some(r) => r,
             // The first round after a reset takes one sample, so that a first image exists
             // as soon as possible.
-            None if self.fresh => Round { k: 1, next_row: 0 },
+            None if self.fresh => Round {
+                k: 1,
+                next_row: 0,
+                stride: if self.options.first_look { 2 } else { 1 },
+            },
             None => Round {
                 k: self
                     .schedule
                     .samples_per_round(w, h, max_samples - self.samples),
                 next_row: 0,
+                stride: 1,
             },
         };
-        let rows = self.schedule.rows(w, round.k, h - round.next_row);
+        let rows = if round.stride > 1 {
+            (h - round.next_row).div_ceil(round.stride)
+        } else {
+            self.schedule.rows(w, round.k, h - round.next_row)
+        };
         let lanes = self.lanes(rows, round.k);
         let d = DispatchUniforms {
             sample_base: self.samples,
@@ -334,7 +351,8 @@ impl Renderer {
             row_count: rows,
             accumulate: u32::from(!self.fresh),
             lanes,
-            _pad: [0; 2],
+            row_stride: round.stride,
+            _pad: 0,
         };
         let mut enc = self
             .ctx
@@ -367,16 +385,17 @@ impl Renderer {
             paths,
             submitted: Instant::now(),
         });
-        let next_row = round.next_row + rows;
-        if next_row >= h {
+        let (next_row, end) = if round.stride > 1 {
+            (round.next_row + 1, round.stride.min(h))
+        } else {
+            (round.next_row + rows, h)
+        };
+        if next_row >= end {
             self.samples += round.k;
             self.round = None;
             self.fresh = false;
         } else {
-            self.round = Some(Round {
-                k: round.k,
-                next_row,
-            });
+            self.round = Some(Round { next_row, ..round });
         }
         Some(paths)
     }
@@ -405,6 +424,12 @@ impl Renderer {
             );
             self.last_done = now;
         }
+    }
+
+    /// Whether work queued so far makes an image: a whole sample per pixel, or the first
+    /// look's first half.
+    pub fn has_image(&self) -> bool {
+        self.samples > 0 || self.round.is_some_and(|r| r.stride > 1 && r.next_row > 0)
     }
 
     /// Submissions the GPU has not finished (as far as `wait` knows).

@@ -143,6 +143,7 @@ impl Worker {
             generic: self.opts.generic,
             submission: PREVIEW_SUBMISSION,
             compile_in_background: true,
+            first_look: true,
             ..Default::default()
         }
     }
@@ -157,11 +158,11 @@ impl Worker {
         self.pending.iter().any(Option::is_some)
     }
 
-    /// Whether the preview holds samples that no frame has shown yet (from its first whole
-    /// sample per pixel on; later frames may show a round in progress, as its rows land).
+    /// Whether the preview holds samples that no frame has shown yet (from its first look
+    /// on; later frames may show a round in progress, as its rows land).
     fn unshown(&self) -> bool {
         self.preview.as_ref().is_some_and(|p| {
-            p.renderer.samples() > 0 && p.last_frame.is_none_or(|(_, shown)| shown != p.paths)
+            p.renderer.has_image() && p.last_frame.is_none_or(|(_, shown)| shown != p.paths)
         })
     }
 
@@ -364,6 +365,7 @@ impl Worker {
         );
         let options = RenderOptions {
             submission: SAVE_SLICE,
+            first_look: false,
             ..self.options()
         };
         self.save = Some(SaveJob {
