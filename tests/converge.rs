@@ -153,7 +153,7 @@ fn converge_writes_a_wellformed_csv_a_plot_and_the_images() {
     let mut rows = 0;
     for line in lines {
         let f: Vec<&str> = line.split(',').collect();
-        assert_eq!(f.len(), 9, "{line}");
+        assert_eq!(f.len(), 10, "{line}");
         assert_eq!(f[0], "\"default\"");
         let run: usize = f[1].parse().unwrap();
         let seconds: f64 = f[2].parse().unwrap();
@@ -162,7 +162,10 @@ fn converge_writes_a_wellformed_csv_a_plot_and_the_images() {
             "checkpoints must follow each other in time: {line}"
         );
         last_seconds[run] = seconds;
-        let _spp: u64 = f[3].parse().unwrap();
+        let spp: u64 = f[3].parse().unwrap();
+        assert!(spp >= 1, "a checkpoint before any sample landed: {line}");
+        let first: f64 = f[9].parse().unwrap();
+        assert!(first > 0.0 && first <= seconds, "{line}");
         for v in &f[4..8] {
             let x: f64 = v.parse().unwrap();
             assert!(x.is_finite() && x >= 0.0, "{line}");

@@ -2,10 +2,11 @@
 //! with `--preview` the live preview's key → frame latency and frame rate in a
 //! pseudo-terminal (`preview_bench`).
 
+use super::GlobalArgs;
 use super::render::{frame_settings, rate_text};
-use super::{GlobalArgs, load_scene};
 use crate::gpu::GpuContext;
 use crate::render::{RenderOptions, Renderer};
+use crate::scene::load_scene;
 use clap::Args;
 use std::process::ExitCode;
 use std::sync::Arc;

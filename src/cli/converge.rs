@@ -1,12 +1,13 @@
 //! `termtrace converge`: how fast the noise falls, measured against a reference, for one or
 //! several ways of rendering the same scene.
 
+use super::GlobalArgs;
 use super::render::frame_settings;
-use super::{GlobalArgs, load_scene};
 use crate::converge::{self, Variant, metrics, plot, reference};
 use crate::gpu::GpuContext;
 use crate::output::{Transfer, write_exr, write_png};
 use crate::render::RenderOptions;
+use crate::scene::load_scene;
 use anyhow::Context;
 use clap::{Args, Parser};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -226,6 +227,21 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         all.push(runs);
     }
 
+    // The time to a first sample (pipeline build, upload) once, not as error rows.
+    for runs in &all {
+        if let Some(c) = runs.iter().find_map(|r| r.checkpoints.first()) {
+            let firsts: Vec<String> = runs
+                .iter()
+                .filter_map(|r| r.checkpoints.first())
+                .map(|c| format!("{:.3} s", c.first_sample))
+                .collect();
+            println!(
+                "{}: first sample per pixel after {} (pipeline build and upload; checkpoints start there)",
+                c.label,
+                firsts.join(", ")
+            );
+        }
+    }
     // Table.
     println!(
         "{:<16} {:>4} {:>9} {:>7} {:>11} {:>11} {:>9} {:>11} {:>9}",

@@ -203,13 +203,6 @@ fn view(a: ViewArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
 }
 
 /// Loads the scene a command names (a file, or a built-in name).
-pub(crate) fn load_scene(name: &str) -> anyhow::Result<crate::scene::Scene> {
-    crate::scene::Scene::load(name).map_err(|e| match e {
-        crate::scene::SceneError::Invalid(_) => anyhow::anyhow!("invalid scene\n{e}"),
-        other => other.into(),
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,11 +1,12 @@
 //! `termtrace render`: a headless render to PNG (and linear EXR), with a progress bar,
 //! Ctrl-C that stops early and still saves, and atomic output files.
 
-use super::{GlobalArgs, load_scene};
+use super::GlobalArgs;
 use crate::gpu::{FrameSettings, GpuContext};
 use crate::output::{LinearImage, Transfer, check_writable, write_exr, write_png};
 use crate::render::{RenderOptions, Renderer};
 use crate::scene::MAX_IMAGE_SIDE;
+use crate::scene::load_scene;
 use anyhow::Context;
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};

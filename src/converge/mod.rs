@@ -59,6 +59,9 @@ pub struct Checkpoint {
     pub errors: Errors,
     /// The estimate from the image's two halves, without the reference.
     pub estimated_rel_rmse: Option<f64>,
+    /// Seconds until the run's first sample per pixel had landed (pipeline build, upload):
+    /// the same for every checkpoint of a run. No checkpoint comes before it.
+    pub first_sample: f64,
 }
 
 pub struct Run {
@@ -100,24 +103,37 @@ pub fn run_once(
     // early curve (and the time to 5 %) unmeasured.
     let mut next_spp = 1u32;
     let mut seconds = 0.0;
+    let mut first_sample = None;
     let mut checkpoints = Vec::new();
     loop {
         let left = (next - seconds).max(0.0);
         let step = r.step(Duration::from_secs_f64(left.min(0.25)), next_spp);
         seconds += step.elapsed.as_secs_f64();
         progress(seconds, r.samples());
+        if r.samples() == 0 && seconds < total {
+            // The image before any sample is no measurement of the tracer's error.
+            continue;
+        }
+        let first = *first_sample.get_or_insert(seconds);
         if seconds + 1e-9 < next && r.samples() < next_spp {
             continue;
         }
         let snap = r.snapshot();
-        checkpoints.push(Checkpoint {
-            label: variant.label.clone(),
-            run,
-            seconds,
-            spp: snap.min_samples(),
-            errors: errors_against_noisy(&snap.image(), setup.reference, setup.reference_variance),
-            estimated_rel_rmse: snap.noise_estimate(),
-        });
+        if snap.min_samples() > 0 {
+            checkpoints.push(Checkpoint {
+                label: variant.label.clone(),
+                run,
+                seconds,
+                spp: snap.min_samples(),
+                errors: errors_against_noisy(
+                    &snap.image(),
+                    setup.reference,
+                    setup.reference_variance,
+                ),
+                estimated_rel_rmse: snap.noise_estimate(),
+                first_sample: first,
+            });
+        }
         if seconds >= total {
             return Run {
                 checkpoints,
@@ -180,14 +196,15 @@ pub fn summarize(label: &str, runs: &[Run]) -> Summary {
 }
 
 /// The CSV header, one row per checkpoint of every run.
-pub const CSV_HEADER: &str = "variant,run,seconds,spp,rmse,relmse,rel_rmse,mae,estimated_rel_rmse";
+pub const CSV_HEADER: &str =
+    "variant,run,seconds,spp,rmse,relmse,rel_rmse,mae,estimated_rel_rmse,first_sample_seconds";
 
 pub fn write_csv(path: &Path, rows: &[&Checkpoint]) -> std::io::Result<()> {
     let mut s = String::from(CSV_HEADER);
     s.push('\n');
     for c in rows {
         s.push_str(&format!(
-            "\"{}\",{},{:.6},{},{:.6e},{:.6e},{:.6e},{:.6e},{}\n",
+            "\"{}\",{},{:.6},{},{:.6e},{:.6e},{:.6e},{:.6e},{},{:.6}\n",
             c.label.replace('"', "\"\""),
             c.run,
             c.seconds,
@@ -197,7 +214,8 @@ pub fn write_csv(path: &Path, rows: &[&Checkpoint]) -> std::io::Result<()> {
             c.errors.rel_rmse(),
             c.errors.mae,
             c.estimated_rel_rmse
-                .map_or(String::new(), |e| format!("{e:.6e}"))
+                .map_or(String::new(), |e| format!("{e:.6e}")),
+            c.first_sample
         ));
     }
     let mut f = std::fs::File::create(path)?;

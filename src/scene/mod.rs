@@ -371,3 +371,13 @@ impl Scene {
         c
     }
 }
+
+/// A scene by built-in name or file path, with an error message for the command line (an
+/// invalid scene lists every problem, each with its file, line and key). Below both the
+/// commands and the preview, which load scenes the same way.
+pub fn load_scene(name: &str) -> anyhow::Result<Scene> {
+    Scene::load(name).map_err(|e| match e {
+        SceneError::Invalid(_) => anyhow::anyhow!("invalid scene\n{e}"),
+        other => other.into(),
+    })
+}

@@ -339,7 +339,7 @@ impl Ui {
 /// Opens the preview; returns when the user quits.
 pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
     let scene = match &opts.scene {
-        Some(s) => crate::cli::load_scene(s)?,
+        Some(s) => crate::scene::load_scene(s)?,
         None => Scene::default_scene(),
     };
     anyhow::ensure!(
