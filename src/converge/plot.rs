@@ -59,7 +59,25 @@ pub fn plot(path: &Path, title: &str, curves: &[Curve]) -> anyhow::Result<()> {
     let (e0, e1) = all
         .iter()
         .fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.1), a.1.max(p.1)));
-    let root = BitMapBackend::new(path, (900, 600)).into_drawing_area();
+    // Drawn into memory and encoded by our own `image` (plotters' encoder would bring a
+    // second version of the crate), written atomically like every output.
+    let (width, height) = (900u32, 600u32);
+    let mut rgb = vec![0u8; (width * height * 3) as usize];
+    draw(&mut rgb, (width, height), title, curves, (t0, t1), (e0, e1))?;
+    crate::output::write::write_rgb8_png(path, width, height, rgb)?;
+    Ok(())
+}
+
+/// Draws the plot into an RGB buffer of `size`.
+fn draw(
+    rgb: &mut [u8],
+    size: (u32, u32),
+    title: &str,
+    curves: &[Curve],
+    (t0, t1): (f64, f64),
+    (e0, e1): (f64, f64),
+) -> anyhow::Result<()> {
+    let root = BitMapBackend::with_buffer(rgb, size).into_drawing_area();
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 22))

@@ -92,6 +92,21 @@ pub fn write_png(
     })
 }
 
+/// Writes 8-bit sRGB pixels already encoded (`width × height × 3` bytes: a plot) as a PNG.
+pub fn write_rgb8_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    rgb: Vec<u8>,
+) -> Result<(), OutputError> {
+    let img = ::image::RgbImage::from_raw(width, height, rgb)
+        .ok_or_else(|| err(path, "the pixel buffer does not match the image size"))?;
+    atomic_write(path, |w| {
+        img.write_to(w, ::image::ImageFormat::Png)
+            .map_err(|e| e.to_string())
+    })
+}
+
 /// Writes the linear radiance as 32-bit float OpenEXR.
 pub fn write_exr(path: &Path, img: &LinearImage) -> Result<(), OutputError> {
     atomic_write(path, |w| {

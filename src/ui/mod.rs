@@ -24,7 +24,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::mpsc::{RecvTimeoutError, Sender};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender};
 use std::time::{Duration, Instant};
 use view::Grid;
 use worker::{Request, WorkerOptions};
@@ -336,8 +336,19 @@ impl Ui {
     }
 }
 
-/// Opens the preview; returns when the user quits.
-pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
+/// What the preview runs on, decided before the terminal is taken (so that errors print
+/// plainly).
+struct Setup {
+    scene: Scene,
+    ctx: Arc<GpuContext>,
+    /// The adapter as the status line names it.
+    adapter: String,
+    color: ColorMode,
+    cells: CellMode,
+    kitty: bool,
+}
+
+fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
     let scene = match &opts.scene {
         Some(s) => crate::scene::load_scene(s)?,
         None => Scene::default_scene(),
@@ -348,7 +359,6 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
          for files use `termtrace render {} -o out.png`",
         opts.scene.as_deref().unwrap_or("SCENE")
     );
-    // Open the GPU before taking the terminal, so that its errors print plainly.
     let ctx = Arc::new(GpuContext::new(opts.adapter.as_deref())?);
     // `llvmpipe (LLVM 15.0.6, 256 bits)` → `llvmpipe (Vulkan)`: the status line is short.
     let short = ctx.info.name.split(" (").next().unwrap_or(&ctx.info.name);
@@ -369,23 +379,196 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         Graphics::Cells => false,
         Graphics::Auto => kitty_here(),
     };
+    Ok(Setup {
+        scene,
+        ctx,
+        adapter,
+        color,
+        cells,
+        kitty,
+    })
+}
 
+/// Reads terminal events on their own thread, so that input never waits on drawing.
+fn spawn_input(tx: Sender<Event>) -> std::io::Result<()> {
+    std::thread::Builder::new()
+        .name("input".into())
+        .spawn(move || {
+            while let Ok(ev) = event::read() {
+                if tx.send(Event::Input(ev)).is_err() {
+                    break;
+                }
+            }
+        })?;
+    Ok(())
+}
+
+type Term = Terminal<CrosstermBackend<term::CountingWriter>>;
+
+/// Frames drawn and bytes written over a run (`--stats`).
+struct History {
+    started: Instant,
+    frames: u64,
+    /// (seconds since start, bytes written so far, frames so far) after every frame.
+    points: Vec<(f64, u64, u64)>,
+}
+
+impl Ui {
+    /// Handles events and draws until the user quits; frames are drawn at most at `--fps`
+    /// (and `--max-kbps`), except the first frame of an edit, which is drawn at once.
+    fn event_loop(
+        &mut self,
+        terminal: &mut Term,
+        rx: &Receiver<Event>,
+        bytes: &AtomicU64,
+    ) -> anyhow::Result<History> {
+        let mut area = Rect::from((
+            (0, 0).into(),
+            terminal
+                .size()
+                .map(|s| (s.width, s.height))
+                .unwrap_or((80, 24))
+                .into(),
+        ));
+        self.send_scene(area);
+        let mut history = History {
+            started: Instant::now(),
+            frames: 0,
+            points: Vec::new(),
+        };
+        let min_frame = Duration::from_secs_f64(1.0 / self.opts.fps.max(1.0));
+        let mut next_draw = Instant::now();
+        let mut dirty = true;
+        while !self.quit {
+            let wait = next_draw
+                .saturating_duration_since(Instant::now())
+                .max(Duration::from_millis(if dirty { 0 } else { 250 }));
+            match rx.recv_timeout(wait) {
+                Ok(ev) => {
+                    // Take whatever else is queued before drawing.
+                    for ev in std::iter::once(ev).chain(rx.try_iter()) {
+                        if let Event::Input(TermEvent::Resize(w, h)) = ev {
+                            area = Rect::new(0, 0, w, h);
+                        }
+                        self.handle(ev, area);
+                    }
+                    dirty = true;
+                }
+                Err(RecvTimeoutError::Timeout) => dirty = true,
+                Err(RecvTimeoutError::Disconnected) => break,
+            }
+            if self
+                .opts
+                .exit_after
+                .is_some_and(|t| history.started.elapsed() >= t)
+            {
+                self.quit = true;
+            }
+            if self.quit || !dirty || (Instant::now() < next_draw && !self.urgent) {
+                continue;
+            }
+            if self.urgent {
+                tracing::debug!(
+                    "drawing the first frame of generation {}",
+                    self.shown_generation
+                );
+            }
+            self.urgent = false;
+            let before = bytes.load(Ordering::Relaxed);
+            area = self.draw(terminal, area)?;
+            history.frames += 1;
+            dirty = false;
+            if self.opts.stats {
+                history.points.push((
+                    history.started.elapsed().as_secs_f64(),
+                    bytes.load(Ordering::Relaxed),
+                    history.frames,
+                ));
+            }
+            let sent = bytes.load(Ordering::Relaxed) - before;
+            let budget = self.opts.max_kbps.map_or(Duration::ZERO, |kbps| {
+                Duration::from_secs_f64(sent as f64 * 8.0 / (kbps * 1000.0))
+            });
+            next_draw = Instant::now() + min_frame.max(budget);
+        }
+        Ok(history)
+    }
+
+    /// Draws one frame as one synchronized update; returns the area drawn.
+    fn draw(&mut self, terminal: &mut Term, area: Rect) -> anyhow::Result<Rect> {
+        let kitty_frame = self.kitty && self.fresh_image;
+        self.encode(area);
+        self.fresh_image = false;
+        queue!(terminal.backend_mut(), terminal::BeginSynchronizedUpdate)?;
+        let completed =
+            terminal.draw(|f| view::draw(&self.app, &self.grid, f.area(), f.buffer_mut()))?;
+        let area = completed.area;
+        if kitty_frame && let Some(img) = &self.app.image {
+            let (image, _) = view::split(area);
+            let out = terminal.backend_mut();
+            queue!(out, cursor::MoveTo(image.x, image.y))?;
+            out.write_all(kitty::transmit(img, image.width, image.height).as_bytes())?;
+        }
+        execute!(terminal.backend_mut(), terminal::EndSynchronizedUpdate)?;
+        Ok(area)
+    }
+
+    /// Stops the render thread (a background save in progress writes what it has) and keeps
+    /// what it said, to print once the terminal is restored.
+    fn shutdown(&mut self, worker: std::thread::JoinHandle<()>, rx: &Receiver<Event>) {
+        let _ = self.to_worker.send(Request::Quit);
+        let _ = worker.join();
+        for ev in rx.try_iter() {
+            if let Event::Saved(r) = ev {
+                self.farewell
+                    .push(r.unwrap_or_else(|e| format!("error: {e}")));
+            }
+        }
+    }
+}
+
+/// `--stats`: frames and bytes over the run, and over its last quarter (when the noise has
+/// fallen, so fewer cells change).
+fn print_stats(h: &History, total: u64, stats: &app::Stats) {
+    let secs = h.started.elapsed().as_secs_f64();
+    eprintln!(
+        "preview: {} frames in {secs:.1} s ({:.1} fps), {total} bytes ({:.1} kB/s), {} spp at {}x{}",
+        h.frames,
+        h.frames as f64 / secs,
+        total as f64 / secs / 1000.0,
+        stats.spp,
+        stats.width,
+        stats.height,
+    );
+    if let Some(&(t0, b0, f0)) = h.points.iter().find(|p| p.0 >= 0.75 * secs)
+        && let Some(&(t1, b1, f1)) = h.points.last()
+        && t1 > t0
+    {
+        eprintln!(
+            "preview: last quarter {:.1} fps, {:.1} kB/s",
+            (f1 - f0) as f64 / (t1 - t0),
+            (b1 - b0) as f64 / (t1 - t0) / 1000.0
+        );
+    }
+}
+
+/// Opens the preview; returns when the user quits.
+pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
+    let Setup {
+        scene,
+        ctx,
+        adapter,
+        color,
+        cells,
+        kitty,
+    } = setup(&opts)?;
     let (tx, rx) = std::sync::mpsc::channel::<Event>();
     let signal_tx = tx.clone();
     let _ = ctrlc::set_handler(move || {
         let _ = signal_tx.send(Event::Signal);
     });
     let guard = term::TerminalGuard::enter(opts.log.as_deref())?;
-    let input_tx = tx.clone();
-    std::thread::Builder::new()
-        .name("input".into())
-        .spawn(move || {
-            while let Ok(ev) = event::read() {
-                if input_tx.send(Event::Input(ev)).is_err() {
-                    break;
-                }
-            }
-        })?;
+    spawn_input(tx.clone())?;
     let (to_worker, worker) = worker::spawn(
         ctx,
         WorkerOptions {
@@ -395,7 +578,6 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         },
         tx,
     );
-
     let bytes = Arc::new(AtomicU64::new(0));
     let mut terminal = Terminal::new(CrosstermBackend::new(term::CountingWriter::new(
         bytes.clone(),
@@ -415,126 +597,16 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         quit: false,
         farewell: Vec::new(),
     };
-    let mut area = Rect::from((
-        (0, 0).into(),
-        terminal
-            .size()
-            .map(|s| (s.width, s.height))
-            .unwrap_or((80, 24))
-            .into(),
-    ));
-    ui.send_scene(area);
-
-    let started = Instant::now();
-    let min_frame = Duration::from_secs_f64(1.0 / opts.fps.max(1.0));
-    let mut next_draw = Instant::now();
-    let mut dirty = true;
-    let mut frames = 0u64;
-    // (seconds since start, bytes written so far, frames so far) after every frame.
-    let mut history: Vec<(f64, u64, u64)> = Vec::new();
-    while !ui.quit {
-        let wait = next_draw
-            .saturating_duration_since(Instant::now())
-            .max(Duration::from_millis(if dirty { 0 } else { 250 }));
-        match rx.recv_timeout(wait) {
-            Ok(ev) => {
-                if let Event::Input(TermEvent::Resize(w, h)) = ev {
-                    area = Rect::new(0, 0, w, h);
-                }
-                ui.handle(ev, area);
-                dirty = true;
-                // Take whatever else is queued before drawing.
-                while let Ok(ev) = rx.try_recv() {
-                    if let Event::Input(TermEvent::Resize(w, h)) = ev {
-                        area = Rect::new(0, 0, w, h);
-                    }
-                    ui.handle(ev, area);
-                }
-            }
-            Err(RecvTimeoutError::Timeout) => dirty = true,
-            Err(RecvTimeoutError::Disconnected) => break,
-        }
-        if opts.exit_after.is_some_and(|t| started.elapsed() >= t) {
-            ui.quit = true;
-        }
-        if ui.quit || !dirty || (Instant::now() < next_draw && !ui.urgent) {
-            continue;
-        }
-        if ui.urgent {
-            tracing::debug!(
-                "drawing the first frame of generation {}",
-                ui.shown_generation
-            );
-        }
-        ui.urgent = false;
-        let before = bytes.load(Ordering::Relaxed);
-        let kitty_frame = ui.kitty && ui.fresh_image;
-        ui.encode(area);
-        ui.fresh_image = false;
-        let out = terminal.backend_mut();
-        queue!(out, terminal::BeginSynchronizedUpdate)?;
-        let completed =
-            terminal.draw(|f| view::draw(&ui.app, &ui.grid, f.area(), f.buffer_mut()))?;
-        area = completed.area;
-        if kitty_frame && let Some(img) = &ui.app.image {
-            let (image, _) = view::split(area);
-            let out = terminal.backend_mut();
-            queue!(out, cursor::MoveTo(image.x, image.y))?;
-            out.write_all(kitty::transmit(img, image.width, image.height).as_bytes())?;
-        }
-        execute!(terminal.backend_mut(), terminal::EndSynchronizedUpdate)?;
-        frames += 1;
-        dirty = false;
-        if opts.stats {
-            history.push((
-                started.elapsed().as_secs_f64(),
-                bytes.load(Ordering::Relaxed),
-                frames,
-            ));
-        }
-        let sent = bytes.load(Ordering::Relaxed) - before;
-        let budget = opts.max_kbps.map_or(Duration::ZERO, |kbps| {
-            Duration::from_secs_f64(sent as f64 * 8.0 / (kbps * 1000.0))
-        });
-        next_draw = Instant::now() + min_frame.max(budget);
-    }
-
-    // Stop the render thread; a background save in progress writes what it has.
-    let _ = ui.to_worker.send(Request::Quit);
-    let _ = worker.join();
-    while let Ok(ev) = rx.try_recv() {
-        if let Event::Saved(r) = ev {
-            ui.farewell
-                .push(r.unwrap_or_else(|e| format!("error: {e}")));
-        }
-    }
+    let history = ui.event_loop(&mut terminal, &rx, &bytes);
+    ui.shutdown(worker, &rx);
     drop(terminal);
     drop(guard);
     for m in &ui.farewell {
         eprintln!("{m}");
     }
+    let history = history?;
     if opts.stats {
-        let secs = started.elapsed().as_secs_f64();
-        let total = bytes.load(Ordering::Relaxed);
-        eprintln!(
-            "preview: {frames} frames in {secs:.1} s ({:.1} fps), {total} bytes ({:.1} kB/s), {} spp at {}x{}",
-            frames as f64 / secs,
-            total as f64 / secs / 1000.0,
-            ui.app.stats.spp,
-            ui.app.stats.width,
-            ui.app.stats.height,
-        );
-        // The last quarter of the run: the noise has fallen, so fewer cells change.
-        if let Some(&(t0, b0, f0)) = history.iter().find(|h| h.0 >= 0.75 * secs)
-            && let Some(&(t1, b1, f1)) = history.last()
-            && t1 > t0
-        {
-            eprintln!(
-                "preview: last quarter {:.1} fps, {:.1} kB/s",
-                (f1 - f0) as f64 / (t1 - t0),
-                (b1 - b0) as f64 / (t1 - t0) / 1000.0
-            );
-        }
+        print_stats(&history, bytes.load(Ordering::Relaxed), &ui.app.stats);
     }
     Ok(ExitCode::SUCCESS)
 }
