@@ -272,3 +272,30 @@ fn tiny_terminals_draw_without_panicking() {
     }
     insta::assert_snapshot!(screen(&app(), 12, 3).backend());
 }
+
+#[test]
+fn a_frame_over_budget_sends_the_most_changed_cells_first_and_the_rest_next() {
+    let c = |v: u8| cells::Cell {
+        glyph: '▀',
+        fg: cells::CellColor::Rgb([v, v, v]),
+        bg: cells::CellColor::Rgb([v, v, v]),
+    };
+    let mut grid = Grid::default();
+    grid.update(4, 1, vec![c(0); 4], 0);
+    let target = vec![c(10), c(200), c(50), c(120)];
+    let thresholds = [2u8; 4];
+    assert_eq!(
+        grid.update_at_most(4, 1, target.clone(), &thresholds, 2),
+        (2, 2)
+    );
+    assert_eq!(grid.cells, vec![c(0), c(200), c(0), c(120)]);
+    assert_eq!(
+        grid.update_at_most(4, 1, target.clone(), &thresholds, 2),
+        (2, 0)
+    );
+    assert_eq!(grid.cells, target);
+    // A change within a cell's threshold (its noise) is not sent at all.
+    let mut nudged = target.clone();
+    nudged[0] = c(14);
+    assert_eq!(grid.update_at_most(4, 1, nudged, &[5, 2, 2, 2], 10), (0, 0));
+}

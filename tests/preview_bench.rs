@@ -19,6 +19,7 @@ fn the_harness_sees_each_edit_with_a_restarted_sample_count() {
         timeout: Duration::from_secs(60),
         window: Duration::from_millis(800),
         args: vec!["--max-spp".into(), "1000000".into()],
+        link: None,
     };
     let r = b.run().expect("the preview runs in a pseudo-terminal");
     assert_eq!(r.misses, 0, "{r:?}");

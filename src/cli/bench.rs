@@ -70,6 +70,17 @@ pub struct BenchArgs {
     /// With --preview: the preview's frame cap (its --fps).
     #[arg(long)]
     pub fps: Option<f64>,
+    /// With --preview: put a model of a link of this many Mbit/s between termtrace and the
+    /// terminal (an SSH connection: output read eagerly into --window-kib, leaving at this
+    /// rate, arriving --rtt-ms / 2 later; keys and answers take --rtt-ms / 2 back).
+    #[arg(long, value_name = "MBIT/S", requires = "preview")]
+    pub link_mbps: Option<f64>,
+    /// With --link-mbps: the round trip in milliseconds.
+    #[arg(long, default_value_t = 0.0, value_name = "MS")]
+    pub rtt_ms: f64,
+    /// With --link-mbps: the channel window in KiB (OpenSSH's default: 2048).
+    #[arg(long, default_value_t = 2048, value_name = "KIB")]
+    pub window_kib: usize,
     /// With --preview: the termtrace binary to measure [default: this one].
     #[arg(long, value_name = "PATH")]
     pub exe: Option<std::path::PathBuf>,
@@ -225,6 +236,11 @@ fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         timeout: Duration::from_secs_f64(a.timeout),
         window: Duration::from_secs_f64(a.time),
         args,
+        link: a.link_mbps.map(|mbps| super::preview_bench::Link {
+            bits_per_second: mbps * 1e6,
+            rtt: Duration::from_secs_f64(a.rtt_ms / 1e3),
+            window: a.window_kib << 10,
+        }),
     };
     let report = b.run()?;
     super::preview_bench::print(&b, &report);

@@ -8,6 +8,7 @@
 use anyhow::{Context, bail};
 use portable_pty::{CommandBuilder, PtySize, native_pty_system};
 use std::io::{Read, Write};
+
 use std::path::PathBuf;
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::{Duration, Instant};
@@ -31,6 +32,8 @@ pub struct PreviewBench {
     pub window: Duration,
     /// Extra arguments for the preview (`--adapter …`, `--fps …`).
     pub args: Vec<String>,
+    /// Put a model of a slow link between the program and the terminal.
+    pub link: Option<Link>,
 }
 
 /// What was measured.
@@ -53,6 +56,10 @@ pub struct PreviewReport {
     pub edit_bytes: Vec<u64>,
     /// Of each latency, the seconds the emulator and harness spent parsing that output.
     pub edit_parse: Vec<f64>,
+    /// Most bytes written by the program and not yet on the far screen, at any moment.
+    pub deepest_backlog: u64,
+    /// Frames/s and bytes/s over the last quarter of the window (the noise has fallen).
+    pub last_quarter: (f64, f64),
 }
 
 impl PreviewReport {
@@ -79,6 +86,8 @@ struct Seen {
     bytes: u64,
     parse: Duration,
     frames: u64,
+    /// Most bytes read from the program and not yet delivered, at any moment.
+    deepest_backlog: u64,
     /// Every change of what the screen shows of spp or parameters: when it was read, and
     /// the output bytes by then.
     history: Vec<(Instant, Option<u64>, String, u64, Duration)>,
@@ -117,6 +126,44 @@ fn read_status(screen: &vt100::Screen, seen: &mut Seen) {
 
 const SYNC_BEGIN: &[u8] = b"\x1b[?2026h";
 
+/// A model of the link between termtrace and the user's terminal (an SSH connection): the
+/// program's output is read eagerly into a window of `window` bytes (OpenSSH's channel
+/// window; past it the program blocks), leaves at the link's rate and reaches the terminal
+/// half a round trip later; keys and the terminal's answers take half a round trip back.
+#[derive(Clone, Copy, Debug)]
+pub struct Link {
+    pub bits_per_second: f64,
+    pub rtt: Duration,
+    pub window: usize,
+}
+
+/// OpenSSH's default channel window.
+pub const SSH_WINDOW: usize = 2 << 20;
+
+/// Bytes the link model moves at once.
+const PIECE: usize = 4096;
+/// The status query the terminal answers (see `ui::flow`), and its answer.
+const QUERY: &[u8] = b"\x1b[5n";
+const ANSWER: &[u8] = b"\x1b[0n";
+
+/// Output read from the program and not yet on the link.
+struct Pipe {
+    bytes: Mutex<(std::collections::VecDeque<u8>, bool)>,
+    cond: Condvar,
+}
+
+/// Counts `pattern` in `data` preceded by `tail` (the end of the previous data); keeps the
+/// new tail. The tail is shorter than the pattern, so nothing is counted twice.
+fn count_split(tail: &mut Vec<u8>, data: &[u8], pattern: &[u8]) -> u64 {
+    tail.extend_from_slice(data);
+    let n = tail
+        .windows(pattern.len())
+        .filter(|w| *w == pattern)
+        .count() as u64;
+    tail.drain(..tail.len().saturating_sub(pattern.len() - 1));
+    n
+}
+
 impl PreviewBench {
     pub fn run(&self) -> anyhow::Result<PreviewReport> {
         let pty = native_pty_system()
@@ -147,50 +194,132 @@ impl PreviewBench {
             seen: Mutex::new(Seen::default()),
             cond: Condvar::new(),
         });
-        let (rows, cols) = (self.rows, self.cols);
-        let sh = shared.clone();
+        let link = self.link.unwrap_or(Link {
+            bits_per_second: f64::INFINITY,
+            rtt: Duration::ZERO,
+            window: 1 << 20,
+        });
+        let half_rtt = link.rtt / 2;
+        // To the program: keys and answers, each due half a round trip after it was sent.
+        let (to_program, due) = std::sync::mpsc::channel::<(Instant, Vec<u8>)>();
+        let writer_thread = std::thread::spawn(move || {
+            for (at, bytes) in due {
+                std::thread::sleep(at.saturating_duration_since(Instant::now()));
+                if writer
+                    .write_all(&bytes)
+                    .and_then(|()| writer.flush())
+                    .is_err()
+                {
+                    break;
+                }
+            }
+        });
+        // From the program: read eagerly into the window; past it the program blocks.
+        let pipe = Arc::new(Pipe {
+            bytes: Mutex::new((std::collections::VecDeque::new(), false)),
+            cond: Condvar::new(),
+        });
+        let p = pipe.clone();
+        let window = link.window;
         let reader_thread = std::thread::spawn(move || {
-            let nz = |n: u16| std::num::NonZeroU16::new(n.max(1)).expect("at least 1");
-            let mut parser = vt100::Parser::new(nz(rows), nz(cols), 0);
             let mut buf = vec![0u8; 1 << 16];
-            // The last bytes of the previous chunk: a marker split across reads still
-            // counts, and none is counted twice (the tail is shorter than a marker).
-            let mut tail: Vec<u8> = Vec::new();
             loop {
+                {
+                    let mut q = p.bytes.lock().expect("pipe");
+                    while q.0.len() >= window {
+                        q = p.cond.wait(q).expect("pipe");
+                    }
+                }
                 let n = match reader.read(&mut buf) {
                     Ok(0) | Err(_) => break,
                     Ok(n) => n,
                 };
-                let parse_start = Instant::now();
-                parser.process(&buf[..n]);
-                tail.extend_from_slice(&buf[..n]);
-                let frames = tail
-                    .windows(SYNC_BEGIN.len())
-                    .filter(|w| *w == SYNC_BEGIN)
-                    .count() as u64;
-                tail.drain(..tail.len().saturating_sub(SYNC_BEGIN.len() - 1));
-                let mut s = sh.seen.lock().expect("screen state");
-                let before = (s.spp, s.params.clone());
-                read_status(parser.screen(), &mut s);
-                let parsed = parse_start.elapsed();
-                s.bytes += n as u64;
-                s.parse += parsed;
-                s.frames += frames;
-                if (s.spp, s.params.clone()) != before {
-                    let change = (Instant::now(), s.spp, s.params.clone(), s.bytes, s.parse);
-                    s.history.push(change);
+                let mut q = p.bytes.lock().expect("pipe");
+                q.0.extend(&buf[..n]);
+                p.cond.notify_all();
+            }
+            p.bytes.lock().expect("pipe").1 = true;
+            p.cond.notify_all();
+        });
+        // The link and the far terminal.
+        let (rows, cols) = (self.rows, self.cols);
+        let (sh, p, answers) = (shared.clone(), pipe.clone(), to_program.clone());
+        let far_thread = std::thread::spawn(move || {
+            let nz = |n: u16| std::num::NonZeroU16::new(n.max(1)).expect("at least 1");
+            let mut parser = vt100::Parser::new(nz(rows), nz(cols), 0);
+            let (mut frame_tail, mut query_tail) = (Vec::new(), Vec::new());
+            let mut on_wire: std::collections::VecDeque<(Instant, Vec<u8>)> = Default::default();
+            let mut link_free = Instant::now();
+            loop {
+                // Put what the link can take now on the wire.
+                let mut ended = false;
+                {
+                    let mut q = p.bytes.lock().expect("pipe");
+                    let now = Instant::now();
+                    while link_free <= now && !q.0.is_empty() {
+                        let n = q.0.len().min(PIECE);
+                        let piece: Vec<u8> = q.0.drain(..n).collect();
+                        let depart = link_free.max(now);
+                        link_free =
+                            depart + Duration::from_secs_f64(n as f64 * 8.0 / link.bits_per_second);
+                        on_wire.push_back((link_free + half_rtt, piece));
+                    }
+                    p.cond.notify_all();
+                    let backlog = q.0.len() + on_wire.iter().map(|w| w.1.len()).sum::<usize>();
+                    let mut s = sh.seen.lock().expect("screen state");
+                    s.deepest_backlog = s.deepest_backlog.max(backlog as u64);
+                    if q.0.is_empty() && on_wire.is_empty() {
+                        if q.1 {
+                            ended = true;
+                        } else {
+                            drop(s);
+                            let _ = p.cond.wait_timeout(q, Duration::from_millis(50));
+                            continue;
+                        }
+                    }
                 }
-                sh.cond.notify_all();
+                if ended {
+                    break;
+                }
+                // Deliver what has arrived.
+                let now = Instant::now();
+                while on_wire.front().is_some_and(|w| w.0 <= now) {
+                    let (_, piece) = on_wire.pop_front().expect("a piece");
+                    let parse_start = Instant::now();
+                    parser.process(&piece);
+                    let frames = count_split(&mut frame_tail, &piece, SYNC_BEGIN);
+                    let queries = count_split(&mut query_tail, &piece, QUERY);
+                    let mut s = sh.seen.lock().expect("screen state");
+                    let before = (s.spp, s.params.clone());
+                    read_status(parser.screen(), &mut s);
+                    s.parse += parse_start.elapsed();
+                    s.bytes += piece.len() as u64;
+                    s.frames += frames;
+                    for _ in 0..queries {
+                        let _ = answers.send((Instant::now() + half_rtt, ANSWER.to_vec()));
+                    }
+                    if (s.spp, s.params.clone()) != before {
+                        let change = (Instant::now(), s.spp, s.params.clone(), s.bytes, s.parse);
+                        s.history.push(change);
+                    }
+                    sh.cond.notify_all();
+                }
+                // Sleep until the next arrival or until the link is free again.
+                let next = on_wire.front().map(|w| w.0).into_iter().chain([link_free]);
+                let until = next.min().unwrap_or(now + Duration::from_millis(1));
+                let nap = until
+                    .saturating_duration_since(Instant::now())
+                    .min(Duration::from_millis(1));
+                std::thread::sleep(nap.max(Duration::from_micros(100)));
             }
             let mut s = sh.seen.lock().expect("screen state");
             s.exited = true;
             sh.cond.notify_all();
         });
 
-        let result = self.drive(&shared, &mut *writer);
-        let _ = writer.write_all(b"q");
-        let _ = writer.flush();
-        let deadline = Instant::now() + Duration::from_secs(10);
+        let result = self.drive(&shared, &to_program, half_rtt);
+        let _ = to_program.send((Instant::now(), b"q".to_vec()));
+        let deadline = Instant::now() + Duration::from_secs(20);
         while Instant::now() < deadline {
             if child.try_wait()?.is_some() {
                 break;
@@ -200,10 +329,17 @@ impl PreviewBench {
         if child.try_wait()?.is_none() {
             let _ = child.kill();
         }
-        drop(writer);
+        drop(to_program);
         drop(pty.master);
+        // The reader may wait for room in the window: there is room once the far end ends.
+        pipe.bytes.lock().expect("pipe").0.clear();
+        pipe.cond.notify_all();
         let _ = reader_thread.join();
-        result
+        let _ = far_thread.join();
+        let _ = writer_thread.join();
+        let mut report = result?;
+        report.deepest_backlog = shared.seen.lock().expect("screen state").deepest_backlog;
+        Ok(report)
     }
 
     /// Waits until `pred` holds of the screen, or `timeout`; returns the screen then.
@@ -230,7 +366,16 @@ impl PreviewBench {
         }
     }
 
-    fn drive(&self, shared: &Shared, keys: &mut dyn Write) -> anyhow::Result<PreviewReport> {
+    /// Types the keys (each reaching the program `half_rtt` after it is typed) and measures.
+    fn drive(
+        &self,
+        shared: &Shared,
+        keys: &std::sync::mpsc::Sender<(Instant, Vec<u8>)>,
+        half_rtt: Duration,
+    ) -> anyhow::Result<PreviewReport> {
+        let type_key = |k: &[u8]| {
+            let _ = keys.send((Instant::now() + half_rtt, k.to_vec()));
+        };
         let startup = Duration::from_secs(120);
         if Self::wait_for(shared, startup, |s| s.spp.is_some_and(|n| n >= 1)).is_none() {
             let s = shared.seen.lock().expect("screen state").clone();
@@ -253,8 +398,7 @@ impl PreviewBench {
             let key: &[u8] = if i % 2 == 0 { b"+" } else { b"-" };
             let spp_before = before.spp.unwrap_or(0);
             let t0 = Instant::now();
-            keys.write_all(key)?;
-            keys.flush()?;
+            type_key(key);
             let shown = Self::wait_for(shared, self.timeout, |s| {
                 s.params != before.params && s.spp.is_some_and(|n| n < spp_before)
             });
@@ -286,18 +430,24 @@ impl PreviewBench {
             }
         }
         // Converging: frames and bytes over the window, after a restart.
-        keys.write_all(b"r")?;
-        keys.flush()?;
+        type_key(b"r");
         std::thread::sleep(Duration::from_millis(100));
         let (f0, b0, t0) = {
             let s = shared.seen.lock().expect("screen state");
             (s.frames, s.bytes, Instant::now())
         };
-        std::thread::sleep(self.window);
+        std::thread::sleep(self.window.mul_f64(0.75));
+        let (f1, b1, t1) = {
+            let s = shared.seen.lock().expect("screen state");
+            (s.frames, s.bytes, Instant::now())
+        };
+        std::thread::sleep(self.window.mul_f64(0.25));
         let s = shared.seen.lock().expect("screen state").clone();
         let secs = t0.elapsed().as_secs_f64();
         report.fps = (s.frames - f0) as f64 / secs;
         report.bytes_per_second = (s.bytes - b0) as f64 / secs;
+        let last = t1.elapsed().as_secs_f64();
+        report.last_quarter = ((s.frames - f1) as f64 / last, (s.bytes - b1) as f64 / last);
         report.samples_per_second = s.rate.clone();
         report.size = s.size.clone();
         Ok(report)
@@ -340,10 +490,22 @@ pub fn print(b: &PreviewBench, r: &PreviewReport) {
             p * 1e3
         );
     }
+    if let Some(l) = b.link {
+        println!(
+            "link model   {:.1} Mbit/s, round trip {:.0} ms, window {} KiB: deepest backlog {:.0} kB ({:.2} s of link)",
+            l.bits_per_second / 1e6,
+            l.rtt.as_secs_f64() * 1e3,
+            l.window >> 10,
+            r.deepest_backlog as f64 / 1e3,
+            r.deepest_backlog as f64 * 8.0 / l.bits_per_second
+        );
+    }
     println!(
-        "converging   {:.1} frames/s, {:.1} kB/s of output, status line {}",
+        "converging   {:.1} frames/s, {:.1} kB/s of output, status line {}; last quarter {:.1} frames/s, {:.2} kB/s",
         r.fps,
         r.bytes_per_second / 1e3,
-        r.samples_per_second
+        r.samples_per_second,
+        r.last_quarter.0,
+        r.last_quarter.1 / 1e3
     );
 }

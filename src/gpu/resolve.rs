@@ -31,6 +31,9 @@ pub struct Resolved {
     pub noise: Option<f64>,
     /// Samples discarded as NaN or infinite since the last reset.
     pub invalid: u64,
+    /// Per image pixel, the estimated standard error of its linear value (the two halves'
+    /// estimate, averaged over channels and the block); 0 where not yet known.
+    pub sigma: Vec<f32>,
 }
 
 struct Slot {
@@ -221,6 +224,11 @@ impl ResolvePass {
                 .expect("the staging buffer is mapped");
             let words: &[[f32; 8]] = bytemuck::cast_slice(&data[..bytes as usize]);
             let c: &[u32] = bytemuck::cast_slice(&data[bytes as usize..]);
+            let block = (s.traced_pixels as f64 / n.max(1) as f64).max(1.0) as f32;
+            let sigma = words
+                .iter()
+                .map(|w| (w[4] / (3.0 * block * block)).max(0.0).sqrt())
+                .collect();
             let (mut rel, mut fewest) = (0.0f64, f32::INFINITY);
             let pixels = words
                 .iter()
@@ -239,6 +247,7 @@ impl ResolvePass {
                 },
                 noise: (fewest >= 1.0).then(|| (rel / channels).sqrt()),
                 invalid: c[0] as u64 | (c[1] as u64) << 32,
+                sigma,
             }
         };
         staging.unmap();

@@ -360,6 +360,34 @@ pub fn encode(img: &LinearImage, mode: CellMode, color: ColorMode) -> Vec<Cell> 
     out
 }
 
+/// Per cell, the colour change (per 8-bit sRGB channel) within the cell's own noise: twice
+/// the standard error `sigma` of its pixels (linear, one per image pixel), carried through
+/// the sRGB curve at the pixel's brightest channel; at least `base`. A cell that moved by no
+/// more is not resent: its change is the noise falling, not the image.
+pub fn noise_thresholds(img: &LinearImage, sigma: &[f32], mode: CellMode, base: u8) -> Vec<u8> {
+    let (sx, sy) = mode.subpixels();
+    let (cols, rows) = (img.width / sx, img.height / sy);
+    let mut out = Vec::with_capacity((cols * rows) as usize);
+    for row in 0..rows {
+        for col in 0..cols {
+            let mut t = base as f64;
+            for dy in 0..sy {
+                for dx in 0..sx {
+                    let i = ((row * sy + dy) * img.width + col * sx + dx) as usize;
+                    let (Some(p), Some(&s)) = (img.pixels.get(i), sigma.get(i)) else {
+                        continue;
+                    };
+                    let l = p.iter().copied().fold(0.0f32, f32::max).clamp(0.0, 1.0) as f64;
+                    let up = (l + 2.0 * s as f64).min(1.0);
+                    t = t.max(255.0 * (linear_to_srgb(up) - linear_to_srgb(l)));
+                }
+            }
+            out.push(t.ceil().min(255.0) as u8);
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -416,5 +444,22 @@ mod tests {
             ColorMode::detect(Some("truecolor"), Some("dumb")),
             ColorMode::None
         );
+    }
+
+    #[test]
+    fn a_cell_within_its_own_noise_is_not_resent() {
+        // Half blocks: 1×2 pixels per cell. Mid grey, no noise, then a standard error of 0.05.
+        let img = LinearImage {
+            width: 2,
+            height: 2,
+            pixels: vec![[0.2; 3]; 4],
+        };
+        let none = noise_thresholds(&img, &[0.0; 4], CellMode::Half, 2);
+        assert_eq!(none, vec![2, 2], "no noise: the base threshold");
+        let noisy = noise_thresholds(&img, &[0.05; 4], CellMode::Half, 2);
+        // 2σ at linear 0.2 through the sRGB curve: 255 × (srgb(0.3) − srgb(0.2)) ≈ 25.
+        let expect = (255.0 * (linear_to_srgb(0.3) - linear_to_srgb(0.2))).ceil() as u8;
+        assert_eq!(noisy, vec![expect, expect]);
+        assert!((20..=30).contains(&expect), "{expect}");
     }
 }

@@ -71,6 +71,10 @@ pub struct App {
     /// A message for the status line, and when it was set.
     pub message: Option<(String, Instant)>,
     pub saving: Option<Saving>,
+    /// The link to the terminal as the frames' acknowledgements measure it (`flow`).
+    pub link: Option<String>,
+    /// Per image pixel, the standard error of its value (for the cells' noise thresholds).
+    pub image_sigma: Vec<f32>,
 }
 
 /// How long a status message stays.
@@ -91,6 +95,8 @@ impl App {
             image: None,
             message: None,
             saving: None,
+            link: None,
+            image_sigma: Vec::new(),
         }
     }
 

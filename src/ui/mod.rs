@@ -4,6 +4,8 @@
 //! input never waits on the GPU.
 
 pub mod app;
+pub mod flow;
+pub mod input;
 pub mod keys;
 pub mod kitty;
 pub mod term;
@@ -16,8 +18,8 @@ use crate::scene::Scene;
 use app::{App, Effect, Saving};
 use ratatui::Terminal;
 use ratatui::backend::CrosstermBackend;
-use ratatui::crossterm::event::{self, Event as TermEvent, KeyEventKind};
-use ratatui::crossterm::{cursor, execute, queue, terminal};
+use ratatui::crossterm::event::{Event as TermEvent, KeyEventKind};
+use ratatui::crossterm::{cursor, queue, terminal};
 use ratatui::layout::Rect;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -40,6 +42,9 @@ pub enum Event {
     Saved(Result<String, String>),
     /// SIGTERM, SIGHUP or SIGINT from outside.
     Signal,
+    /// The terminal answered a status query (`flow`): everything written before it has
+    /// reached the terminal.
+    StatusReport(Instant),
 }
 
 /// How the preview reaches the terminal.
@@ -193,6 +198,11 @@ pub fn write_scene(scene: &Scene) -> Result<String, String> {
     Ok(format!("wrote {}{note}", path.display()))
 }
 
+/// Frames in a row with almost no change before the image counts as settled.
+const QUIET_FRAMES: u32 = 15;
+/// Time between frames once the image has (nearly) stopped changing.
+const IDLE_FRAME: Duration = Duration::from_secs(1);
+
 struct Ui {
     app: App,
     opts: ViewOptions,
@@ -208,6 +218,15 @@ struct Ui {
     urgent: bool,
     /// The generation of the last frame taken.
     shown_generation: u64,
+    /// Frames clocked by the terminal's answers.
+    flow: flow::Flow,
+    /// Output bytes per changed cell, as the last frames measured (for the frame budget).
+    bytes_per_cell: f64,
+    /// Cells the last encoding changed, and those it left for later frames.
+    cells_changed: usize,
+    cells_left: usize,
+    /// Frames in a row that changed almost nothing.
+    quiet_frames: u32,
     quit: bool,
     /// Messages to print once the terminal is restored.
     farewell: Vec<String>,
@@ -243,6 +262,8 @@ impl Ui {
                 let Some(action) = keys::action(k) else {
                     return;
                 };
+                // What a key changes on screen is drawn at once.
+                self.urgent = true;
                 match self.app.apply(action) {
                     Effect::None => {}
                     Effect::SceneChanged | Effect::Relayout => {
@@ -270,6 +291,7 @@ impl Ui {
                     self.shown_generation = f.generation;
                     self.app.stats = f.stats;
                     self.app.image = Some(f.image);
+                    self.app.image_sigma = f.sigma;
                     self.fresh_image = true;
                 }
             }
@@ -288,6 +310,7 @@ impl Ui {
                 self.app.say(m);
             }
             Event::Signal => self.quit = true,
+            Event::StatusReport(at) => self.flow.answered(at),
         }
     }
 
@@ -312,6 +335,7 @@ impl Ui {
     /// Re-encodes the grid from the latest image if a new one came.
     fn encode(&mut self, area: Rect) {
         if !self.fresh_image {
+            self.cells_changed = 0;
             return;
         }
         let (image, _) = view::split(area);
@@ -332,7 +356,25 @@ impl Ui {
         let encoded = cells::encode(img, self.app.cells, self.color);
         let (sx, sy) = self.app.cells.subpixels();
         let (cols, rows) = ((img.width / sx) as u16, (img.height / sy) as u16);
-        self.grid.update(cols, rows, encoded, self.opts.threshold);
+        // On a slow link a frame carries what fits in its budget, the cells that changed
+        // most first; the rest follow in the next frames.
+        let limit = self.flow.frame_budget().map_or(usize::MAX, |bytes| {
+            (bytes as f64 / self.bytes_per_cell).max(1.0) as usize
+        });
+        let thresholds = match self.color {
+            ColorMode::Truecolor => cells::noise_thresholds(
+                img,
+                &self.app.image_sigma,
+                self.app.cells,
+                self.opts.threshold,
+            ),
+            _ => vec![self.opts.threshold; encoded.len()],
+        };
+        let (changed, left) = self
+            .grid
+            .update_at_most(cols, rows, encoded, &thresholds, limit);
+        self.cells_changed = changed;
+        self.cells_left = left;
     }
 }
 
@@ -389,17 +431,51 @@ fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
     })
 }
 
-/// Reads terminal events on their own thread, so that input never waits on drawing.
+/// Reads the terminal's input on its own thread, so that input never waits on drawing:
+/// keys, and the answers to the status queries that clock frames (`input`). Window size
+/// changes come from SIGWINCH.
 fn spawn_input(tx: Sender<Event>) -> std::io::Result<()> {
+    use std::io::Read;
+    let keys = tx.clone();
     std::thread::Builder::new()
         .name("input".into())
         .spawn(move || {
-            while let Ok(ev) = event::read() {
-                if tx.send(Event::Input(ev)).is_err() {
-                    break;
+            let mut parser = input::Parser::default();
+            let mut buf = [0u8; 4096];
+            let stdin = std::io::stdin();
+            loop {
+                let n = match stdin.lock().read(&mut buf) {
+                    Ok(0) | Err(_) => break,
+                    Ok(n) => n,
+                };
+                let now = Instant::now();
+                for i in parser.feed(&buf[..n]) {
+                    let ev = match i {
+                        input::Input::Key(k) => Event::Input(TermEvent::Key(k)),
+                        input::Input::StatusReport => Event::StatusReport(now),
+                    };
+                    if keys.send(ev).is_err() {
+                        return;
+                    }
                 }
             }
         })?;
+    #[cfg(unix)]
+    {
+        let mut signals = signal_hook::iterator::Signals::new([signal_hook::consts::SIGWINCH])?;
+        std::thread::Builder::new()
+            .name("resize".into())
+            .spawn(move || {
+                for _ in signals.forever() {
+                    let Ok((w, h)) = terminal::size() else {
+                        continue;
+                    };
+                    if tx.send(Event::Input(TermEvent::Resize(w, h))).is_err() {
+                        break;
+                    }
+                }
+            })?;
+    }
     Ok(())
 }
 
@@ -464,7 +540,16 @@ impl Ui {
             {
                 self.quit = true;
             }
-            if self.quit || !dirty || (Instant::now() < next_draw && !self.urgent) {
+            self.flow.tick(Instant::now());
+            let budget_kbps = self.opts.max_kbps.unwrap_or(flow::FALLBACK_KBPS);
+            self.app.link = self.flow.status(budget_kbps);
+            // A frame waits for the terminal's answer to an earlier one (the answer is an
+            // event, which wakes this loop).
+            if self.quit
+                || !dirty
+                || (Instant::now() < next_draw && !self.urgent)
+                || !self.flow.can_send()
+            {
                 continue;
             }
             if self.urgent {
@@ -472,6 +557,9 @@ impl Ui {
                     "drawing the first frame of generation {}",
                     self.shown_generation
                 );
+            }
+            if self.urgent {
+                self.quiet_frames = 0;
             }
             self.urgent = false;
             let before = bytes.load(Ordering::Relaxed);
@@ -486,10 +574,47 @@ impl Ui {
                 ));
             }
             let sent = bytes.load(Ordering::Relaxed) - before;
-            let budget = self.opts.max_kbps.map_or(Duration::ZERO, |kbps| {
+            self.flow.sent(Instant::now(), sent);
+            tracing::debug!(
+                "frame of {sent} bytes: {} cells changed, {} left, budget {:?}, {} unanswered, {:?}",
+                self.cells_changed,
+                self.cells_left,
+                self.flow.frame_budget(),
+                self.flow.unanswered(),
+                self.flow.status(0.0)
+            );
+            if self.cells_changed > 64 {
+                let b = sent as f64 / self.cells_changed as f64;
+                self.bytes_per_cell = 0.7 * self.bytes_per_cell + 0.3 * b;
+            }
+            if self.cells_left > 0 {
+                // The rest of the image goes in the next frames.
+                self.fresh_image = true;
+                dirty = true;
+            }
+            // An image that has (nearly) stopped changing: for QUIET_FRAMES frames fewer than
+            // 1 % of its cells moved beyond the threshold, the noise's last flicker. It and
+            // the status line are then redrawn once a second (a converged preview costs
+            // almost nothing), until a key or an edit's frame.
+            if self.cells_changed * 100 < self.grid.cells.len() {
+                self.quiet_frames += 1;
+            } else {
+                self.quiet_frames = 0;
+            }
+            let idle = if self.quiet_frames >= QUIET_FRAMES {
+                IDLE_FRAME
+            } else {
+                Duration::ZERO
+            };
+            // `--max-kbps` caps the rate; a terminal that does not answer gets a budget.
+            let kbps = match self.flow.mode() {
+                flow::Mode::Budget => Some(budget_kbps),
+                _ => self.opts.max_kbps,
+            };
+            let budget = kbps.map_or(Duration::ZERO, |kbps| {
                 Duration::from_secs_f64(sent as f64 * 8.0 / (kbps * 1000.0))
             });
-            next_draw = Instant::now() + min_frame.max(budget);
+            next_draw = Instant::now() + min_frame.max(budget).max(idle);
         }
         Ok(history)
     }
@@ -509,7 +634,11 @@ impl Ui {
             queue!(out, cursor::MoveTo(image.x, image.y))?;
             out.write_all(kitty::transmit(img, image.width, image.height).as_bytes())?;
         }
-        execute!(terminal.backend_mut(), terminal::EndSynchronizedUpdate)?;
+        queue!(terminal.backend_mut(), terminal::EndSynchronizedUpdate)?;
+        // The status query that clocks the next frames (`flow`).
+        let out = terminal.backend_mut();
+        out.write_all(flow::QUERY)?;
+        out.flush()?;
         Ok(area)
     }
 
@@ -594,6 +723,11 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         fresh_image: false,
         urgent: false,
         shown_generation: 0,
+        flow: flow::Flow::default(),
+        bytes_per_cell: 40.0,
+        cells_changed: 0,
+        cells_left: 0,
+        quiet_frames: 0,
         quit: false,
         farewell: Vec::new(),
     };

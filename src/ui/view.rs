@@ -48,21 +48,79 @@ fn close(a: CellColor, b: CellColor, threshold: u8) -> bool {
 impl Grid {
     /// Takes a new frame; returns how many cells changed beyond the threshold.
     pub fn update(&mut self, cols: u16, rows: u16, cells: Vec<Cell>, threshold: u8) -> usize {
+        let thresholds = vec![threshold; cells.len()];
+        self.update_at_most(cols, rows, cells, &thresholds, usize::MAX)
+            .0
+    }
+
+    /// Like `update`, with a threshold per cell (its own noise, `cells::noise_thresholds`),
+    /// changing at most `limit` cells, those that changed most (a frame sized to a slow
+    /// link); returns (cells changed, cells left for a later frame).
+    pub fn update_at_most(
+        &mut self,
+        cols: u16,
+        rows: u16,
+        cells: Vec<Cell>,
+        thresholds: &[u8],
+        limit: usize,
+    ) -> (usize, usize) {
         if (cols, rows) != (self.cols, self.rows) || self.cells.len() != cells.len() {
-            *self = Grid { cols, rows, cells };
-            return self.cells.len();
-        }
-        let mut changed = 0;
-        for (old, new) in self.cells.iter_mut().zip(cells) {
-            let same = old.glyph == new.glyph
-                && close(old.fg, new.fg, threshold)
-                && close(old.bg, new.bg, threshold);
-            if !same {
-                *old = new;
-                changed += 1;
+            if limit >= cells.len() {
+                *self = Grid { cols, rows, cells };
+                return (self.cells.len(), 0);
             }
+            // A new size on a slow link: from blank cells, as much as the limit allows.
+            let blank = Cell {
+                glyph: ' ',
+                fg: CellColor::Default,
+                bg: CellColor::Default,
+            };
+            *self = Grid {
+                cols,
+                rows,
+                cells: vec![blank; cells.len()],
+            };
         }
-        changed
+        // (how much, index) of every cell that moved beyond the threshold.
+        let mut moved: Vec<(u8, usize)> = self
+            .cells
+            .iter()
+            .zip(&cells)
+            .enumerate()
+            .filter(|(i, (old, new))| {
+                let threshold = thresholds.get(*i).copied().unwrap_or(0);
+                old.glyph != new.glyph
+                    || !close(old.fg, new.fg, threshold)
+                    || !close(old.bg, new.bg, threshold)
+            })
+            .map(|(i, (old, new))| (change(old, new), i))
+            .collect();
+        let left = moved.len().saturating_sub(limit);
+        if left > 0 {
+            moved.select_nth_unstable_by(limit, |a, b| b.0.cmp(&a.0));
+            moved.truncate(limit);
+        }
+        for &(_, i) in &moved {
+            self.cells[i] = cells[i];
+        }
+        (moved.len(), left)
+    }
+}
+
+/// How far a cell moved: the largest channel difference of its colours (255 for a new
+/// glyph or a colour of another kind).
+fn change(a: &Cell, b: &Cell) -> u8 {
+    let d = |x: CellColor, y: CellColor| match (x, y) {
+        (CellColor::Rgb(p), CellColor::Rgb(q)) => {
+            (0..3).map(|c| p[c].abs_diff(q[c])).max().unwrap_or(0)
+        }
+        (x, y) if x == y => 0,
+        _ => 255,
+    };
+    if a.glyph != b.glyph {
+        255
+    } else {
+        d(a.fg, b.fg).max(d(a.bg, b.bg))
     }
 }
 
@@ -134,6 +192,9 @@ pub fn stats_line(app: &App) -> Line<'static> {
     }
     if !app.nee {
         parts.push("NEE off".into());
+    }
+    if let Some(link) = &app.link {
+        parts.push(link.clone());
     }
     let mut spans = Vec::new();
     if let Some(m) = app.current_message() {

@@ -50,6 +50,8 @@ pub enum Request {
 pub struct Frame {
     /// The traced image averaged down by the request's `factor`.
     pub image: LinearImage,
+    /// Per image pixel, the standard error of its value (see `Resolved::sigma`).
+    pub sigma: Vec<f32>,
     pub stats: Stats,
     /// The `Request::Scene` this frame renders.
     pub generation: u64,
@@ -338,6 +340,7 @@ impl Worker {
             let s = p.renderer.settings();
             let frame = Frame {
                 image: resolved.image,
+                sigma: resolved.sigma,
                 stats: Stats {
                     width: s.width,
                     height: s.height,
