@@ -75,6 +75,11 @@ pub struct BenchArgs {
     /// rate, arriving --rtt-ms / 2 later; keys and answers take --rtt-ms / 2 back).
     #[arg(long, value_name = "MBIT/S", requires = "preview")]
     pub link_mbps: Option<f64>,
+    /// With --preview: run the preview through a real OpenSSH connection (a throw-away sshd
+    /// on a loopback port) behind a throttling proxy of --link-mbps and --rtt-ms, instead of
+    /// the link model.
+    #[arg(long, requires = "preview")]
+    pub ssh: bool,
     /// With --link-mbps: the round trip in milliseconds.
     #[arg(long, default_value_t = 0.0, value_name = "MS")]
     pub rtt_ms: f64,
@@ -241,6 +246,30 @@ fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
             rtt: Duration::from_secs_f64(a.rtt_ms / 1e3),
             window: a.window_kib << 10,
         }),
+        command: None,
+    };
+    let mut b = b;
+    // Kept alive while the preview runs through it.
+    let _ssh = if a.ssh {
+        let link = super::ssh_link::SshLink::start(
+            a.link_mbps.unwrap_or(1000.0) * 1e6,
+            Duration::from_secs_f64(a.rtt_ms / 1e3),
+        )?;
+        let mut remote = vec![
+            "env".to_string(),
+            "TERM=xterm-256color".to_string(),
+            "COLORTERM=truecolor".to_string(),
+            b.exe_path()?.display().to_string(),
+            "view".to_string(),
+            b.scene.clone(),
+        ];
+        remote.extend(b.args.iter().cloned());
+        b.command = Some(link.command(&remote));
+        // The proxy is the link: no model on top of it.
+        b.link = None;
+        Some(link)
+    } else {
+        None
     };
     let report = b.run()?;
     super::preview_bench::print(&b, &report);

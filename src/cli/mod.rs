@@ -6,6 +6,7 @@ mod check;
 mod converge;
 pub mod preview_bench;
 mod render;
+pub mod ssh_link;
 
 use crate::output::cells::{CellMode, ColorMode};
 use crate::ui::{Graphics, ViewOptions};

@@ -34,6 +34,8 @@ pub struct PreviewBench {
     pub args: Vec<String>,
     /// Put a model of a slow link between the program and the terminal.
     pub link: Option<Link>,
+    /// Run this command line instead of `exe view scene args` (e.g. `ssh -tt … termtrace …`).
+    pub command: Option<Vec<String>>,
 }
 
 /// What was measured.
@@ -60,6 +62,8 @@ pub struct PreviewReport {
     pub deepest_backlog: u64,
     /// Frames/s and bytes/s over the last quarter of the window (the noise has fallen).
     pub last_quarter: (f64, f64),
+    /// The status line's link field at the end (`link 2.0 Mbit/s 80 ms`).
+    pub link_status: Option<String>,
 }
 
 impl PreviewReport {
@@ -88,6 +92,8 @@ struct Seen {
     frames: u64,
     /// Most bytes read from the program and not yet delivered, at any moment.
     deepest_backlog: u64,
+    /// The status line's link field (`link 2.0 Mbit/s 80 ms`), when shown.
+    link: Option<String>,
     /// Every change of what the screen shows of spp or parameters: when it was read, and
     /// the output bytes by then.
     history: Vec<(Instant, Option<u64>, String, u64, Duration)>,
@@ -118,6 +124,10 @@ fn read_status(screen: &vt100::Screen, seen: &mut Seen) {
         if let Some(f) = fields.iter().find(|f| f.ends_with("s/s")) {
             seen.rate = f.to_string();
         }
+        seen.link = fields
+            .iter()
+            .find(|f| f.starts_with("link ") || f.starts_with("no answer"))
+            .map(|f| f.to_string());
     }
     if let Some(p) = params {
         seen.params = p.trim().to_string();
@@ -165,6 +175,12 @@ fn count_split(tail: &mut Vec<u8>, data: &[u8], pattern: &[u8]) -> u64 {
 }
 
 impl PreviewBench {
+    /// The termtrace binary, as an absolute path (a relative one would be looked up in PATH).
+    pub fn exe_path(&self) -> anyhow::Result<std::path::PathBuf> {
+        std::fs::canonicalize(&self.exe)
+            .with_context(|| format!("no termtrace binary at {}", self.exe.display()))
+    }
+
     pub fn run(&self) -> anyhow::Result<PreviewReport> {
         let pty = native_pty_system()
             .openpty(PtySize {
@@ -174,19 +190,30 @@ impl PreviewBench {
                 pixel_height: self.rows * 20,
             })
             .context("cannot open a pseudo-terminal")?;
-        // A relative path would be looked up in PATH.
-        let exe = std::fs::canonicalize(&self.exe)
-            .with_context(|| format!("no termtrace binary at {}", self.exe.display()))?;
-        let mut cmd = CommandBuilder::new(&exe);
-        cmd.arg("view");
-        cmd.arg(&self.scene);
-        cmd.args(&self.args);
+        let mut cmd = match &self.command {
+            Some(c) => {
+                let mut cmd = CommandBuilder::new(&c[0]);
+                cmd.args(&c[1..]);
+                cmd
+            }
+            None => {
+                let mut cmd = CommandBuilder::new(self.exe_path()?);
+                cmd.arg("view");
+                cmd.arg(&self.scene);
+                cmd.args(&self.args);
+                cmd
+            }
+        };
         cmd.env("TERM", "xterm-256color");
         cmd.env("COLORTERM", "truecolor");
-        let mut child = pty
-            .slave
-            .spawn_command(cmd)
-            .with_context(|| format!("cannot run {}", self.exe.display()))?;
+        let mut child = pty.slave.spawn_command(cmd).with_context(|| {
+            format!(
+                "cannot run {:?}",
+                self.command
+                    .as_ref()
+                    .unwrap_or(&vec![self.exe.display().to_string()])
+            )
+        })?;
         drop(pty.slave);
         let mut reader = pty.master.try_clone_reader()?;
         let mut writer = pty.master.take_writer()?;
@@ -449,6 +476,7 @@ impl PreviewBench {
         let last = t1.elapsed().as_secs_f64();
         report.last_quarter = ((s.frames - f1) as f64 / last, (s.bytes - b1) as f64 / last);
         report.samples_per_second = s.rate.clone();
+        report.link_status = s.link.clone();
         report.size = s.size.clone();
         Ok(report)
     }
@@ -489,6 +517,9 @@ pub fn print(b: &PreviewBench, r: &PreviewReport) {
             *b as f64 / 1e3,
             p * 1e3
         );
+    }
+    if let Some(l) = &r.link_status {
+        println!("status line  {l}");
     }
     if let Some(l) = b.link {
         println!(

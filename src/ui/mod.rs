@@ -584,8 +584,10 @@ impl Ui {
                 self.flow.status(0.0)
             );
             if self.cells_changed > 64 {
+                // Up at once, down slowly: a settled image's cells are cheap (neighbours share
+                // colours), an edit's noisy ones are not, and its frame must not overshoot.
                 let b = sent as f64 / self.cells_changed as f64;
-                self.bytes_per_cell = 0.7 * self.bytes_per_cell + 0.3 * b;
+                self.bytes_per_cell = b.max(0.9 * self.bytes_per_cell + 0.1 * b);
             }
             if self.cells_left > 0 {
                 // The rest of the image goes in the next frames.
