@@ -100,27 +100,24 @@ impl Flow {
             return;
         };
         self.mode = Mode::Acked;
-        // Sent behind the previous frame's answer? Then the link was idle and the answer
-        // took a round trip plus the transfer; else it waited behind that frame.
-        let start = match self.last_answer {
-            Some(prev) if prev > f.at => prev,
-            _ => f.at,
-        };
-        let took = at.saturating_duration_since(start);
-        if f.bytes <= SMALL_FRAME && start == f.at {
-            let quick = at.saturating_duration_since(f.at);
+        // The answer cannot come before a round trip plus the transfer after the frame was
+        // written, nor before the transfer after the previous answer (the link carries one
+        // frame at a time): the later of the two bounds leaves the transfer.
+        let quick = at.saturating_duration_since(f.at);
+        if f.bytes <= SMALL_FRAME {
             // The quickest lately: a slowly rising floor, so that a changed route shows.
             self.rtt = Some(match self.rtt {
                 Some(r) if r < quick => r + (quick - r) / 8,
                 _ => quick,
             });
-        } else if f.bytes > SMALL_FRAME {
-            let transfer = if start == f.at {
-                took.saturating_sub(self.rtt.unwrap_or_default())
-            } else {
-                took
+        } else if let Some(rtt) = self.rtt {
+            let after_trip = f.at + rtt;
+            let start = match self.last_answer {
+                Some(prev) if prev > after_trip => prev,
+                _ => after_trip,
             };
-            if transfer > Duration::from_micros(200) {
+            let transfer = at.saturating_duration_since(start);
+            if transfer > Duration::from_micros(500) {
                 let r = f.bytes as f64 / transfer.as_secs_f64();
                 self.rate = Some(self.rate.map_or(r, |old| 0.7 * old + 0.3 * r));
             }
