@@ -21,6 +21,7 @@ fn the_harness_sees_each_edit_with_a_restarted_sample_count() {
         args: vec!["--max-spp".into(), "1000000".into()],
         link: None,
         command: None,
+        answer_gate: None,
     };
     let r = b.run().expect("the preview runs in a pseudo-terminal");
     assert_eq!(r.misses, 0, "{r:?}");

@@ -43,6 +43,7 @@ fn the_preview_works_through_openssh_and_measures_the_link() {
         args: Vec::new(),
         link: None,
         command: Some(link.command(&remote)),
+        answer_gate: None,
     };
     let r = b.run().expect("the preview runs through ssh");
     assert_eq!(r.misses, 0, "{r:?}");

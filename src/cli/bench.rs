@@ -247,6 +247,7 @@ fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
             window: a.window_kib << 10,
         }),
         command: None,
+        answer_gate: None,
     };
     let mut b = b;
     // Kept alive while the preview runs through it.

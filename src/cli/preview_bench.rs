@@ -36,6 +36,10 @@ pub struct PreviewBench {
     pub link: Option<Link>,
     /// Run this command line instead of `exe view scene args` (e.g. `ssh -tt … termtrace …`).
     pub command: Option<Vec<String>>,
+    /// When set, the far terminal answers a status query only while this holds a positive
+    /// count (taking one); later answers wait, in order, until it is raised (tests of the
+    /// frame clock). `None`: every query is answered.
+    pub answer_gate: Option<Arc<std::sync::atomic::AtomicI64>>,
 }
 
 /// What was measured.
@@ -181,7 +185,13 @@ impl PreviewBench {
             .with_context(|| format!("no termtrace binary at {}", self.exe.display()))
     }
 
+    /// Runs the preview, types the edit keys and measures (see the module's doc).
     pub fn run(&self) -> anyhow::Result<PreviewReport> {
+        self.run_with(|probe| self.drive(probe))?
+    }
+
+    /// Runs the preview and hands `f` the screen and the keyboard; returns what `f` returns.
+    pub fn run_with<R>(&self, f: impl FnOnce(&Probe<'_>) -> R) -> anyhow::Result<R> {
         let pty = native_pty_system()
             .openpty(PtySize {
                 rows: self.rows,
@@ -271,13 +281,27 @@ impl PreviewBench {
         // The link and the far terminal.
         let (rows, cols) = (self.rows, self.cols);
         let (sh, p, answers) = (shared.clone(), pipe.clone(), to_program.clone());
+        let gate = self.answer_gate.clone();
         let far_thread = std::thread::spawn(move || {
             let nz = |n: u16| std::num::NonZeroU16::new(n.max(1)).expect("at least 1");
             let mut parser = vt100::Parser::new(nz(rows), nz(cols), 0);
             let (mut frame_tail, mut query_tail) = (Vec::new(), Vec::new());
             let mut on_wire: std::collections::VecDeque<(Instant, Vec<u8>)> = Default::default();
             let mut link_free = Instant::now();
+            // Queries read and not yet answered (see `answer_gate`).
+            let mut held = 0u64;
             loop {
+                while held > 0
+                    && gate.as_ref().is_none_or(|g| {
+                        g.fetch_sub(1, std::sync::atomic::Ordering::SeqCst) > 0 || {
+                            g.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+                            false
+                        }
+                    })
+                {
+                    held -= 1;
+                    let _ = answers.send((Instant::now() + half_rtt, ANSWER.to_vec()));
+                }
                 // Put what the link can take now on the wire.
                 let mut ended = false;
                 {
@@ -322,9 +346,7 @@ impl PreviewBench {
                     s.parse += parse_start.elapsed();
                     s.bytes += piece.len() as u64;
                     s.frames += frames;
-                    for _ in 0..queries {
-                        let _ = answers.send((Instant::now() + half_rtt, ANSWER.to_vec()));
-                    }
+                    held += queries;
                     if (s.spp, s.params.clone()) != before {
                         let change = (Instant::now(), s.spp, s.params.clone(), s.bytes, s.parse);
                         s.history.push(change);
@@ -344,7 +366,11 @@ impl PreviewBench {
             sh.cond.notify_all();
         });
 
-        let result = self.drive(&shared, &to_program, half_rtt);
+        let result = f(&Probe {
+            shared: &shared,
+            keys: &to_program,
+            half_rtt,
+        });
         let _ = to_program.send((Instant::now(), b"q".to_vec()));
         let deadline = Instant::now() + Duration::from_secs(20);
         while Instant::now() < deadline {
@@ -364,47 +390,15 @@ impl PreviewBench {
         let _ = reader_thread.join();
         let _ = far_thread.join();
         let _ = writer_thread.join();
-        let mut report = result?;
-        report.deepest_backlog = shared.seen.lock().expect("screen state").deepest_backlog;
-        Ok(report)
-    }
-
-    /// Waits until `pred` holds of the screen, or `timeout`; returns the screen then.
-    fn wait_for(
-        shared: &Shared,
-        timeout: Duration,
-        pred: impl Fn(&Seen) -> bool,
-    ) -> Option<(Instant, Seen)> {
-        let deadline = Instant::now() + timeout;
-        let mut s = shared.seen.lock().expect("screen state");
-        loop {
-            if pred(&s) {
-                return Some((Instant::now(), s.clone()));
-            }
-            let now = Instant::now();
-            if now >= deadline || s.exited {
-                return None;
-            }
-            s = shared
-                .cond
-                .wait_timeout(s, deadline - now)
-                .expect("screen state")
-                .0;
-        }
+        Ok(result)
     }
 
     /// Types the keys (each reaching the program `half_rtt` after it is typed) and measures.
-    fn drive(
-        &self,
-        shared: &Shared,
-        keys: &std::sync::mpsc::Sender<(Instant, Vec<u8>)>,
-        half_rtt: Duration,
-    ) -> anyhow::Result<PreviewReport> {
-        let type_key = |k: &[u8]| {
-            let _ = keys.send((Instant::now() + half_rtt, k.to_vec()));
-        };
+    fn drive(&self, probe: &Probe<'_>) -> anyhow::Result<PreviewReport> {
+        let shared = probe.shared;
+        let type_key = |k: &[u8]| probe.type_key(k);
         let startup = Duration::from_secs(120);
-        if Self::wait_for(shared, startup, |s| s.spp.is_some_and(|n| n >= 1)).is_none() {
+        if wait_for(shared, startup, |s| s.spp.is_some_and(|n| n >= 1)).is_none() {
             let s = shared.seen.lock().expect("screen state").clone();
             bail!(
                 "the preview showed no frame within {} s (exited: {}, last status {:?})",
@@ -417,8 +411,7 @@ impl PreviewBench {
         for i in 0..self.presses {
             std::thread::sleep(self.settle);
             // A restart must be visible: at least 2 spp before the key.
-            let Some((_, before)) =
-                Self::wait_for(shared, startup, |s| s.spp.is_some_and(|n| n >= 2))
+            let Some((_, before)) = wait_for(shared, startup, |s| s.spp.is_some_and(|n| n >= 2))
             else {
                 bail!("the preview stopped accumulating");
             };
@@ -426,7 +419,7 @@ impl PreviewBench {
             let spp_before = before.spp.unwrap_or(0);
             let t0 = Instant::now();
             type_key(key);
-            let shown = Self::wait_for(shared, self.timeout, |s| {
+            let shown = wait_for(shared, self.timeout, |s| {
                 s.params != before.params && s.spp.is_some_and(|n| n < spp_before)
             });
             match shown {
@@ -452,7 +445,7 @@ impl PreviewBench {
                 None => {
                     report.misses += 1;
                     // Let it show before the next press, so presses stay independent.
-                    Self::wait_for(shared, startup, |s| s.params != before.params);
+                    wait_for(shared, startup, |s| s.params != before.params);
                 }
             }
         }
@@ -477,8 +470,81 @@ impl PreviewBench {
         report.last_quarter = ((s.frames - f1) as f64 / last, (s.bytes - b1) as f64 / last);
         report.samples_per_second = s.rate.clone();
         report.link_status = s.link.clone();
+        report.deepest_backlog = s.deepest_backlog;
         report.size = s.size.clone();
         Ok(report)
+    }
+}
+
+/// Waits until `pred` holds of the screen, or `timeout`; returns the screen then.
+fn wait_for(
+    shared: &Shared,
+    timeout: Duration,
+    pred: impl Fn(&Seen) -> bool,
+) -> Option<(Instant, Seen)> {
+    let deadline = Instant::now() + timeout;
+    let mut s = shared.seen.lock().expect("screen state");
+    loop {
+        if pred(&s) {
+            return Some((Instant::now(), s.clone()));
+        }
+        let now = Instant::now();
+        if now >= deadline || s.exited {
+            return None;
+        }
+        s = shared
+            .cond
+            .wait_timeout(s, deadline - now)
+            .expect("screen state")
+            .0;
+    }
+}
+
+/// What a run hands its driver: the far screen as read so far, and the keyboard.
+pub struct Probe<'a> {
+    shared: &'a Shared,
+    keys: &'a std::sync::mpsc::Sender<(Instant, Vec<u8>)>,
+    half_rtt: Duration,
+}
+
+/// The far screen's status, as `Probe::screen` reads it.
+#[derive(Clone, Debug, Default)]
+pub struct Screen {
+    pub spp: Option<u64>,
+    /// The parameter line.
+    pub params: String,
+    /// The status line's link field.
+    pub link: Option<String>,
+    /// Synchronized updates (frames) and bytes received so far.
+    pub frames: u64,
+    pub bytes: u64,
+}
+
+impl Probe<'_> {
+    /// Types `keys`; they reach the program half a round trip later.
+    pub fn type_key(&self, keys: &[u8]) {
+        let _ = self
+            .keys
+            .send((Instant::now() + self.half_rtt, keys.to_vec()));
+    }
+
+    fn view(s: &Seen) -> Screen {
+        Screen {
+            spp: s.spp,
+            params: s.params.clone(),
+            link: s.link.clone(),
+            frames: s.frames,
+            bytes: s.bytes,
+        }
+    }
+
+    pub fn screen(&self) -> Screen {
+        Self::view(&self.shared.seen.lock().expect("screen state"))
+    }
+
+    /// Waits until `pred` holds of the screen, or `timeout`.
+    pub fn wait_for(&self, timeout: Duration, pred: impl Fn(&Screen) -> bool) -> Option<Screen> {
+        wait_for(self.shared, timeout, |s| pred(&Self::view(s))).map(|(_, s)| Self::view(&s))
     }
 }
 

@@ -35,6 +35,45 @@ pub(crate) fn layout_entry(
     }
 }
 
+/// The bind group layout (buffers of these types, bound in order from 0) and the pipeline
+/// of a small compute pass whose WGSL file and entry point are both named `name`
+/// (`reduce.wgsl`, `fn reduce`).
+pub(crate) fn simple_pass(
+    device: &wgpu::Device,
+    name: &str,
+    buffers: &[wgpu::BufferBindingType],
+) -> (wgpu::BindGroupLayout, wgpu::ComputePipeline) {
+    let entries: Vec<_> = buffers
+        .iter()
+        .enumerate()
+        .map(|(i, &ty)| layout_entry(i as u32, ty))
+        .collect();
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(&format!("{name}.layout")),
+        entries: &entries,
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(&format!("{name}.pipeline_layout")),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let file = format!("{name}.wgsl");
+    let src = shader::assemble(&file).unwrap_or_else(|e| panic!("{file}: {e}"));
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(&file),
+        source: wgpu::ShaderSource::Wgsl(src.into()),
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(&format!("{name}.pipeline")),
+        layout: Some(&pipeline_layout),
+        module: &module,
+        entry_point: Some(name),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    (layout, pipeline)
+}
+
 /// A bind group of whole buffers, bound in order from binding 0.
 pub(crate) fn bind_buffers(
     device: &wgpu::Device,

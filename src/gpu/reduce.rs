@@ -4,7 +4,7 @@
 
 use super::accum::Accumulation;
 use super::scene_buffers::SceneBuffers;
-use super::{bind_buffers, layout_entry as entry, shader};
+use super::{bind_buffers, simple_pass};
 
 /// Invocations per workgroup (`@workgroup_size` of `fn reduce`).
 const WORKGROUP: u32 = 64;
@@ -17,34 +17,17 @@ pub struct ReducePass {
 impl ReducePass {
     pub fn new(device: &wgpu::Device) -> ReducePass {
         use wgpu::BufferBindingType::{Storage, Uniform};
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("reduce.layout"),
-            entries: &[
-                entry(0, Uniform),
-                entry(1, Uniform),
-                entry(2, Storage { read_only: false }),
-                entry(3, Storage { read_only: false }),
-                entry(4, Storage { read_only: true }),
+        let (layout, pipeline) = simple_pass(
+            device,
+            "reduce",
+            &[
+                Uniform,
+                Uniform,
+                Storage { read_only: false },
+                Storage { read_only: false },
+                Storage { read_only: true },
             ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("reduce.pipeline_layout"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let src = shader::assemble("reduce.wgsl").expect("reduce.wgsl assembles");
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("reduce.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(src.into()),
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("reduce.pipeline"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("reduce"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        );
         ReducePass { layout, pipeline }
     }
 

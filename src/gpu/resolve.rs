@@ -5,7 +5,7 @@
 
 use super::accum::Accumulation;
 use super::layout::ResolveUniforms;
-use super::{GpuContext, bind_buffers, layout_entry, shader};
+use super::{GpuContext, bind_buffers, simple_pass};
 use crate::output::LinearImage;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
@@ -54,33 +54,16 @@ pub struct ResolvePass {
 impl ResolvePass {
     pub fn new(device: &wgpu::Device) -> ResolvePass {
         use wgpu::BufferBindingType::{Storage, Uniform};
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("resolve.layout"),
-            entries: &[
-                layout_entry(0, Uniform),
-                layout_entry(1, Storage { read_only: true }),
-                layout_entry(2, Storage { read_only: true }),
-                layout_entry(3, Storage { read_only: false }),
+        let (layout, pipeline) = simple_pass(
+            device,
+            "resolve",
+            &[
+                Uniform,
+                Storage { read_only: true },
+                Storage { read_only: true },
+                Storage { read_only: false },
             ],
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("resolve.pipeline_layout"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let src = shader::assemble("resolve.wgsl").expect("resolve.wgsl assembles");
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("resolve.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(src.into()),
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("resolve.pipeline"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("resolve"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        );
         let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("resolve.uniforms"),
             size: std::mem::size_of::<ResolveUniforms>() as u64,

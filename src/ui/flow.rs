@@ -27,7 +27,7 @@ pub const QUERY: &[u8] = b"\x1b[5n";
 const SMALL_FRAME: u64 = 2048;
 /// Link time one frame may take: a key's frame waits behind at most one frame in flight,
 /// and at most two are in the link's buffers (a backlog of at most twice this).
-pub const FRAME_TIME: Duration = Duration::from_millis(100);
+pub const FRAME_TIME: Duration = Duration::from_millis(60);
 /// The budget of the first frames, before an answer to a large frame has measured the
 /// link's rate: small, so that a slow link is not flooded at the start (0.26 s of a
 /// 0.5 Mbit/s link), and large enough to measure the rate.
