@@ -10,6 +10,7 @@
 
 mod schedule;
 mod snapshot;
+pub mod tune;
 
 pub use schedule::Schedule;
 pub use snapshot::{ErrorEstimate, REL_MSE_EPSILON, Snapshot};
@@ -55,6 +56,9 @@ pub struct RenderOptions {
     /// first image (every other row, the rows between filled in for display) exists in half
     /// the time of a whole sample per pixel (the preview on a slow adapter).
     pub first_look: bool,
+    /// Always trace with the scene's specialized pipeline, never measure it against the
+    /// generic one (`tune`); tests that compare the two use it.
+    pub no_tune: bool,
 }
 
 impl Default for RenderOptions {
@@ -69,6 +73,7 @@ impl Default for RenderOptions {
             extra: None,
             lanes: None,
             first_look: false,
+            no_tune: false,
         }
     }
 }
@@ -97,6 +102,7 @@ struct Round {
 /// A submission the GPU has not finished.
 struct InFlight {
     index: wgpu::SubmissionIndex,
+    features: Features,
     paths: u64,
     submitted: Instant,
 }
@@ -120,6 +126,8 @@ pub struct Renderer {
     fresh: bool,
     timer: Option<GpuTimer>,
     in_flight: VecDeque<InFlight>,
+    /// Timing the specialized pipeline against the generic one, until one is chosen.
+    tune: Option<tune::Tune>,
     /// When the GPU last finished a submission (as seen by `wait`).
     last_done: Instant,
 }
@@ -178,8 +186,32 @@ impl Renderer {
             fresh: true,
             ctx,
             in_flight: VecDeque::new(),
+            tune: None,
             last_done: Instant::now(),
         }
+        .with_tune()
+    }
+
+    /// Starts timing the specialized pipeline against the generic one, where they differ.
+    fn with_tune(mut self) -> Renderer {
+        self.retune();
+        self
+    }
+
+    fn retune(&mut self) {
+        let generic = self.generic_features();
+        self.tune = (!self.options.generic
+            && !self.options.no_tune
+            && self.options.extra.is_none()
+            && self.features != generic)
+            .then(|| tune::Tune::new(self.features, generic));
+    }
+
+    /// The tuner's outcome: the pipeline chosen and the seconds per path measured of the
+    /// (specialized, generic) ones; `None` while measuring or when there was no choice.
+    pub fn tuned(&self) -> Option<(Features, (f64, f64))> {
+        let t = self.tune.as_ref()?;
+        Some((t.chosen()?, t.measured()))
     }
 
     /// Lane-pixels of scratch: none where one lane per pixel is all a dispatch needs.
@@ -268,21 +300,30 @@ impl Renderer {
     /// The pipeline the next submission uses: the scene's own when compiled, else (when
     /// compiling in the background) the generic one, which renders the same image.
     fn pipeline_features(&mut self) -> Features {
-        if self.trace.ready(self.features) {
-            return self.features;
+        let want = self.tune.as_ref().map_or(self.features, tune::Tune::next);
+        if self.trace.ready(want) {
+            return want;
         }
-        let generic = self.generic_features();
-        if self.options.compile_in_background && self.trace.ready(generic) {
-            return generic;
+        if self.options.compile_in_background {
+            self.trace.prepare_in_background(&self.ctx.device, want);
+            for f in [self.features, self.generic_features()] {
+                if self.trace.ready(f) {
+                    return f;
+                }
+            }
         }
-        self.trace.prepare(&self.ctx.device, self.features);
-        self.features
+        self.trace.prepare(&self.ctx.device, want);
+        want
     }
 
     /// Replaces the scene (and settings); resizes the accumulation if needed; resets.
     pub fn set_scene(&mut self, scene: &Scene, settings: FrameSettings) {
+        let features = Self::features_for(scene, &self.options, &settings);
+        if features != self.features {
+            self.features = features;
+            self.retune();
+        }
         let device = &self.ctx.device;
-        self.features = Self::features_for(scene, &self.options, &settings);
         if self.options.compile_in_background {
             self.trace.prepare_in_background(device, self.features);
         } else {
@@ -382,6 +423,7 @@ impl Renderer {
         let paths = w as u64 * rows as u64 * round.k as u64;
         self.in_flight.push_back(InFlight {
             index,
+            features,
             paths,
             submitted: Instant::now(),
         });
@@ -416,6 +458,13 @@ impl Renderer {
             let now = Instant::now();
             let started = f.submitted.max(self.last_done);
             self.schedule.observe(f.paths, now - started);
+            // Short submissions are mostly fixed cost: they would not tell the pipelines
+            // apart.
+            if let Some(t) = &mut self.tune
+                && now - started >= self.schedule.target / 2
+            {
+                t.observe(f.features, f.paths, (now - started).as_secs_f64());
+            }
             tracing::debug!(
                 "submission of {} paths took {:.2} ms ({} queued behind it)",
                 f.paths,
