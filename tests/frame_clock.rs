@@ -9,6 +9,8 @@ use std::sync::atomic::{AtomicI64, Ordering};
 use std::time::Duration;
 use termtrace::cli::preview_bench::{PreviewBench, Probe};
 
+mod common;
+
 /// Frames the far screen has received once they stop coming (none for `quiet`).
 fn settled_frames(p: &Probe<'_>, quiet: Duration) -> u64 {
     let mut last = p.screen().frames;
@@ -81,4 +83,77 @@ fn without_answers_frames_stop_and_a_late_answer_releases_the_latest_state() {
             .expect("frames flow again");
     })
     .expect("the preview runs in a pseudo-terminal");
+}
+
+#[test]
+fn once_the_accumulation_stops_the_far_screen_is_a_direct_render() {
+    // 60×16 cells: 14 rows of half blocks (60×28 pixels) above the two status rows; the
+    // pseudo-terminal's 10×20-pixel cells make square pixels, as a direct render has.
+    let (cols, rows, spp) = (60u16, 16u16, 8u32);
+    let b = PreviewBench {
+        exe: env!("CARGO_BIN_EXE_termtrace").into(),
+        scene: "basic".into(),
+        cols,
+        rows,
+        presses: 0,
+        settle: Duration::ZERO,
+        timeout: Duration::from_secs(60),
+        window: Duration::ZERO,
+        args: vec!["--max-spp".into(), spp.to_string()],
+        link: None,
+        command: None,
+        answer_gate: None,
+    };
+    let far = b
+        .run_with(|p| {
+            p.wait_for(Duration::from_secs(120), |s| s.spp == Some(spp as u64))
+                .expect("the preview reaches --max-spp");
+            // The final frame and any rest of it have been answered and drawn.
+            std::thread::sleep(Duration::from_secs(2));
+            p.cells(0..rows - 2)
+        })
+        .expect("the preview runs in a pseudo-terminal");
+
+    let scene = termtrace::scene::Scene::load("basic").unwrap();
+    let s = termtrace::gpu::FrameSettings::new(
+        cols as u32,
+        2 * (rows as u32 - 2),
+        scene.render.max_bounces,
+        scene.render.seed,
+    );
+    let mut r = termtrace::render::Renderer::new(
+        common::ctx(),
+        &scene,
+        s,
+        termtrace::render::RenderOptions::default(),
+    );
+    r.render_spp(spp);
+    let direct = termtrace::output::cells::encode(
+        &r.snapshot().image(),
+        termtrace::output::cells::CellMode::Half,
+        termtrace::output::cells::ColorMode::Truecolor,
+    );
+    let rgb = |c: termtrace::output::cells::CellColor| match c {
+        termtrace::output::cells::CellColor::Rgb(v) => Some(v),
+        _ => None,
+    };
+    let mut worst = 0u8;
+    for (row, far_row) in far.iter().enumerate() {
+        for (col, f) in far_row.iter().enumerate() {
+            let d = direct[row * cols as usize + col];
+            assert_eq!(f.glyph, d.glyph.to_string(), "cell {col},{row}");
+            for (a, b) in [(f.fg, rgb(d.fg)), (f.bg, rgb(d.bg))] {
+                let (a, b) = (a.expect("a 24-bit colour"), b.expect("a 24-bit colour"));
+                for c in 0..3 {
+                    worst = worst.max(a[c].abs_diff(b[c]));
+                }
+            }
+        }
+    }
+    // The GPU's resolve and the host's image round the same sums to f32 in two orders: a
+    // channel may land one 8-bit step apart, never more.
+    assert!(
+        worst <= 1,
+        "the far screen differs from a direct render by up to {worst}"
+    );
 }

@@ -106,6 +106,8 @@ struct Seen {
 
 struct Shared {
     seen: Mutex<Seen>,
+    /// The far terminal's screen.
+    parser: Mutex<Option<vt100::Parser>>,
     cond: Condvar,
 }
 
@@ -229,6 +231,7 @@ impl PreviewBench {
         let mut writer = pty.master.take_writer()?;
         let shared = Arc::new(Shared {
             seen: Mutex::new(Seen::default()),
+            parser: Mutex::new(None),
             cond: Condvar::new(),
         });
         let link = self.link.unwrap_or(Link {
@@ -284,7 +287,7 @@ impl PreviewBench {
         let gate = self.answer_gate.clone();
         let far_thread = std::thread::spawn(move || {
             let nz = |n: u16| std::num::NonZeroU16::new(n.max(1)).expect("at least 1");
-            let mut parser = vt100::Parser::new(nz(rows), nz(cols), 0);
+            *sh.parser.lock().expect("screen") = Some(vt100::Parser::new(nz(rows), nz(cols), 0));
             let (mut frame_tail, mut query_tail) = (Vec::new(), Vec::new());
             let mut on_wire: std::collections::VecDeque<(Instant, Vec<u8>)> = Default::default();
             let mut link_free = Instant::now();
@@ -337,12 +340,15 @@ impl PreviewBench {
                 while on_wire.front().is_some_and(|w| w.0 <= now) {
                     let (_, piece) = on_wire.pop_front().expect("a piece");
                     let parse_start = Instant::now();
+                    let mut guard = sh.parser.lock().expect("screen");
+                    let parser = guard.as_mut().expect("a parser");
                     parser.process(&piece);
                     let frames = count_split(&mut frame_tail, &piece, SYNC_BEGIN);
                     let queries = count_split(&mut query_tail, &piece, QUERY);
                     let mut s = sh.seen.lock().expect("screen state");
                     let before = (s.spp, s.params.clone());
                     read_status(parser.screen(), &mut s);
+                    drop(guard);
                     s.parse += parse_start.elapsed();
                     s.bytes += piece.len() as u64;
                     s.frames += frames;
@@ -507,6 +513,14 @@ pub struct Probe<'a> {
     half_rtt: Duration,
 }
 
+/// One cell of the far screen.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct FarCell {
+    pub glyph: String,
+    pub fg: Option<[u8; 3]>,
+    pub bg: Option<[u8; 3]>,
+}
+
 /// The far screen's status, as `Probe::screen` reads it.
 #[derive(Clone, Debug, Default)]
 pub struct Screen {
@@ -540,6 +554,35 @@ impl Probe<'_> {
 
     pub fn screen(&self) -> Screen {
         Self::view(&self.shared.seen.lock().expect("screen state"))
+    }
+
+    /// The far screen's cells in `rows` (top first): glyph and 24-bit colours (`None` for a
+    /// default or indexed colour).
+    pub fn cells(&self, rows: std::ops::Range<u16>) -> Vec<Vec<FarCell>> {
+        let guard = self.shared.parser.lock().expect("screen");
+        let Some(parser) = guard.as_ref() else {
+            return Vec::new();
+        };
+        let screen = parser.screen();
+        let (_, cols) = screen.size();
+        let rgb = |c: vt100::Color| match c {
+            vt100::Color::Rgb(r, g, b) => Some([r, g, b]),
+            _ => None,
+        };
+        rows.map(|r| {
+            (0..cols.get())
+                .map(|c| {
+                    screen
+                        .cell(r, c)
+                        .map_or(FarCell::default(), |cell| FarCell {
+                            glyph: cell.contents().to_string(),
+                            fg: rgb(cell.fgcolor()),
+                            bg: rgb(cell.bgcolor()),
+                        })
+                })
+                .collect()
+        })
+        .collect()
     }
 
     /// Waits until `pred` holds of the screen, or `timeout`.

@@ -227,6 +227,8 @@ struct Ui {
     cells_left: usize,
     /// Frames in a row that changed almost nothing.
     quiet_frames: u32,
+    /// The latest image is final (`--max-spp` reached): every cell that differs is sent.
+    exact: bool,
     quit: bool,
     /// Messages to print once the terminal is restored.
     farewell: Vec<String>,
@@ -292,6 +294,7 @@ impl Ui {
                     self.app.stats = f.stats;
                     self.app.image = Some(f.image);
                     self.app.image_sigma = f.sigma;
+                    self.exact = f.last;
                     self.fresh_image = true;
                 }
             }
@@ -362,6 +365,8 @@ impl Ui {
             (bytes as f64 / self.bytes_per_cell).max(1.0) as usize
         });
         let thresholds = match self.color {
+            // The final image goes out exactly: what stays on screen is the render.
+            _ if self.exact => vec![0; encoded.len()],
             ColorMode::Truecolor => cells::noise_thresholds(
                 img,
                 &self.app.image_sigma,
@@ -730,6 +735,7 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         cells_changed: 0,
         cells_left: 0,
         quiet_frames: 0,
+        exact: false,
         quit: false,
         farewell: Vec::new(),
     };

@@ -52,6 +52,8 @@ pub struct Frame {
     pub image: LinearImage,
     /// Per image pixel, the standard error of its value (see `Resolved::sigma`).
     pub sigma: Vec<f32>,
+    /// The accumulation has stopped: the image is final.
+    pub last: bool,
     pub stats: Stats,
     /// The `Request::Scene` this frame renders.
     pub generation: u64,
@@ -76,6 +78,8 @@ struct SaveJob {
 struct FrameTag {
     generation: u64,
     epoch: u64,
+    /// The accumulation has stopped (`--max-spp`): this is the final image.
+    last: bool,
     spp: u32,
     paths: u64,
 }
@@ -298,6 +302,7 @@ impl Worker {
         self.pending[slot] = Some(FrameTag {
             generation: self.generation,
             epoch: self.epoch,
+            last: !busy,
             spp,
             paths: p.paths,
         });
@@ -341,6 +346,7 @@ impl Worker {
             let frame = Frame {
                 image: resolved.image,
                 sigma: resolved.sigma,
+                last: tag.last,
                 stats: Stats {
                     width: s.width,
                     height: s.height,
