@@ -29,18 +29,9 @@ fn settled_frames(p: &Probe<'_>, quiet: Duration) -> u64 {
 fn without_answers_frames_stop_and_a_late_answer_releases_the_latest_state() {
     let gate = Arc::new(AtomicI64::new(i64::MAX / 2));
     let b = PreviewBench {
-        exe: env!("CARGO_BIN_EXE_termtrace").into(),
-        scene: "basic".into(),
-        cols: 60,
-        rows: 16,
-        presses: 0,
-        settle: Duration::ZERO,
-        timeout: Duration::from_secs(60),
-        window: Duration::ZERO,
         args: vec!["--max-spp".into(), "1000000".into()],
-        link: None,
-        command: None,
         answer_gate: Some(gate.clone()),
+        ..PreviewBench::new(env!("CARGO_BIN_EXE_termtrace"), "basic", 60, 16)
     };
     b.run_with(|p| {
         // Answered frames until the image has a few samples.
@@ -91,18 +82,8 @@ fn once_the_accumulation_stops_the_far_screen_is_a_direct_render() {
     // pseudo-terminal's 10×20-pixel cells make square pixels, as a direct render has.
     let (cols, rows, spp) = (60u16, 16u16, 8u32);
     let b = PreviewBench {
-        exe: env!("CARGO_BIN_EXE_termtrace").into(),
-        scene: "basic".into(),
-        cols,
-        rows,
-        presses: 0,
-        settle: Duration::ZERO,
-        timeout: Duration::from_secs(60),
-        window: Duration::ZERO,
         args: vec!["--max-spp".into(), spp.to_string()],
-        link: None,
-        command: None,
-        answer_gate: None,
+        ..PreviewBench::new(env!("CARGO_BIN_EXE_termtrace"), "basic", cols, rows)
     };
     let far = b
         .run_with(|p| {

@@ -9,19 +9,13 @@ use termtrace::cli::preview_bench::PreviewBench;
 #[test]
 fn the_harness_sees_each_edit_with_a_restarted_sample_count() {
     let b = PreviewBench {
-        exe: env!("CARGO_BIN_EXE_termtrace").into(),
-        scene: "basic".into(),
-        cols: 60,
-        rows: 16,
         presses: 2,
         settle: Duration::from_millis(300),
         // Generous: this checks what is shown, not how fast (CI's software adapter is slow).
         timeout: Duration::from_secs(60),
         window: Duration::from_millis(800),
         args: vec!["--max-spp".into(), "1000000".into()],
-        link: None,
-        command: None,
-        answer_gate: None,
+        ..PreviewBench::new(env!("CARGO_BIN_EXE_termtrace"), "basic", 60, 16)
     };
     let r = b.run().expect("the preview runs in a pseudo-terminal");
     assert_eq!(r.misses, 0, "{r:?}");

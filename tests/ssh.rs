@@ -29,21 +29,15 @@ fn the_preview_works_through_openssh_and_measures_the_link() {
     .iter()
     .map(|s| s.to_string())
     .collect();
+    // Wide enough for the status line's last field, the link.
     let b = PreviewBench {
-        exe: exe.into(),
-        scene: "basic".into(),
-        // Wide enough for the status line's last field, the link.
-        cols: 140,
-        rows: 12,
         presses: 2,
         settle: Duration::from_millis(300),
         // Generous: this checks what is shown, not how fast.
         timeout: Duration::from_secs(60),
         window: Duration::from_millis(1500),
-        args: Vec::new(),
-        link: None,
         command: Some(link.command(&remote)),
-        answer_gate: None,
+        ..PreviewBench::new(exe, "basic", 140, 12)
     };
     let r = b.run().expect("the preview runs through ssh");
     assert_eq!(r.misses, 0, "{r:?}");

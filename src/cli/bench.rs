@@ -245,7 +245,7 @@ fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     if a.generic {
         args.push("--generic".to_string());
     }
-    let b = super::preview_bench::PreviewBench {
+    let mut b = super::preview_bench::PreviewBench {
         exe: match &a.exe {
             Some(p) => p.clone(),
             None => std::env::current_exe()?,
@@ -266,7 +266,6 @@ fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         command: None,
         answer_gate: None,
     };
-    let mut b = b;
     // Kept alive while the preview runs through it.
     let _ssh = if a.ssh {
         let link = super::ssh_link::SshLink::start(

@@ -181,6 +181,25 @@ fn count_split(tail: &mut Vec<u8>, data: &[u8], pattern: &[u8]) -> u64 {
 }
 
 impl PreviewBench {
+    /// `exe view scene` in a `cols × rows` terminal, nothing typed, no link between: the
+    /// fields to set for a run start from here.
+    pub fn new(exe: impl Into<PathBuf>, scene: &str, cols: u16, rows: u16) -> PreviewBench {
+        PreviewBench {
+            exe: exe.into(),
+            scene: scene.to_string(),
+            cols,
+            rows,
+            presses: 0,
+            settle: Duration::ZERO,
+            timeout: Duration::from_secs(60),
+            window: Duration::ZERO,
+            args: Vec::new(),
+            link: None,
+            command: None,
+            answer_gate: None,
+        }
+    }
+
     /// The termtrace binary, as an absolute path (a relative one would be looked up in PATH).
     pub fn exe_path(&self) -> anyhow::Result<std::path::PathBuf> {
         std::fs::canonicalize(&self.exe)

@@ -690,14 +690,7 @@ fn print_stats(h: &History, total: u64, stats: &app::Stats) {
 
 /// Opens the preview; returns when the user quits.
 pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
-    let Setup {
-        scene,
-        ctx,
-        adapter,
-        color,
-        cells,
-        kitty,
-    } = setup(&opts)?;
+    let setup = setup(&opts)?;
     let (tx, rx) = std::sync::mpsc::channel::<Event>();
     let signal_tx = tx.clone();
     let _ = ctrlc::set_handler(move || {
@@ -706,7 +699,7 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
     let guard = term::TerminalGuard::enter(opts.log.as_deref())?;
     spawn_input(tx.clone())?;
     let (to_worker, worker) = worker::spawn(
-        ctx,
+        setup.ctx,
         WorkerOptions {
             fps: opts.fps,
             max_spp: opts.max_spp,
@@ -719,10 +712,10 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         bytes.clone(),
     )))?;
     let mut ui = Ui {
-        app: App::new(scene, adapter, cells),
+        app: App::new(setup.scene, setup.adapter, setup.cells),
         opts: opts.clone(),
-        color,
-        kitty,
+        color: setup.color,
+        kitty: setup.kitty,
         grid: Grid::default(),
         to_worker,
         generation: 0,
