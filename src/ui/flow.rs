@@ -7,9 +7,11 @@
 //! key's frame waits behind at most one frame in flight, whatever the link.
 //!
 //! The answers also measure the link: its round trip (the quickest answer to a small frame)
-//! and its rate (bytes per second of answered frames sent back to back), shown in the status
-//! line. A terminal that never answers gets a byte budget instead, and the status line says
-//! so. Inside tmux the answers come from tmux itself, so they measure the link to tmux.
+//! and its rate (a large frame's bytes over the time its answer took beyond the later of two
+//! bounds: a round trip after it was written, and the previous answer), shown in the status
+//! line; a frame may take [`FRAME_TIME`] of the link at that rate. A terminal that never
+//! answers gets a byte budget instead, and the status line says so. Inside tmux the answers
+//! come from tmux itself, so they measure the link to tmux.
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
