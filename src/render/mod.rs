@@ -169,7 +169,7 @@ impl Renderer {
         } else {
             None
         };
-        Renderer {
+        let mut r = Renderer {
             timer,
             trace,
             scene: buffers,
@@ -188,16 +188,12 @@ impl Renderer {
             in_flight: VecDeque::new(),
             tune: None,
             last_done: Instant::now(),
-        }
-        .with_tune()
+        };
+        r.retune();
+        r
     }
 
     /// Starts timing the specialized pipeline against the generic one, where they differ.
-    fn with_tune(mut self) -> Renderer {
-        self.retune();
-        self
-    }
-
     fn retune(&mut self) {
         let generic = self.generic_features();
         self.tune = (!self.options.generic
@@ -297,8 +293,9 @@ impl Renderer {
         }
     }
 
-    /// The pipeline the next submission uses: the scene's own when compiled, else (when
-    /// compiling in the background) the generic one, which renders the same image.
+    /// The pipeline the next submission uses: the tuner's pick (or the scene's own) when
+    /// compiled; else, when compiling in the background, whichever of the scene's own and the
+    /// generic one is ready (they render the same image); else compiled now.
     fn pipeline_features(&mut self) -> Features {
         let want = self.tune.as_ref().map_or(self.features, tune::Tune::next);
         if self.trace.ready(want) {
@@ -456,19 +453,19 @@ impl Renderer {
                 })
                 .expect("the GPU stopped answering");
             let now = Instant::now();
-            let started = f.submitted.max(self.last_done);
-            self.schedule.observe(f.paths, now - started);
+            let took = now - f.submitted.max(self.last_done);
+            self.schedule.observe(f.paths, took);
             // Short submissions are mostly fixed cost: they would not tell the pipelines
             // apart.
             if let Some(t) = &mut self.tune
-                && now - started >= self.schedule.target / 2
+                && took >= self.schedule.target / 2
             {
-                t.observe(f.features, f.paths, (now - started).as_secs_f64());
+                t.observe(f.features, f.paths, took.as_secs_f64());
             }
             tracing::debug!(
                 "submission of {} paths took {:.2} ms ({} queued behind it)",
                 f.paths,
-                (now - started).as_secs_f64() * 1e3,
+                took.as_secs_f64() * 1e3,
                 self.in_flight.len()
             );
             self.last_done = now;
@@ -479,11 +476,6 @@ impl Renderer {
     /// look's first half.
     pub fn has_image(&self) -> bool {
         self.samples > 0 || self.round.is_some_and(|r| r.stride > 1 && r.next_row > 0)
-    }
-
-    /// Submissions the GPU has not finished (as far as `wait` knows).
-    pub fn in_flight(&self) -> usize {
-        self.in_flight.len()
     }
 
     /// Traces for about `budget` (at least one submission), never past `max_samples` per

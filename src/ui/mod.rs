@@ -211,8 +211,6 @@ struct Ui {
     grid: Grid,
     to_worker: Sender<Request>,
     generation: u64,
-    /// Settings of the latest scene request, to recognise its frames.
-    settings: Option<FrameSettings>,
     fresh_image: bool,
     /// A frame that shows an edit arrived: draw it now.
     urgent: bool,
@@ -245,7 +243,6 @@ impl Ui {
             self.app.nee,
             image,
         );
-        self.settings = s;
         if let Some(settings) = s {
             self.generation += 1;
             let _ = self.to_worker.send(Request::Scene {
@@ -719,7 +716,6 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         grid: Grid::default(),
         to_worker,
         generation: 0,
-        settings: None,
         fresh_image: false,
         urgent: false,
         shown_generation: 0,
