@@ -350,6 +350,9 @@ impl Ui {
             let n = image.width as usize * image.height as usize;
             self.grid
                 .update(image.width, image.height, vec![blank; n], 0);
+            // The protocol resends the whole image: for the frame pacing it all changed.
+            self.cells_changed = n;
+            self.cells_left = 0;
             return;
         }
         // The render thread sends the image already averaged down to the cells' pixels.
