@@ -313,14 +313,13 @@ impl PreviewBench {
             // Queries read and not yet answered (see `answer_gate`).
             let mut held = 0u64;
             loop {
-                while held > 0
-                    && gate.as_ref().is_none_or(|g| {
-                        g.fetch_sub(1, std::sync::atomic::Ordering::SeqCst) > 0 || {
-                            g.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
-                            false
-                        }
-                    })
-                {
+                // Take one from the gate, if it holds any.
+                let take = |g: &std::sync::atomic::AtomicI64| {
+                    use std::sync::atomic::Ordering::SeqCst;
+                    g.fetch_update(SeqCst, SeqCst, |v| (v > 0).then(|| v - 1))
+                        .is_ok()
+                };
+                while held > 0 && gate.as_deref().is_none_or(take) {
                     held -= 1;
                     let _ = answers.send((Instant::now() + half_rtt, ANSWER.to_vec()));
                 }

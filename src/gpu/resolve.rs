@@ -40,7 +40,8 @@ struct Slot {
     buffer: Option<wgpu::Buffer>,
     state: Arc<AtomicU8>,
     out: (u32, u32),
-    traced_pixels: u64,
+    /// Traced pixels per output pixel, each way.
+    factor: u32,
 }
 
 pub struct ResolvePass {
@@ -75,7 +76,7 @@ impl ResolvePass {
                 buffer: None,
                 state: Arc::new(AtomicU8::new(FREE)),
                 out: (0, 0),
-                traced_pixels: 0,
+                factor: 1,
             })
             .collect();
         ResolvePass {
@@ -167,7 +168,7 @@ impl ResolvePass {
         ctx.queue.submit([enc.finish()]);
         s.state.store(PENDING, Ordering::Release);
         s.out = out;
-        s.traced_pixels = width as u64 * height as u64;
+        s.factor = factor;
         let state = s.state.clone();
         staging
             .slice(..bytes + COUNTER_BYTES)
@@ -207,7 +208,8 @@ impl ResolvePass {
                 .expect("the staging buffer is mapped");
             let words: &[[f32; 8]] = bytemuck::cast_slice(&data[..bytes as usize]);
             let c: &[u32] = bytemuck::cast_slice(&data[bytes as usize..]);
-            let block = (s.traced_pixels as f64 / n.max(1) as f64).max(1.0) as f32;
+            // The block's mean has 1/factor⁴ of its pixels' summed variance.
+            let block = (s.factor * s.factor) as f32;
             let sigma = words
                 .iter()
                 .map(|w| (w[4] / (3.0 * block * block)).max(0.0).sqrt())
@@ -221,7 +223,8 @@ impl ResolvePass {
                     [w[0], w[1], w[2]]
                 })
                 .collect();
-            let channels = 3.0 * s.traced_pixels.max(1) as f64;
+            // Over the traced pixels the output covers (all of them when the size divides).
+            let channels = 3.0 * n as f64 * block as f64;
             Resolved {
                 image: LinearImage {
                     width: s.out.0,
