@@ -6,6 +6,7 @@
 pub mod bvh;
 pub mod cli;
 pub mod converge;
+pub mod cpu;
 pub mod gpu;
 pub mod output;
 pub mod render;

@@ -229,10 +229,17 @@ fn ctrl_c_during_a_timed_render_still_writes_the_image() {
 }
 
 #[test]
-fn adapters_lists_at_least_one() {
+fn adapters_lists_at_least_one_and_the_cpu_tracer() {
     let (code, out, err) = run(termtrace().arg("adapters"));
     assert_eq!(code, 0, "{err}");
     assert!(out.contains("[0]"), "{out}");
+    assert!(out.contains("[cpu-native]"), "{out}");
+    // Exactly one is marked as the default.
+    assert_eq!(
+        out.lines().filter(|l| l.starts_with('*')).count(),
+        1,
+        "{out}"
+    );
 }
 
 #[test]

@@ -21,7 +21,7 @@ fn the_gpu_resolve_matches_the_host_downsample_and_noise_estimate() {
         let host = cells::downsample(&snap.image(), factor);
         let mut pass = ResolvePass::new(&ctx.device);
         let slot = pass
-            .request(&ctx, r.accumulation(), (s.width, s.height), factor)
+            .request(&ctx, r.accumulation().unwrap(), (s.width, s.height), factor)
             .expect("a free slot");
         let gpu = loop {
             ctx.device
@@ -54,12 +54,12 @@ fn the_noise_estimate_waits_for_a_sample_in_each_half() {
     r.render_spp(1);
     let mut pass = ResolvePass::new(&ctx.device);
     let slot = pass
-        .request(&ctx, r.accumulation(), (8, 8), 1)
+        .request(&ctx, r.accumulation().unwrap(), (8, 8), 1)
         .expect("a free slot");
     // A second request takes the other slot; a third finds none until one is taken.
-    let other = pass.request(&ctx, r.accumulation(), (8, 8), 1).unwrap();
+    let other = pass.request(&ctx, r.accumulation().unwrap(), (8, 8), 1).unwrap();
     assert_ne!(slot, other);
-    assert!(pass.request(&ctx, r.accumulation(), (8, 8), 1).is_none());
+    assert!(pass.request(&ctx, r.accumulation().unwrap(), (8, 8), 1).is_none());
     ctx.device
         .poll(wgpu::PollType::wait_indefinitely())
         .unwrap();
@@ -67,4 +67,31 @@ fn the_noise_estimate_waits_for_a_sample_in_each_half() {
     assert!(one.noise.is_none(), "one sample: no odd half yet");
     assert!(pass.take(other).is_some());
     assert!(pass.has_free_slot());
+}
+
+#[test]
+fn the_cpu_tracers_frames_match_the_host_downsample_and_noise_estimate() {
+    let scene = Scene::load("showcase").unwrap();
+    for factor in [1, 2, 3] {
+        let s = settings(12 * factor, 6 * factor, 6);
+        let mut r = Renderer::new(
+            termtrace::render::Backend::Cpu,
+            &scene,
+            s,
+            RenderOptions::default(),
+        );
+        assert!(r.resolve_on_host(factor).unwrap().noise.is_none());
+        r.render_spp(6);
+        let snap = r.snapshot();
+        let host = cells::downsample(&snap.image(), factor);
+        let frame = r.resolve_on_host(factor).expect("the CPU makes frames on the host");
+        assert_eq!((frame.image.width, frame.image.height), (12, 6));
+        for (i, (a, b)) in frame.image.pixels.iter().zip(&host.pixels).enumerate() {
+            let close = (0..3).all(|c| (a[c] - b[c]).abs() <= 1e-5 * b[c].abs().max(1e-3));
+            assert!(close, "factor {factor}, pixel {i}: frame {a:?}, host {b:?}");
+        }
+        let (f, h) = (frame.noise.unwrap(), snap.noise_estimate().unwrap());
+        assert!((f - h).abs() <= 1e-4 * h, "factor {factor}: noise {f}, host {h}");
+        assert!(frame.sigma.iter().all(|s| s.is_finite() && *s >= 0.0));
+    }
 }

@@ -1,6 +1,7 @@
 //! Two ways to the same image: the BVH against testing every primitive, and the pipeline
 //! specialized for a scene against the generic one. Both evaluate the same arithmetic on the
-//! same random numbers, so the images must agree bit for bit.
+//! same random numbers, so the images must agree bit for bit, on the GPU adapter and on the
+//! native CPU tracer (`on_both`).
 
 mod common;
 use common::*;
@@ -70,70 +71,74 @@ fn crowded_scene() -> String {
 
 #[test]
 fn the_bvh_finds_the_same_hits_as_testing_every_primitive() {
-    let text = crowded_scene();
-    // The mesh path is relative to the built-in scenes' folder.
-    let scene = Scene::from_toml(&text, "builtin:test").unwrap();
-    let n = scene.counts();
-    assert!(n.spheres > 200 && n.quads == 40 && n.boxes == 40 && n.triangles > 2000);
-    let s = settings(48, 32, 8);
-    let with = snapshot_with(&scene, s, 4, RenderOptions::default()).image();
-    let without = snapshot_with(
-        &scene,
-        s,
-        4,
-        RenderOptions {
-            no_bvh: true,
-            ..Default::default()
-        },
-    )
-    .image();
-    let (differ, worst, first) = image_diff(&with, &without);
-    assert_eq!(
-        differ, 0,
-        "{differ} pixels differ (by up to {worst:e}, first at {first:?})"
-    );
-    // And the image is not trivially uniform: the test sees geometry.
-    let distinct: std::collections::HashSet<_> =
-        with.pixels.iter().map(|p| p.map(f32::to_bits)).collect();
-    assert!(
-        distinct.len() > 500,
-        "only {} distinct pixels",
-        distinct.len()
-    );
+    on_both(|| {
+        let text = crowded_scene();
+        // The mesh path is relative to the built-in scenes' folder.
+        let scene = Scene::from_toml(&text, "builtin:test").unwrap();
+        let n = scene.counts();
+        assert!(n.spheres > 200 && n.quads == 40 && n.boxes == 40 && n.triangles > 2000);
+        let s = settings(48, 32, 8);
+        let with = snapshot_with(&scene, s, 4, RenderOptions::default()).image();
+        let without = snapshot_with(
+            &scene,
+            s,
+            4,
+            RenderOptions {
+                no_bvh: true,
+                ..Default::default()
+            },
+        )
+        .image();
+        let (differ, worst, first) = image_diff(&with, &without);
+        assert_eq!(
+            differ, 0,
+            "{differ} pixels differ (by up to {worst:e}, first at {first:?})"
+        );
+        // And the image is not trivially uniform: the test sees geometry.
+        let distinct: std::collections::HashSet<_> =
+            with.pixels.iter().map(|p| p.map(f32::to_bits)).collect();
+        assert!(
+            distinct.len() > 500,
+            "only {} distinct pixels",
+            distinct.len()
+        );
+    });
 }
 
 #[test]
 fn specialized_and_generic_pipelines_give_the_same_image() {
-    for (name, _) in BUILTIN_SCENES {
-        let scene = Scene::load(name).unwrap();
-        let s = settings(32, 18, scene.render.max_bounces.min(8));
-        // The specialized pipeline itself, not whichever of the two the tuner prefers.
-        let special = snapshot_with(
-            &scene,
-            s,
-            2,
-            RenderOptions {
-                no_tune: true,
-                ..Default::default()
-            },
-        )
-        .image();
-        let generic = snapshot_with(
-            &scene,
-            s,
-            2,
-            RenderOptions {
-                generic: true,
-                ..Default::default()
-            },
-        )
-        .image();
-        let (differ, worst, first) = image_diff(&special, &generic);
-        assert_eq!(
-            differ, 0,
-            "{name}: {differ} pixels differ (by up to {worst:e}, first at {first:?})"
-        );
-    }
+    on_both(|| {
+        for (name, _) in BUILTIN_SCENES {
+            let scene = Scene::load(name).unwrap();
+            let s = settings(32, 18, scene.render.max_bounces.min(8));
+            // The specialized pipeline itself, not whichever of the two the tuner prefers.
+            let special = snapshot_with(
+                &scene,
+                s,
+                2,
+                RenderOptions {
+                    no_tune: true,
+                    ..Default::default()
+                },
+            )
+            .image();
+            let generic = snapshot_with(
+                &scene,
+                s,
+                2,
+                RenderOptions {
+                    generic: true,
+                    ..Default::default()
+                },
+            )
+            .image();
+            let (differ, worst, first) = image_diff(&special, &generic);
+            assert_eq!(
+                differ, 0,
+                "{name}: {differ} pixels differ (by up to {worst:e}, first at {first:?})"
+            );
+        }
+    });
 }
 
 #[test]

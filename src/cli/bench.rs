@@ -4,12 +4,11 @@
 
 use super::GlobalArgs;
 use super::render::{frame_settings, rate_text};
-use crate::gpu::GpuContext;
+use crate::render::Backend;
 use crate::render::{RenderOptions, Renderer};
 use crate::scene::load_scene;
 use clap::Args;
 use std::process::ExitCode;
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 #[derive(Args, Debug)]
@@ -108,7 +107,7 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         nee: !a.no_nee,
         ..frame_settings(&scene, Some(a.width), Some(a.height), a.max_bounces, None)
     };
-    let ctx = Arc::new(GpuContext::new(g.adapter.as_deref())?);
+    let ctx = Backend::open(g.adapter.as_deref())?;
     let options = RenderOptions {
         generic: a.generic,
         count_segments: true,
@@ -134,7 +133,7 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let secs = start.elapsed().as_secs_f64();
     let snap = r.snapshot();
     let segments = snap.data.segments;
-    println!("adapter      {}", ctx.adapter_name());
+    println!("adapter      {}", ctx.describe());
     println!(
         "scene        {} at {}x{}, max_bounces {}, tracer {} ({})",
         match a.spheres {

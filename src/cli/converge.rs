@@ -4,8 +4,8 @@
 use super::GlobalArgs;
 use super::render::frame_settings;
 use crate::converge::{self, Variant, metrics, plot, reference};
-use crate::gpu::GpuContext;
 use crate::output::{Transfer, write_exr, write_png};
+use crate::render::Backend;
 use crate::render::RenderOptions;
 use crate::scene::load_scene;
 use anyhow::Context;
@@ -13,7 +13,6 @@ use clap::{Args, Parser};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::Arc;
 use std::time::Duration;
 
 #[derive(Args, Debug)]
@@ -135,13 +134,13 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create the output directory {}", a.out.display()))?;
     crate::output::check_writable(&a.out.join("convergence.csv"))?;
-    let ctx = Arc::new(GpuContext::new(g.adapter.as_deref())?);
+    let ctx = Backend::open(g.adapter.as_deref())?;
     eprintln!(
         "converge: {} at {}x{} on {}",
         scene.origin,
         settings.width,
         settings.height,
-        ctx.adapter_name()
+        ctx.describe()
     );
 
     let reference = match &a.reference {

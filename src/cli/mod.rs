@@ -29,8 +29,10 @@ pub struct Cli {
 /// Options every command takes.
 #[derive(Args, Debug, Clone)]
 pub struct GlobalArgs {
-    /// GPU adapter to use: part of its name, a backend (vulkan, gl, metal, dx12), a type
-    /// (cpu, discrete, integrated) or its number in `termtrace adapters`.
+    /// Where to trace: `cpu-native` (the native CPU tracer), or a GPU adapter by part of its
+    /// name, a backend (vulkan, gl, metal, dx12), a type (cpu, discrete, integrated) or its
+    /// number in `termtrace adapters`. Default: the best GPU; the native CPU tracer where the
+    /// best adapter is a software one or there is none.
     #[arg(long, global = true, env = "TERMTRACE_ADAPTER", value_name = "NAME")]
     pub adapter: Option<String>,
     /// Write logs to this file.

@@ -2,8 +2,9 @@
 //! Ctrl-C that stops early and still saves, and atomic output files.
 
 use super::GlobalArgs;
-use crate::gpu::{FrameSettings, GpuContext};
+use crate::gpu::FrameSettings;
 use crate::output::{LinearImage, Transfer, check_writable, write_exr, write_png};
+use crate::render::Backend;
 use crate::render::{RenderOptions, Renderer};
 use crate::scene::MAX_IMAGE_SIDE;
 use crate::scene::load_scene;
@@ -12,7 +13,6 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -120,7 +120,7 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         nee: !a.no_nee,
         ..frame_settings(&scene, a.width, a.height, a.max_bounces, a.seed)
     };
-    let ctx = Arc::new(GpuContext::new(g.adapter.as_deref())?);
+    let ctx = Backend::open(g.adapter.as_deref())?;
     let options = RenderOptions {
         generic: a.generic,
         ..Default::default()
@@ -155,7 +155,7 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
             scene.origin,
             settings.width,
             settings.height,
-            ctx.adapter_name()
+            ctx.describe()
         );
     }
 
@@ -263,7 +263,7 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         snap.min_samples(),
         elapsed.as_secs_f64(),
         rate_text(rate),
-        ctx.adapter_name(),
+        ctx.describe(),
         estimate.map_or("–".into(), |e| format!("{:.3}%", e * 100.0)),
         snap.invalid_samples(),
     );

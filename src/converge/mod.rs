@@ -6,13 +6,13 @@ pub mod metrics;
 pub mod plot;
 pub mod reference;
 
-use crate::gpu::{FrameSettings, GpuContext};
+use crate::gpu::FrameSettings;
+use crate::render::Backend;
 use crate::render::{RenderOptions, Renderer, Snapshot};
 use crate::scene::Scene;
 use metrics::{Errors, errors_against_noisy, log_log_fit, time_to};
 use std::io::Write;
 use std::path::Path;
-use std::sync::Arc;
 use std::time::Duration;
 
 /// The first checkpoint, in seconds of rendering.
@@ -71,7 +71,7 @@ pub struct Run {
 
 /// What every run of a measurement shares.
 pub struct Setup<'a> {
-    pub ctx: &'a Arc<GpuContext>,
+    pub ctx: &'a Backend,
     pub scene: &'a Scene,
     pub settings: FrameSettings,
     pub reference: &'a crate::output::LinearImage,

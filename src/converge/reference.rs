@@ -2,14 +2,14 @@
 //! render made once and cached under a hash of everything that decides its pixels.
 
 use crate::gpu::AccumData;
-use crate::gpu::{FrameSettings, GpuContext};
+use crate::gpu::FrameSettings;
 use crate::output::LinearImage;
+use crate::render::Backend;
 use crate::render::{RenderOptions, Renderer, Snapshot};
 use crate::scene::Scene;
 use anyhow::{Context, bail};
 use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 use std::time::Duration;
 
 /// Seed of rendered references: no run uses it (runs count up from the scene's seed), so a
@@ -155,14 +155,14 @@ fn read_cache(path: &Path, width: u32, height: u32) -> Option<Snapshot> {
 
 /// Renders the reference at `spp` (or takes it from the cache), reporting progress.
 pub fn rendered(
-    ctx: &Arc<GpuContext>,
+    ctx: &Backend,
     scene: &Scene,
     settings: FrameSettings,
     spp: u32,
     cache_dir: Option<&Path>,
     mut progress: impl FnMut(u32, u32),
 ) -> anyhow::Result<Reference> {
-    let key = cache_key(scene, &settings, spp, &ctx.adapter_name());
+    let key = cache_key(scene, &settings, spp, &ctx.describe());
     let path = cache_dir.map(|d| d.join(format!("reference-{key:016x}.bin")));
     if let Some(p) = &path
         && let Some(snap) = read_cache(p, settings.width, settings.height)

@@ -44,6 +44,20 @@ impl AccumData {
     }
 }
 
+/// Decodes fixed-point sums (`ACCUM_WORDS` words per pixel) to `[r, g, b, samples]`.
+pub fn decode(words: &[u32]) -> Vec<[f32; 4]> {
+    words
+        .chunks_exact(ACCUM_WORDS)
+        .map(|p| {
+            let channel = |c: usize| {
+                let (frac, low, high) = (p[3 * c], p[3 * c + 1], p[3 * c + 2]);
+                (high as f64 * 4294967296.0 + low as f64 + frac as f64 / 4294967296.0) as f32
+            };
+            [channel(0), channel(1), channel(2), p[9] as f32]
+        })
+        .collect()
+}
+
 pub struct Accumulation {
     pub even: wgpu::Buffer,
     pub odd: wgpu::Buffer,
@@ -135,18 +149,6 @@ impl Accumulation {
             .expect("the readback buffer is mapped");
         let words: &[u32] = bytemuck::cast_slice(&data[..(2 * half) as usize]);
         let n = self.pixels as usize;
-        let decode = |w: &[u32]| -> Vec<[f32; 4]> {
-            w.chunks_exact(ACCUM_WORDS)
-                .map(|p| {
-                    let channel = |c: usize| {
-                        let (frac, low, high) = (p[3 * c], p[3 * c + 1], p[3 * c + 2]);
-                        (high as f64 * 4294967296.0 + low as f64 + frac as f64 / 4294967296.0)
-                            as f32
-                    };
-                    [channel(0), channel(1), channel(2), p[9] as f32]
-                })
-                .collect()
-        };
         let even = decode(&words[..n * ACCUM_WORDS]);
         let odd = decode(&words[n * ACCUM_WORDS..]);
         let c: &[u32] = bytemuck::cast_slice(&data[(2 * half) as usize..]);

@@ -36,6 +36,42 @@ pub struct Resolved {
     pub sigma: Vec<f32>,
 }
 
+impl Resolved {
+    /// The frame from the resolve's two vec4f per output pixel (see resolve.wgsl; the CPU
+    /// tracer computes the same terms on the host): `out` pixels, each the mean of a
+    /// `factor × factor` block.
+    pub fn from_blocks(words: &[[f32; 8]], out: (u32, u32), factor: u32, invalid: u64) -> Resolved {
+        let n = out.0 as usize * out.1 as usize;
+        // The block's mean has 1/factor⁴ of its pixels' summed variance.
+        let block = (factor * factor) as f32;
+        let sigma = words
+            .iter()
+            .map(|w| (w[4] / (3.0 * block * block)).max(0.0).sqrt())
+            .collect();
+        let (mut rel, mut fewest) = (0.0f64, f32::INFINITY);
+        let pixels = words
+            .iter()
+            .map(|w| {
+                fewest = fewest.min(w[3]);
+                rel += w[5] as f64;
+                [w[0], w[1], w[2]]
+            })
+            .collect();
+        // Over the traced pixels the output covers (all of them when the size divides).
+        let channels = 3.0 * n as f64 * block as f64;
+        Resolved {
+            image: LinearImage {
+                width: out.0,
+                height: out.1,
+                pixels,
+            },
+            noise: (fewest >= 1.0).then(|| (rel / channels).sqrt()),
+            invalid,
+            sigma,
+        }
+    }
+}
+
 struct Slot {
     buffer: Option<wgpu::Buffer>,
     state: Arc<AtomicU8>,
@@ -208,33 +244,7 @@ impl ResolvePass {
                 .expect("the staging buffer is mapped");
             let words: &[[f32; 8]] = bytemuck::cast_slice(&data[..bytes as usize]);
             let c: &[u32] = bytemuck::cast_slice(&data[bytes as usize..]);
-            // The block's mean has 1/factor⁴ of its pixels' summed variance.
-            let block = (s.factor * s.factor) as f32;
-            let sigma = words
-                .iter()
-                .map(|w| (w[4] / (3.0 * block * block)).max(0.0).sqrt())
-                .collect();
-            let (mut rel, mut fewest) = (0.0f64, f32::INFINITY);
-            let pixels = words
-                .iter()
-                .map(|w| {
-                    fewest = fewest.min(w[3]);
-                    rel += w[5] as f64;
-                    [w[0], w[1], w[2]]
-                })
-                .collect();
-            // Over the traced pixels the output covers (all of them when the size divides).
-            let channels = 3.0 * n as f64 * block as f64;
-            Resolved {
-                image: LinearImage {
-                    width: s.out.0,
-                    height: s.out.1,
-                    pixels,
-                },
-                noise: (fewest >= 1.0).then(|| (rel / channels).sqrt()),
-                invalid: c[0] as u64 | (c[1] as u64) << 32,
-                sigma,
-            }
+            Resolved::from_blocks(words, s.out, s.factor, c[0] as u64 | (c[1] as u64) << 32)
         };
         staging.unmap();
         s.state.store(FREE, Ordering::Release);

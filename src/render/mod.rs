@@ -7,6 +7,9 @@
 //! one before it finishes the last. A small image fills the GPU by tracing several samples
 //! of each pixel in parallel ("lanes", see `fn trace` in trace.wgsl), whose exact
 //! fixed-point sums the reduce pass adds up: the image is the same bit for bit.
+//!
+//! The same rounds run on the native CPU tracer (`crate::cpu`) where there is no GPU: a
+//! submission there is traced on every core before `submit` returns.
 
 mod schedule;
 mod snapshot;
@@ -15,11 +18,15 @@ pub mod tune;
 pub use schedule::Schedule;
 pub use snapshot::{ErrorEstimate, REL_MSE_EPSILON, Snapshot};
 
+use crate::cpu::CpuEngine;
 use crate::gpu::layout::DispatchUniforms;
 use crate::gpu::reduce::ReducePass;
+use crate::gpu::resolve::Resolved;
 use crate::gpu::timer::GpuTimer;
 use crate::gpu::trace::TraceDispatch;
-use crate::gpu::{Accumulation, Features, FrameSettings, GpuContext, SceneBuffers, TracePass};
+use crate::gpu::{
+    Accumulation, Features, FrameSettings, GpuContext, GpuError, SceneBuffers, TracePass,
+};
 use crate::scene::Scene;
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -78,6 +85,88 @@ impl Default for RenderOptions {
     }
 }
 
+/// Where paths are traced: a wgpu adapter, or the native CPU tracer.
+#[derive(Clone)]
+pub enum Backend {
+    Gpu(Arc<GpuContext>),
+    Cpu,
+}
+
+impl From<Arc<GpuContext>> for Backend {
+    fn from(ctx: Arc<GpuContext>) -> Backend {
+        Backend::Gpu(ctx)
+    }
+}
+
+impl Backend {
+    /// The backend `selector` names (`cpu-native`, or any adapter `termtrace adapters`
+    /// lists), or the best one: a GPU where there is one, else the native CPU tracer (which
+    /// replaces Mesa's software adapters, being many times faster than they are).
+    pub fn open(selector: Option<&str>) -> Result<Backend, GpuError> {
+        let selector = selector.map(str::trim).filter(|s| !s.is_empty());
+        if selector.is_some_and(|s| s.eq_ignore_ascii_case(crate::cpu::ADAPTER_NAME)) {
+            return Ok(Backend::Cpu);
+        }
+        match crate::gpu::select_adapter(selector) {
+            Ok(a) if selector.is_none() && a.get_info().device_type == wgpu::DeviceType::Cpu => {
+                tracing::info!(
+                    "the best adapter is a software one ({}): tracing on the CPU natively",
+                    crate::gpu::describe(&a.get_info())
+                );
+                Ok(Backend::Cpu)
+            }
+            Ok(a) => Ok(Backend::Gpu(Arc::new(GpuContext::on(a)?))),
+            Err(GpuError::NoAdapter { tried }) if selector.is_none() => {
+                tracing::info!("no GPU adapter ({tried}): tracing on the CPU natively");
+                Ok(Backend::Cpu)
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// One line naming the adapter or the CPU tracer.
+    pub fn describe(&self) -> String {
+        match self {
+            Backend::Gpu(ctx) => ctx.adapter_name(),
+            Backend::Cpu => crate::cpu::describe(),
+        }
+    }
+
+    /// The GPU, where there is one.
+    pub fn gpu(&self) -> Option<&Arc<GpuContext>> {
+        match self {
+            Backend::Gpu(ctx) => Some(ctx),
+            Backend::Cpu => None,
+        }
+    }
+
+    /// A CPU does the tracing (a software adapter or the native tracer): few cores, which
+    /// a small image already fills.
+    pub fn is_cpu(&self) -> bool {
+        match self {
+            Backend::Gpu(ctx) => ctx.is_software(),
+            Backend::Cpu => true,
+        }
+    }
+}
+
+/// The GPU's passes and buffers for one scene.
+struct GpuEngine {
+    ctx: Arc<GpuContext>,
+    trace: TracePass,
+    scene: SceneBuffers,
+    accum: Accumulation,
+    bind_group: wgpu::BindGroup,
+    reduce: ReducePass,
+    reduce_bind_group: wgpu::BindGroup,
+    timer: Option<GpuTimer>,
+}
+
+enum Engine {
+    Gpu(Box<GpuEngine>),
+    Cpu(Box<CpuEngine>),
+}
+
 /// What one call of [`Renderer::step`] did.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct StepStats {
@@ -99,22 +188,18 @@ struct Round {
     stride: u32,
 }
 
-/// A submission the GPU has not finished.
+/// A submission the GPU has not finished (the CPU's finish before `submit` returns).
 struct InFlight {
-    index: wgpu::SubmissionIndex,
+    /// `None` on the CPU, where `took` is known at once.
+    index: Option<wgpu::SubmissionIndex>,
+    took: Option<Duration>,
     features: Features,
     paths: u64,
     submitted: Instant,
 }
 
 pub struct Renderer {
-    ctx: Arc<GpuContext>,
-    trace: TracePass,
-    scene: SceneBuffers,
-    accum: Accumulation,
-    bind_group: wgpu::BindGroup,
-    reduce: ReducePass,
-    reduce_bind_group: wgpu::BindGroup,
+    engine: Engine,
     settings: FrameSettings,
     options: RenderOptions,
     features: Features,
@@ -124,7 +209,6 @@ pub struct Renderer {
     round: Option<Round>,
     /// The next round restarts the sums (`should_accumulate = 0`).
     fresh: bool,
-    timer: Option<GpuTimer>,
     in_flight: VecDeque<InFlight>,
     /// Timing the specialized pipeline against the generic one, until one is chosen.
     tune: Option<tune::Tune>,
@@ -134,49 +218,20 @@ pub struct Renderer {
 
 impl Renderer {
     pub fn new(
-        ctx: Arc<GpuContext>,
+        backend: impl Into<Backend>,
         scene: &Scene,
         settings: FrameSettings,
         options: RenderOptions,
     ) -> Renderer {
-        let device = &ctx.device;
-        let mut trace = TracePass::new(device);
         let features = Self::features_for(scene, &options, &settings);
-        trace.prepare(device, features);
-        if options.compile_in_background {
-            // The fallback for the feature sets edits will introduce.
-            let generic = Features {
-                count_segments: options.count_segments,
-                bvh: !options.no_bvh,
-                ..Features::generic()
-            };
-            trace.prepare_in_background(device, generic);
-        }
-        let buffers = SceneBuffers::new(device, scene, &settings);
-        let accum = Accumulation::new(
-            device,
-            settings.width,
-            settings.height,
-            Self::scratch_slots(&ctx, &options, &settings),
-        );
-        let bind_group = trace.bind_group(device, &buffers, &accum);
-        let reduce = ReducePass::new(device);
-        let reduce_bind_group =
-            reduce.bind_group(device, &buffers, trace.dispatch_buffer(), &accum);
-        accum.reset_counters(&ctx.queue);
-        let timer = if options.gpu_timing {
-            GpuTimer::new(&ctx)
-        } else {
-            None
+        let engine = match backend.into() {
+            Backend::Gpu(ctx) => Engine::Gpu(Box::new(GpuEngine::new(
+                ctx, scene, &settings, &options, features,
+            ))),
+            Backend::Cpu => Engine::Cpu(Box::new(CpuEngine::new(scene, &settings))),
         };
         let mut r = Renderer {
-            timer,
-            trace,
-            scene: buffers,
-            accum,
-            bind_group,
-            reduce,
-            reduce_bind_group,
+            engine,
             settings,
             options,
             features,
@@ -184,7 +239,6 @@ impl Renderer {
             samples: 0,
             round: None,
             fresh: true,
-            ctx,
             in_flight: VecDeque::new(),
             tune: None,
             last_done: Instant::now(),
@@ -223,8 +277,11 @@ impl Renderer {
 
     /// Lanes per pixel of a submission of `rows` rows at `k` samples per pixel.
     fn lanes(&self, rows: u32, k: u32) -> u32 {
+        let Engine::Gpu(g) = &self.engine else {
+            return 1;
+        };
         let pixels = self.settings.width as u64 * rows as u64;
-        let fit = self.accum.scratch_slots / pixels.max(1);
+        let fit = g.accum.scratch_slots / pixels.max(1);
         let wanted = match self.options.lanes {
             Some(n) => n as u64,
             None => LANE_INVOCATIONS.div_ceil(pixels.max(1)),
@@ -248,8 +305,12 @@ impl Renderer {
         f
     }
 
-    pub fn context(&self) -> &Arc<GpuContext> {
-        &self.ctx
+    /// The backend this renderer traces on.
+    pub fn backend(&self) -> Backend {
+        match &self.engine {
+            Engine::Gpu(g) => Backend::Gpu(g.ctx.clone()),
+            Engine::Cpu(_) => Backend::Cpu,
+        }
     }
     pub fn settings(&self) -> FrameSettings {
         self.settings
@@ -263,17 +324,23 @@ impl Renderer {
     }
     /// Whether passes are timed on the GPU.
     pub fn gpu_timed(&self) -> bool {
-        self.timer.is_some()
+        matches!(&self.engine, Engine::Gpu(g) if g.timer.is_some())
     }
 
     /// Nodes in the BVH and the seconds its last build took.
     pub fn bvh_stats(&self) -> (usize, f64) {
-        (self.scene.node_count, self.scene.build_seconds)
+        match &self.engine {
+            Engine::Gpu(g) => (g.scene.node_count, g.scene.build_seconds),
+            Engine::Cpu(c) => c.bvh_stats(),
+        }
     }
 
-    /// GPU memory held by the accumulation.
+    /// Memory held by the accumulation (on the GPU, or the host's).
     pub fn accumulation_bytes(&self) -> u64 {
-        self.accum.gpu_bytes()
+        match &self.engine {
+            Engine::Gpu(g) => g.accum.gpu_bytes(),
+            Engine::Cpu(c) => c.bytes(),
+        }
     }
 
     /// Starts the accumulation afresh on the next submission.
@@ -281,7 +348,10 @@ impl Renderer {
         self.samples = 0;
         self.round = None;
         self.fresh = true;
-        self.accum.reset_counters(&self.ctx.queue);
+        match &mut self.engine {
+            Engine::Gpu(g) => g.accum.reset_counters(&g.ctx.queue),
+            Engine::Cpu(c) => c.reset_counters(),
+        }
     }
 
     /// The generic pipeline with this renderer's own switches (segment counting, BVH).
@@ -298,18 +368,22 @@ impl Renderer {
     /// generic one is ready (they render the same image); else compiled now.
     fn pipeline_features(&mut self) -> Features {
         let want = self.tune.as_ref().map_or(self.features, tune::Tune::next);
-        if self.trace.ready(want) {
+        let generic = self.generic_features();
+        let Engine::Gpu(g) = &mut self.engine else {
+            return want;
+        };
+        if g.trace.ready(want) {
             return want;
         }
         if self.options.compile_in_background {
-            self.trace.prepare_in_background(&self.ctx.device, want);
-            for f in [self.features, self.generic_features()] {
-                if self.trace.ready(f) {
+            g.trace.prepare_in_background(&g.ctx.device, want);
+            for f in [self.features, generic] {
+                if g.trace.ready(f) {
                     return f;
                 }
             }
         }
-        self.trace.prepare(&self.ctx.device, want);
+        g.trace.prepare(&g.ctx.device, want);
         want
     }
 
@@ -320,32 +394,15 @@ impl Renderer {
             self.features = features;
             self.retune();
         }
-        let device = &self.ctx.device;
-        if self.options.compile_in_background {
-            self.trace.prepare_in_background(device, self.features);
-        } else {
-            self.trace.prepare(device, self.features);
-        }
-        let mut rebind = self.scene.update(device, &self.ctx.queue, scene, &settings);
-        if (settings.width, settings.height) != (self.settings.width, self.settings.height) {
-            self.accum = Accumulation::new(
-                device,
-                settings.width,
-                settings.height,
-                Self::scratch_slots(&self.ctx, &self.options, &settings),
-            );
-            rebind = true;
+        match &mut self.engine {
+            Engine::Gpu(g) => {
+                let resize = (settings.width, settings.height)
+                    != (self.settings.width, self.settings.height);
+                g.set_scene(scene, &settings, &self.options, self.features, resize)
+            }
+            Engine::Cpu(c) => c.set_scene(scene, &settings),
         }
         self.settings = settings;
-        if rebind {
-            self.bind_group = self.trace.bind_group(device, &self.scene, &self.accum);
-            self.reduce_bind_group = self.reduce.bind_group(
-                device,
-                &self.scene,
-                self.trace.dispatch_buffer(),
-                &self.accum,
-            );
-        }
         self.reset();
     }
 
@@ -392,34 +449,18 @@ impl Renderer {
             row_stride: round.stride,
             _pad: 0,
         };
-        let mut enc = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("trace.submission"),
-            });
-        self.trace.encode(
-            &self.ctx.queue,
-            &mut enc,
-            &TraceDispatch {
-                features,
-                bind_group: &self.bind_group,
-                width: w,
-                uniforms: d,
-                timer: self.timer.as_ref(),
-            },
-        );
-        if lanes > 1 {
-            self.reduce
-                .encode(&mut enc, &self.reduce_bind_group, w * rows);
-        }
-        if let Some(t) = &self.timer {
-            t.resolve(&mut enc);
-        }
-        let index = self.ctx.queue.submit([enc.finish()]);
         let paths = w as u64 * rows as u64 * round.k as u64;
+        let (index, took) = match &mut self.engine {
+            Engine::Gpu(g) => (Some(g.encode(features, d, w)), None),
+            Engine::Cpu(c) => {
+                let start = Instant::now();
+                c.run(&d, features);
+                (None, Some(start.elapsed()))
+            }
+        };
         self.in_flight.push_back(InFlight {
             index,
+            took,
             features,
             paths,
             submitted: Instant::now(),
@@ -445,15 +486,19 @@ impl Renderer {
     pub fn wait(&mut self, keep: usize) {
         while self.in_flight.len() > keep {
             let f = self.in_flight.pop_front().expect("a submission in flight");
-            self.ctx
-                .device
-                .poll(wgpu::PollType::Wait {
-                    submission_index: Some(f.index),
-                    timeout: None,
-                })
-                .expect("the GPU stopped answering");
+            if let (Engine::Gpu(g), Some(index)) = (&self.engine, f.index) {
+                g.ctx
+                    .device
+                    .poll(wgpu::PollType::Wait {
+                        submission_index: Some(index),
+                        timeout: None,
+                    })
+                    .expect("the GPU stopped answering");
+            }
             let now = Instant::now();
-            let took = now - f.submitted.max(self.last_done);
+            let took = f
+                .took
+                .unwrap_or_else(|| now - f.submitted.max(self.last_done));
             self.schedule.observe(f.paths, took);
             // Short submissions are mostly fixed cost: they would not tell the pipelines
             // apart.
@@ -487,11 +532,13 @@ impl Renderer {
         while let Some(paths) = self.submit(max_samples) {
             stats.paths += paths;
             stats.submissions += 1;
-            if self.timer.is_some() {
+            if self.gpu_timed() {
                 // One query set: read each submission's time before the next.
                 self.wait(0);
-                if let Some(t) = &self.timer {
-                    stats.gpu_seconds += t.read_seconds(&self.ctx);
+                if let Engine::Gpu(g) = &self.engine
+                    && let Some(t) = &g.timer
+                {
+                    stats.gpu_seconds += t.read_seconds(&g.ctx);
                 }
             } else {
                 self.wait(1);
@@ -512,9 +559,22 @@ impl Renderer {
         }
     }
 
-    /// The accumulation (for passes that read it, such as the preview's resolve).
-    pub fn accumulation(&self) -> &Accumulation {
-        &self.accum
+    /// The accumulation on the GPU (for passes that read it, such as the preview's
+    /// resolve); `None` on the CPU.
+    pub fn accumulation(&self) -> Option<&Accumulation> {
+        match &self.engine {
+            Engine::Gpu(g) => Some(&g.accum),
+            Engine::Cpu(_) => None,
+        }
+    }
+
+    /// The preview's frame made on the host (the CPU tracer's counterpart of the resolve
+    /// pass); `None` on a GPU, whose frames the resolve pass makes.
+    pub fn resolve_on_host(&self, factor: u32) -> Option<Resolved> {
+        match &self.engine {
+            Engine::Gpu(_) => None,
+            Engine::Cpu(c) => Some(c.resolve(factor)),
+        }
     }
 
     /// Reads the accumulation back.
@@ -522,8 +582,130 @@ impl Renderer {
         Snapshot {
             width: self.settings.width,
             height: self.settings.height,
-            data: self.accum.read(&self.ctx),
+            data: match &self.engine {
+                Engine::Gpu(g) => g.accum.read(&g.ctx),
+                Engine::Cpu(c) => c.read(),
+            },
             samples: self.samples,
         }
+    }
+}
+
+impl GpuEngine {
+    fn new(
+        ctx: Arc<GpuContext>,
+        scene: &Scene,
+        settings: &FrameSettings,
+        options: &RenderOptions,
+        features: Features,
+    ) -> GpuEngine {
+        let device = &ctx.device;
+        let mut trace = TracePass::new(device);
+        trace.prepare(device, features);
+        if options.compile_in_background {
+            // The fallback for the feature sets edits will introduce.
+            let generic = Features {
+                count_segments: options.count_segments,
+                bvh: !options.no_bvh,
+                ..Features::generic()
+            };
+            trace.prepare_in_background(device, generic);
+        }
+        let buffers = SceneBuffers::new(device, scene, settings);
+        let accum = Accumulation::new(
+            device,
+            settings.width,
+            settings.height,
+            Renderer::scratch_slots(&ctx, options, settings),
+        );
+        let bind_group = trace.bind_group(device, &buffers, &accum);
+        let reduce = ReducePass::new(device);
+        let reduce_bind_group =
+            reduce.bind_group(device, &buffers, trace.dispatch_buffer(), &accum);
+        accum.reset_counters(&ctx.queue);
+        let timer = if options.gpu_timing {
+            GpuTimer::new(&ctx)
+        } else {
+            None
+        };
+        GpuEngine {
+            ctx,
+            trace,
+            scene: buffers,
+            accum,
+            bind_group,
+            reduce,
+            reduce_bind_group,
+            timer,
+        }
+    }
+
+    fn set_scene(
+        &mut self,
+        scene: &Scene,
+        settings: &FrameSettings,
+        options: &RenderOptions,
+        features: Features,
+        resize: bool,
+    ) {
+        let device = &self.ctx.device;
+        if options.compile_in_background {
+            self.trace.prepare_in_background(device, features);
+        } else {
+            self.trace.prepare(device, features);
+        }
+        let mut rebind = self.scene.update(device, &self.ctx.queue, scene, settings);
+        if resize {
+            self.accum = Accumulation::new(
+                device,
+                settings.width,
+                settings.height,
+                Renderer::scratch_slots(&self.ctx, options, settings),
+            );
+            rebind = true;
+        }
+        if rebind {
+            self.bind_group = self.trace.bind_group(device, &self.scene, &self.accum);
+            self.reduce_bind_group = self.reduce.bind_group(
+                device,
+                &self.scene,
+                self.trace.dispatch_buffer(),
+                &self.accum,
+            );
+        }
+    }
+
+    /// Encodes and submits one dispatch (and the reduce of its lanes).
+    fn encode(
+        &mut self,
+        features: Features,
+        d: DispatchUniforms,
+        width: u32,
+    ) -> wgpu::SubmissionIndex {
+        let mut enc = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("trace.submission"),
+            });
+        self.trace.encode(
+            &self.ctx.queue,
+            &mut enc,
+            &TraceDispatch {
+                features,
+                bind_group: &self.bind_group,
+                width,
+                uniforms: d,
+                timer: self.timer.as_ref(),
+            },
+        );
+        if d.lanes > 1 {
+            self.reduce
+                .encode(&mut enc, &self.reduce_bind_group, width * d.row_count);
+        }
+        if let Some(t) = &self.timer {
+            t.resolve(&mut enc);
+        }
+        self.ctx.queue.submit([enc.finish()])
     }
 }

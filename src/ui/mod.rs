@@ -12,8 +12,9 @@ pub mod term;
 pub mod view;
 pub mod worker;
 
-use crate::gpu::{FrameSettings, GpuContext};
+use crate::gpu::FrameSettings;
 use crate::output::cells::{self, CellMode, ColorMode};
+use crate::render::Backend;
 use crate::scene::Scene;
 use app::{App, Effect, Saving};
 use ratatui::Terminal;
@@ -387,7 +388,7 @@ impl Ui {
 /// plainly).
 struct Setup {
     scene: Scene,
-    ctx: Arc<GpuContext>,
+    backend: Backend,
     /// The adapter as the status line names it.
     adapter: String,
     color: ColorMode,
@@ -406,10 +407,15 @@ fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
          for files use `termtrace render {} -o out.png`",
         opts.scene.as_deref().unwrap_or("SCENE")
     );
-    let ctx = Arc::new(GpuContext::new(opts.adapter.as_deref())?);
+    let backend = Backend::open(opts.adapter.as_deref())?;
     // `llvmpipe (LLVM 15.0.6, 256 bits)` → `llvmpipe (Vulkan)`: the status line is short.
-    let short = ctx.info.name.split(" (").next().unwrap_or(&ctx.info.name);
-    let adapter = format!("{short} ({:?})", ctx.info.backend);
+    let adapter = match &backend {
+        Backend::Gpu(ctx) => {
+            let short = ctx.info.name.split(" (").next().unwrap_or(&ctx.info.name);
+            format!("{short} ({:?})", ctx.info.backend)
+        }
+        Backend::Cpu => format!("CPU ({} threads)", rayon::current_num_threads()),
+    };
     let color = opts.color.unwrap_or_else(|| {
         ColorMode::detect(
             std::env::var("COLORTERM").ok().as_deref(),
@@ -428,7 +434,7 @@ fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
     };
     Ok(Setup {
         scene,
-        ctx,
+        backend,
         adapter,
         color,
         cells,
@@ -699,7 +705,7 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
     let guard = term::TerminalGuard::enter(opts.log.as_deref())?;
     spawn_input(tx.clone())?;
     let (to_worker, worker) = worker::spawn(
-        setup.ctx,
+        setup.backend,
         WorkerOptions {
             fps: opts.fps,
             max_spp: opts.max_spp,

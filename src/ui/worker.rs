@@ -10,13 +10,13 @@
 
 use super::Event;
 use super::app::Stats;
+use crate::gpu::FrameSettings;
+use crate::gpu::resolve::Resolved;
 use crate::gpu::resolve::{ResolvePass, SLOTS};
-use crate::gpu::{FrameSettings, GpuContext};
 use crate::output::{LinearImage, Transfer, write_png};
-use crate::render::{RenderOptions, Renderer};
+use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::Scene;
 use std::path::PathBuf;
-use std::sync::Arc;
 use std::sync::mpsc::{Receiver, Sender, TryRecvError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -96,11 +96,14 @@ struct Preview {
 }
 
 struct Worker {
-    ctx: Arc<GpuContext>,
+    backend: Backend,
     opts: WorkerOptions,
     events: Sender<Event>,
     preview: Option<Preview>,
-    resolve: ResolvePass,
+    /// The GPU's resolve pass (on the CPU tracer frames are made on the host at once).
+    resolve: Option<ResolvePass>,
+    /// A frame made on the host, waiting to be sent.
+    host_frame: Option<(FrameTag, Resolved)>,
     /// The frame each staging slot is bringing back.
     pending: [Option<FrameTag>; SLOTS],
     /// The UI's number of the scene request being traced.
@@ -112,7 +115,7 @@ struct Worker {
 
 /// Starts the render thread; it ends on `Request::Quit` or when either channel closes.
 pub fn spawn(
-    ctx: Arc<GpuContext>,
+    backend: Backend,
     opts: WorkerOptions,
     events: Sender<Event>,
 ) -> (Sender<Request>, JoinHandle<()>) {
@@ -121,8 +124,9 @@ pub fn spawn(
         .name("render".into())
         .spawn(move || {
             let mut w = Worker {
-                resolve: ResolvePass::new(&ctx.device),
-                ctx,
+                resolve: backend.gpu().map(|ctx| ResolvePass::new(&ctx.device)),
+                host_frame: None,
+                backend,
                 opts,
                 events,
                 preview: None,
@@ -161,7 +165,7 @@ impl Worker {
     }
 
     fn frames_pending(&self) -> bool {
-        self.pending.iter().any(Option::is_some)
+        self.host_frame.is_some() || self.pending.iter().any(Option::is_some)
     }
 
     /// Whether the preview holds samples that no frame has shown yet (from its first look
@@ -238,7 +242,7 @@ impl Worker {
             }
             None => {
                 self.preview = Some(Preview {
-                    renderer: Renderer::new(self.ctx.clone(), scene, settings, self.options()),
+                    renderer: Renderer::new(self.backend.clone(), scene, settings, self.options()),
                     factor,
                     since_reset: Instant::now(),
                     paths: 0,
@@ -285,27 +289,32 @@ impl Worker {
         if !due {
             return;
         }
-        let s = p.renderer.settings();
-        let Some(slot) = self.resolve.request(
-            &self.ctx,
-            p.renderer.accumulation(),
-            (s.width, s.height),
-            p.factor,
-        ) else {
-            return;
-        };
-        tracing::debug!(
-            "frame requested at {spp} spp, {:.1} ms after the reset",
-            p.since_reset.elapsed().as_secs_f64() * 1e3
-        );
-        p.last_frame = Some((Instant::now(), p.paths));
-        self.pending[slot] = Some(FrameTag {
+        let tag = FrameTag {
             generation: self.generation,
             epoch: self.epoch,
             last: !busy,
             spp,
             paths: p.paths,
-        });
+        };
+        if let Some(resolved) = p.renderer.resolve_on_host(p.factor) {
+            self.host_frame = Some((tag, resolved));
+        } else {
+            let s = p.renderer.settings();
+            let (Some(resolve), Backend::Gpu(ctx), Some(accum)) =
+                (&mut self.resolve, &self.backend, p.renderer.accumulation())
+            else {
+                return;
+            };
+            let Some(slot) = resolve.request(ctx, accum, (s.width, s.height), p.factor) else {
+                return;
+            };
+            self.pending[slot] = Some(tag);
+        }
+        tracing::debug!(
+            "frame requested at {spp} spp, {:.1} ms after the reset",
+            p.since_reset.elapsed().as_secs_f64() * 1e3
+        );
+        p.last_frame = Some((Instant::now(), p.paths));
     }
 
     /// Sends every frame that has landed; false when the UI has gone.
@@ -313,56 +322,70 @@ impl Worker {
         if !self.frames_pending() {
             return true;
         }
+        if let Some((tag, resolved)) = self.host_frame.take()
+            && !self.send_frame(tag, resolved)
+        {
+            return false;
+        }
         // Nothing else to do: wait for the frame rather than spin.
         let block = !self.preview_busy() && self.save.is_none();
+        let (Some(resolve), Backend::Gpu(ctx)) = (&mut self.resolve, &self.backend) else {
+            return true;
+        };
         let poll = if block {
             wgpu::PollType::wait_indefinitely()
         } else {
             wgpu::PollType::Poll
         };
-        let _ = self.ctx.device.poll(poll);
+        let _ = ctx.device.poll(poll);
+        let mut landed = Vec::new();
         for slot in 0..SLOTS {
             let Some(tag) = self.pending[slot] else {
                 continue;
             };
-            if !self.resolve.ready(slot) {
+            if !resolve.ready(slot) {
                 continue;
             }
             self.pending[slot] = None;
-            let Some(resolved) = self.resolve.take(slot) else {
-                continue;
-            };
-            let Some(p) = &self.preview else { continue };
-            if tag.epoch != self.epoch {
-                continue;
-            }
-            let elapsed = p.since_reset.elapsed();
-            tracing::debug!(
-                "frame at {} spp delivered {:.1} ms after the reset",
-                tag.spp,
-                elapsed.as_secs_f64() * 1e3
-            );
-            let s = p.renderer.settings();
-            let frame = Frame {
-                image: resolved.image,
-                sigma: resolved.sigma,
-                last: tag.last,
-                stats: Stats {
-                    width: s.width,
-                    height: s.height,
-                    spp: tag.spp,
-                    samples_per_second: tag.paths as f64 / elapsed.as_secs_f64().max(1e-9),
-                    elapsed,
-                    noise: resolved.noise,
-                    invalid: resolved.invalid,
-                },
-                generation: tag.generation,
-            };
-            if self.events.send(Event::Frame(Box::new(frame))).is_err() {
-                return false;
+            if let Some(resolved) = resolve.take(slot) {
+                landed.push((tag, resolved));
             }
         }
-        true
+        landed
+            .into_iter()
+            .all(|(tag, resolved)| self.send_frame(tag, resolved))
+    }
+
+    /// Sends a frame of the current state (one of an older epoch is dropped); false when the
+    /// UI has gone.
+    fn send_frame(&mut self, tag: FrameTag, resolved: Resolved) -> bool {
+        let Some(p) = &self.preview else { return true };
+        if tag.epoch != self.epoch {
+            return true;
+        }
+        let elapsed = p.since_reset.elapsed();
+        tracing::debug!(
+            "frame at {} spp delivered {:.1} ms after the reset",
+            tag.spp,
+            elapsed.as_secs_f64() * 1e3
+        );
+        let s = p.renderer.settings();
+        let frame = Frame {
+            image: resolved.image,
+            sigma: resolved.sigma,
+            last: tag.last,
+            stats: Stats {
+                width: s.width,
+                height: s.height,
+                spp: tag.spp,
+                samples_per_second: tag.paths as f64 / elapsed.as_secs_f64().max(1e-9),
+                elapsed,
+                noise: resolved.noise,
+                invalid: resolved.invalid,
+            },
+            generation: tag.generation,
+        };
+        self.events.send(Event::Frame(Box::new(frame))).is_ok()
     }
 
     fn start_save(&mut self, scene: &Scene, path: PathBuf) {
@@ -378,7 +401,7 @@ impl Worker {
             ..self.options()
         };
         self.save = Some(SaveJob {
-            renderer: Renderer::new(self.ctx.clone(), scene, settings, options),
+            renderer: Renderer::new(self.backend.clone(), scene, settings, options),
             path,
             total: scene.render.spp,
         });

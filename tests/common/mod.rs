@@ -1,12 +1,14 @@
-//! Shared by the GPU tests: one device per test binary (the software adapter in CI, or the
-//! one TERMTRACE_ADAPTER names), and small helpers to render scenes written inline.
+//! Shared by the tracer tests: one device per test binary (the software adapter in CI, or the
+//! one TERMTRACE_ADAPTER names), the native CPU tracer beside it (`on_both`), and small
+//! helpers to render scenes written inline.
 #![allow(dead_code)]
 
 use glam::DVec3;
+use std::cell::RefCell;
 use std::sync::{Arc, OnceLock};
 use termtrace::gpu::{FrameSettings, GpuContext, layout::SceneUniforms, scene_buffers};
 use termtrace::output::LinearImage;
-use termtrace::render::{RenderOptions, Renderer, Snapshot};
+use termtrace::render::{Backend, RenderOptions, Renderer, Snapshot};
 use termtrace::scene::Scene;
 
 pub fn ctx() -> Arc<GpuContext> {
@@ -18,6 +20,29 @@ pub fn ctx() -> Arc<GpuContext> {
         Arc::new(c)
     })
     .clone()
+}
+
+thread_local! {
+    /// The backend `snapshot_with` renders on (the GPU device when unset).
+    static BACKEND: RefCell<Option<Backend>> = const { RefCell::new(None) };
+}
+
+/// The backend the helpers render on now.
+pub fn backend() -> Backend {
+    BACKEND
+        .with(|b| b.borrow().clone())
+        .unwrap_or_else(|| Backend::Gpu(ctx()))
+}
+
+/// Runs `check` with the helpers rendering on the GPU device, then on the native CPU
+/// tracer: the same known answers hold on both.
+pub fn on_both(check: impl Fn()) {
+    for b in [Backend::Gpu(ctx()), Backend::Cpu] {
+        eprintln!("checking on {}", b.describe());
+        BACKEND.with(|c| *c.borrow_mut() = Some(b));
+        check();
+    }
+    BACKEND.with(|c| *c.borrow_mut() = None);
 }
 
 pub fn scene(toml: &str) -> Scene {
@@ -35,7 +60,7 @@ pub fn snapshot_with(
     spp: u32,
     options: RenderOptions,
 ) -> Snapshot {
-    let mut r = Renderer::new(ctx(), scene, s, options);
+    let mut r = Renderer::new(backend(), scene, s, options);
     r.render_spp(spp);
     let snap = r.snapshot();
     assert_eq!(snap.min_samples(), spp as u64);

@@ -1,0 +1,234 @@
+//! Ray/primitive intersection and self-intersection avoidance: shaders/common/intersect.wgsl
+//! in Rust, term for term (its comments give the sources and the reasoning).
+
+use super::scene::{Cuboid, Quad, Sphere, Triangle};
+use glam::{IVec3, Vec3A};
+
+#[derive(Clone, Copy, Debug)]
+pub struct Ray {
+    pub origin: Vec3A,
+    /// Unit length.
+    pub dir: Vec3A,
+}
+
+pub const NO_HIT: f32 = -1.0;
+
+/// Ray/sphere relative to the sphere's anchor (Haines, Günther & Akenine-Möller, Ray
+/// Tracing Gems ch. 7): the nearest t in (0, t_max), or NO_HIT.
+#[inline(always)]
+pub fn hit_sphere(s: &Sphere, ray: &Ray, t_max: f32) -> f32 {
+    let r = s.radius.abs();
+    let g = ray.origin - s.anchor;
+    let f = g + r * s.anchor_normal;
+    let b = f.dot(ray.dir);
+    let l = f - b * ray.dir;
+    let ll = l.length();
+    let disc = (r - ll) * (r + ll);
+    if disc < 0.0 {
+        return NO_HIT;
+    }
+    let c = g.dot(g) + 2.0 * r * g.dot(s.anchor_normal);
+    let sq = disc.sqrt();
+    let q = -b - if b < 0.0 { -sq } else { sq };
+    if q == 0.0 {
+        return NO_HIT;
+    }
+    let t0 = c / q;
+    let (t_near, t_far) = (t0.min(q), t0.max(q));
+    if t_near > 0.0 && t_near < t_max {
+        return t_near;
+    }
+    if t_far > 0.0 && t_far < t_max {
+        return t_far;
+    }
+    NO_HIT
+}
+
+/// Where a ray hit a surface: the point, moved onto the surface, and the geometric normal.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint {
+    pub position: Vec3A,
+    pub normal: Vec3A,
+}
+
+pub fn sphere_surface(s: &Sphere, ray: &Ray, t: f32) -> SurfacePoint {
+    let r = s.radius.abs();
+    let q = ray.origin - s.anchor + t * ray.dir;
+    let m = q / r + s.anchor_normal;
+    let len = m.length();
+    let n = m / len;
+    let h = (q.dot(q) + 2.0 * r * q.dot(s.anchor_normal)) / (r * len + r);
+    SurfacePoint {
+        position: s.anchor + (q - h * n),
+        normal: if s.radius < 0.0 { -n } else { n },
+    }
+}
+
+/// Ray/parallelogram, two-sided (Shirley, Ray Tracing: The Next Week §6).
+#[inline]
+pub fn hit_quad(quad: &Quad, ray: &Ray, t_max: f32) -> f32 {
+    let denom = quad.normal.dot(ray.dir);
+    if denom.abs() < 1e-20 {
+        return NO_HIT;
+    }
+    let t = quad.normal.dot(quad.q - ray.origin) / denom;
+    if !(t > 0.0 && t < t_max) {
+        return NO_HIT;
+    }
+    let p = ray.origin + t * ray.dir - quad.q;
+    let alpha = quad.w.dot(p.cross(quad.v));
+    let beta = quad.w.dot(quad.u.cross(p));
+    if !(0.0..=1.0).contains(&alpha) || !(0.0..=1.0).contains(&beta) {
+        return NO_HIT;
+    }
+    t
+}
+
+/// Ray/oriented box: the slab test (Kay & Kajiya 1986) in the box's own frame.
+#[inline]
+pub fn hit_box(bx: &Cuboid, ray: &Ray, t_max: f32) -> f32 {
+    let oc = ray.origin - bx.center;
+    let lo = Vec3A::new(oc.dot(bx.axes[0]), oc.dot(bx.axes[1]), oc.dot(bx.axes[2]));
+    let ld = Vec3A::new(
+        ray.dir.dot(bx.axes[0]),
+        ray.dir.dot(bx.axes[1]),
+        ray.dir.dot(bx.axes[2]),
+    );
+    let safe = Vec3A::select(ld.abs().cmplt(Vec3A::splat(1e-30)), Vec3A::splat(1e-30), ld);
+    let inv = safe.recip();
+    let t1 = (-bx.half_extents - lo) * inv;
+    let t2 = (bx.half_extents - lo) * inv;
+    let t_enter = t1.min(t2).max_element();
+    let t_exit = t1.max(t2).min_element();
+    if t_enter > t_exit {
+        return NO_HIT;
+    }
+    let t = if t_enter > 0.0 { t_enter } else { t_exit };
+    if !(t > 0.0 && t < t_max) {
+        return NO_HIT;
+    }
+    t
+}
+
+pub fn quad_surface(quad: &Quad, ray: &Ray, t: f32) -> SurfacePoint {
+    let p = ray.origin + t * ray.dir;
+    SurfacePoint {
+        position: p - quad.normal * quad.normal.dot(p - quad.q),
+        normal: quad.normal,
+    }
+}
+
+/// WGSL's sign(): -1, 0 or 1.
+fn sign(x: f32) -> f32 {
+    if x > 0.0 {
+        1.0
+    } else if x < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
+pub fn box_surface(bx: &Cuboid, ray: &Ray, t: f32) -> SurfacePoint {
+    let oc = ray.origin + t * ray.dir - bx.center;
+    let mut lp = Vec3A::new(oc.dot(bx.axes[0]), oc.dot(bx.axes[1]), oc.dot(bx.axes[2]));
+    let a = (lp / bx.half_extents).abs();
+    let mut local = Vec3A::new(0.0, 0.0, sign(lp.z));
+    if a.x >= a.y && a.x >= a.z {
+        local = Vec3A::new(sign(lp.x), 0.0, 0.0);
+        lp.x = local.x * bx.half_extents.x;
+    } else if a.y >= a.z {
+        local = Vec3A::new(0.0, sign(lp.y), 0.0);
+        lp.y = local.y * bx.half_extents.y;
+    } else {
+        lp.z = local.z * bx.half_extents.z;
+    }
+    let world = bx.center + lp.x * bx.axes[0] + lp.y * bx.axes[1] + lp.z * bx.axes[2];
+    let n = (local.x * bx.axes[0] + local.y * bx.axes[1] + local.z * bx.axes[2]).normalize();
+    SurfacePoint {
+        position: world,
+        normal: n,
+    }
+}
+
+/// Barycentric slack so that a ray through a shared edge hits at least one triangle.
+const TRIANGLE_SLACK: f32 = 1e-6;
+
+/// Ray/triangle, two-sided (Möller & Trumbore, JGT 1997).
+#[inline]
+pub fn hit_triangle(tri: &Triangle, ray: &Ray, t_max: f32) -> f32 {
+    let p = ray.dir.cross(tri.e2);
+    let det = tri.e1.dot(p);
+    if det == 0.0 {
+        return NO_HIT;
+    }
+    let inv = 1.0 / det;
+    let s = ray.origin - tri.v0;
+    let u = s.dot(p) * inv;
+    if !(-TRIANGLE_SLACK..=1.0 + TRIANGLE_SLACK).contains(&u) {
+        return NO_HIT;
+    }
+    let q = s.cross(tri.e1);
+    let v = ray.dir.dot(q) * inv;
+    if v < -TRIANGLE_SLACK || u + v > 1.0 + TRIANGLE_SLACK {
+        return NO_HIT;
+    }
+    let t = tri.e2.dot(q) * inv;
+    if !(t > 0.0 && t < t_max) {
+        return NO_HIT;
+    }
+    t
+}
+
+pub fn triangle_surface(tri: &Triangle, ray: &Ray, t: f32) -> SurfacePoint {
+    let p = ray.origin + t * ray.dir - tri.v0;
+    let d00 = tri.e1.dot(tri.e1);
+    let d01 = tri.e1.dot(tri.e2);
+    let d11 = tri.e2.dot(tri.e2);
+    let d20 = p.dot(tri.e1);
+    let d21 = p.dot(tri.e2);
+    let denom = d00 * d11 - d01 * d01;
+    let v = (d11 * d20 - d01 * d21) / denom;
+    let w = (d00 * d21 - d01 * d20) / denom;
+    SurfacePoint {
+        position: tri.v0 + v * tri.e1 + w * tri.e2,
+        normal: tri.e1.cross(tri.e2).normalize(),
+    }
+}
+
+/// 1 / dir with components too small to invert replaced by a tiny positive number.
+#[inline]
+pub fn safe_inverse(dir: Vec3A) -> Vec3A {
+    Vec3A::select(
+        dir.abs().cmpge(Vec3A::splat(1e-30)),
+        dir,
+        Vec3A::splat(1e-30),
+    )
+    .recip()
+}
+
+// Self-intersection avoidance (Wächter & Binder, Ray Tracing Gems ch. 6), with the constants
+// intersect.wgsl chose by `termtrace check --stress`.
+const OFFSET_ORIGIN: f32 = 1.0 / 32.0;
+const OFFSET_FLOAT_SCALE: f32 = 1.0 / 65536.0;
+const OFFSET_INT_SCALE: f32 = 32.0;
+
+/// Moves a hit point off its surface along `n` by a number of ulps (a fixed distance near
+/// the origin).
+#[inline]
+pub fn offset_ray(p: Vec3A, n: Vec3A) -> Vec3A {
+    let of_i: IVec3 = (OFFSET_INT_SCALE * n).as_ivec3();
+    let pa = p.to_array();
+    let oi = of_i.to_array();
+    let na = n.to_array();
+    let mut out = [0.0f32; 3];
+    for c in 0..3 {
+        out[c] = if pa[c].abs() < OFFSET_ORIGIN {
+            pa[c] + OFFSET_FLOAT_SCALE * na[c]
+        } else {
+            let d = if pa[c] < 0.0 { -oi[c] } else { oi[c] };
+            f32::from_bits((pa[c].to_bits() as i32).wrapping_add(d) as u32)
+        };
+    }
+    Vec3A::from_array(out)
+}

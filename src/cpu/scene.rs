@@ -1,0 +1,229 @@
+//! The scene as the CPU tracer reads it: the very arrays the GPU gets
+//! (`gpu::scene_buffers::Primitives`, `scene_uniforms`, the same BVH), converted to SIMD
+//! vectors (`glam::Vec3A`), with the BVH collapsed to four children per node (`cpu::bvh`).
+
+use super::bvh::Bvh4;
+use crate::gpu::FrameSettings;
+use crate::gpu::layout::{GpuLight, GpuMaterial, SceneUniforms};
+use crate::gpu::scene_buffers::{Primitives, geometry_hash, gpu_bvh, scene_uniforms};
+use crate::scene::Scene;
+use glam::{DVec3, Vec3A};
+
+fn v(a: [f32; 3]) -> Vec3A {
+    Vec3A::from_array(a)
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Material {
+    pub color: Vec3A,
+    pub specular_color: Vec3A,
+    pub smoothness: f32,
+    pub absorption: f32,
+    pub specular: f32,
+    pub light: f32,
+    pub ior: f32,
+    pub light_slot: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Sphere {
+    pub anchor: Vec3A,
+    pub anchor_normal: Vec3A,
+    pub radius: f32,
+    pub material: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Quad {
+    pub q: Vec3A,
+    pub u: Vec3A,
+    pub v: Vec3A,
+    pub normal: Vec3A,
+    pub w: Vec3A,
+    pub material: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Cuboid {
+    pub center: Vec3A,
+    pub half_extents: Vec3A,
+    pub axes: [Vec3A; 3],
+    pub material: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Triangle {
+    pub v0: Vec3A,
+    pub e1: Vec3A,
+    pub e2: Vec3A,
+    pub material: u32,
+}
+
+/// The uniforms the tracer reads per sample, as vectors.
+#[derive(Clone, Copy, Debug)]
+pub struct Uniforms {
+    pub cam_origin: Vec3A,
+    pub cam_to_corner: Vec3A,
+    pub cam_horizontal: Vec3A,
+    pub cam_vertical: Vec3A,
+    pub cam_u: Vec3A,
+    pub cam_v: Vec3A,
+    pub lens_radius: f32,
+    pub sky_uniform: bool,
+    pub sky_bottom: Vec3A,
+    pub sky_top: Vec3A,
+    pub sun_dir: Vec3A,
+    pub sun_size: f32,
+    pub sun_radiance: Vec3A,
+    pub width: u32,
+    pub height: u32,
+    pub max_bounces: u32,
+    pub seed: u32,
+    pub n_lights: u32,
+    pub primitives: u32,
+}
+
+impl Uniforms {
+    fn of(u: &SceneUniforms) -> Uniforms {
+        Uniforms {
+            cam_origin: v(u.cam_origin),
+            cam_to_corner: v(u.cam_to_corner),
+            cam_horizontal: v(u.cam_horizontal),
+            cam_vertical: v(u.cam_vertical),
+            cam_u: v(u.cam_u),
+            cam_v: v(u.cam_v),
+            lens_radius: u.lens_radius,
+            sky_uniform: u.sky_uniform != 0,
+            sky_bottom: v(u.sky_bottom),
+            sky_top: v(u.sky_top),
+            sun_dir: v(u.sun_dir),
+            sun_size: u.sun_size,
+            sun_radiance: v(u.sun_radiance),
+            width: u.width,
+            height: u.height,
+            max_bounces: u.max_bounces,
+            seed: u.seed,
+            n_lights: u.n_lights,
+            primitives: u.n_spheres + u.n_quads + u.n_boxes + u.n_triangles,
+        }
+    }
+}
+
+fn material(m: &GpuMaterial) -> Material {
+    Material {
+        color: v(m.color),
+        specular_color: v(m.specular_color),
+        smoothness: m.smoothness,
+        absorption: m.absorption,
+        specular: m.specular,
+        light: m.light,
+        ior: m.ior,
+        light_slot: m.light_slot,
+    }
+}
+
+pub struct CpuScene {
+    pub u: Uniforms,
+    pub materials: Vec<Material>,
+    pub spheres: Vec<Sphere>,
+    pub quads: Vec<Quad>,
+    pub boxes: Vec<Cuboid>,
+    pub triangles: Vec<Triangle>,
+    pub lights: Vec<GpuLight>,
+    pub bvh: Bvh4,
+    /// Nodes of the binary BVH it was collapsed from, and the seconds its build took.
+    pub node_count: usize,
+    pub build_seconds: f64,
+    /// As on the GPU (`SceneBuffers`): positions are relative to this floating origin, kept
+    /// while the geometry is unchanged so that the BVH can be kept too.
+    origin: DVec3,
+    geometry: u64,
+    nee: bool,
+}
+
+impl CpuScene {
+    pub fn new(scene: &Scene, s: &FrameSettings) -> CpuScene {
+        let origin = scene.camera.look_at;
+        let p = Primitives::of(scene, origin, s.nee);
+        let t = std::time::Instant::now();
+        let (nodes, refs) = gpu_bvh(&p);
+        let bvh = Bvh4::collapse(&nodes, refs);
+        let build_seconds = t.elapsed().as_secs_f64();
+        let mut c = CpuScene {
+            u: Uniforms::of(&scene_uniforms(scene, s, origin)),
+            materials: Vec::new(),
+            spheres: Vec::new(),
+            quads: Vec::new(),
+            boxes: Vec::new(),
+            triangles: Vec::new(),
+            lights: Vec::new(),
+            bvh,
+            node_count: nodes.len(),
+            build_seconds,
+            origin,
+            geometry: geometry_hash(scene),
+            nee: s.nee,
+        };
+        c.take(&p);
+        c
+    }
+
+    /// Brings the scene up to date; the BVH is kept when the geometry is unchanged (as the
+    /// GPU's `SceneBuffers::update` does).
+    pub fn update(&mut self, scene: &Scene, s: &FrameSettings) {
+        if geometry_hash(scene) != self.geometry || s.nee != self.nee {
+            *self = CpuScene::new(scene, s);
+            return;
+        }
+        let p = Primitives::of(scene, self.origin, s.nee);
+        self.u = Uniforms::of(&scene_uniforms(scene, s, self.origin));
+        self.take(&p);
+    }
+
+    fn take(&mut self, p: &Primitives) {
+        self.materials = p.materials.iter().map(material).collect();
+        self.spheres = p
+            .spheres
+            .iter()
+            .map(|s| Sphere {
+                anchor: v(s.anchor),
+                anchor_normal: v(s.anchor_normal),
+                radius: s.radius,
+                material: s.material,
+            })
+            .collect();
+        self.quads = p
+            .quads
+            .iter()
+            .map(|q| Quad {
+                q: v(q.q),
+                u: v(q.u),
+                v: v(q.v),
+                normal: v(q.normal),
+                w: v(q.w),
+                material: q.material,
+            })
+            .collect();
+        self.boxes = p
+            .boxes
+            .iter()
+            .map(|b| Cuboid {
+                center: v(b.center),
+                half_extents: v(b.half_extents),
+                axes: [v(b.axis_x), v(b.axis_y), v(b.axis_z)],
+                material: b.material,
+            })
+            .collect();
+        self.triangles = p
+            .triangles
+            .iter()
+            .map(|t| Triangle {
+                v0: v(t.v0),
+                e1: v(t.e1),
+                e2: v(t.e2),
+                material: t.material,
+            })
+            .collect();
+        self.lights = p.lights.clone();
+    }
+}

@@ -1,0 +1,425 @@
+//! One path (MODEL.md "Scattering"), as `trace_path` in shaders/trace.wgsl traces it: the
+//! same camera, sky, materials, next-event estimation with MIS, Russian roulette and random
+//! streams, so that the CPU's images converge to the GPU's (tests/cpu.rs checks every
+//! shipped scene with the bias check). Comments on the model are in trace.wgsl; here only
+//! what differs.
+//!
+//! Leaving out what a scene does not need: the tracer is monomorphized over the primitive
+//! kinds (`P`: spheres only, or any) and over next-event estimation (`NEE`), the choices a
+//! CPU's branch predictor cannot make free (a kind switch per primitive test, the light
+//! sampling's code and registers); the rarer features (glass, emitters, depth of field, the
+//! sun) are runtime flags, a predicted branch each (measured in BENCHMARKS.md).
+
+use super::bvh::{Stack, Tally};
+use super::intersect::*;
+use super::material::{Scatter, scatter_dielectric, scatter_surface};
+use super::rng::Rng;
+use super::sampling::{PI, basis, random_in_disk};
+use super::scene::{CpuScene, Sphere};
+use crate::gpu::Features;
+use crate::gpu::layout::GpuLight;
+use glam::Vec3A;
+
+/// `P`: only spheres.
+pub const SPHERES: u32 = 1;
+/// `P`: any primitive kind.
+pub const ANY: u32 = 15;
+
+const INDEX: u32 = 0x3fff_ffff;
+const T_FAR: f32 = 3.0e38;
+const RR_START: u32 = 3;
+const RR_MAX_SURVIVAL: f32 = 0.95;
+const LOCAL_SELECTION_MAX: u32 = 32;
+const BACKFACE_WEIGHT: f32 = 0.1;
+
+#[derive(Clone, Copy)]
+struct Hit {
+    t: f32,
+    /// A BVH reference: kind in the top two bits.
+    r: u32,
+}
+
+/// The distance to primitive `r` if nearer than t_max, else NO_HIT.
+#[inline(always)]
+fn hit_primitive<const P: u32>(s: &CpuScene, r: u32, ray: &Ray, t_max: f32) -> f32 {
+    let i = (r & INDEX) as usize;
+    if P == SPHERES {
+        return hit_sphere(&s.spheres[i], ray, t_max);
+    }
+    match r >> 30 {
+        0 => hit_sphere(&s.spheres[i], ray, t_max),
+        1 => hit_quad(&s.quads[i], ray, t_max),
+        2 => hit_box(&s.boxes[i], ray, t_max),
+        _ => hit_triangle(&s.triangles[i], ray, t_max),
+    }
+}
+
+fn power_heuristic(a: f32, b: f32) -> f32 {
+    let a2 = a * a;
+    a2 / (a2 + b * b)
+}
+
+fn sphere_center(s: &Sphere) -> Vec3A {
+    s.anchor - s.radius.abs() * s.anchor_normal
+}
+
+fn cone_one_minus_cos(r2: f32, dist2: f32) -> f32 {
+    let sin2 = r2 / dist2;
+    sin2 / (1.0 + (1.0 - sin2).max(0.0).sqrt())
+}
+
+fn not_finite(v: Vec3A) -> bool {
+    !v.is_finite()
+}
+
+/// Traces paths through one scene with one feature set.
+pub struct Tracer<'a> {
+    s: &'a CpuScene,
+    f: Features,
+    pub tally: Tally,
+    stack: Stack,
+}
+
+impl<'a> Tracer<'a> {
+    pub fn new(s: &'a CpuScene, f: Features) -> Tracer<'a> {
+        Tracer {
+            s,
+            f,
+            tally: Tally::default(),
+            stack: Stack::default(),
+        }
+    }
+
+    /// Every primitive's reference, for the walk without a BVH.
+    fn all_refs(&self) -> impl Iterator<Item = u32> + use<'a> {
+        let s = self.s;
+        let counts = [
+            s.spheres.len(),
+            s.quads.len(),
+            s.boxes.len(),
+            s.triangles.len(),
+        ];
+        (0..4u32).flat_map(move |k| (0..counts[k as usize] as u32).map(move |i| k << 30 | i))
+    }
+
+    #[inline(always)]
+    fn intersect<const P: u32>(&mut self, ray: &Ray) -> Option<Hit> {
+        let s = self.s;
+        if !self.f.bvh {
+            let mut best: Option<Hit> = None;
+            for r in self.all_refs() {
+                let t = hit_primitive::<P>(s, r, ray, best.map_or(T_FAR, |h| h.t));
+                if t > 0.0 {
+                    best = Some(Hit { t, r });
+                }
+            }
+            return best;
+        }
+        s.bvh
+            .closest(ray, T_FAR, &mut self.tally, &mut self.stack, |r, t| {
+                hit_primitive::<P>(s, r, ray, t)
+            })
+            .map(|(t, r)| Hit { t, r })
+    }
+
+    /// Whether anything but primitive `skip` lies on the ray before t_max.
+    #[inline(always)]
+    fn occluded<const P: u32>(&mut self, ray: &Ray, t_max: f32, skip: u32) -> bool {
+        let s = self.s;
+        let blocks = |r: u32| r != skip && hit_primitive::<P>(s, r, ray, t_max) > 0.0;
+        if !self.f.bvh {
+            return self.all_refs().any(blocks);
+        }
+        s.bvh
+            .any(ray, t_max, &mut self.tally, &mut self.stack, blocks)
+    }
+
+    fn surface_at(&self, hit: Hit, ray: &Ray) -> (SurfacePoint, u32) {
+        let s = self.s;
+        let i = (hit.r & INDEX) as usize;
+        match hit.r >> 30 {
+            0 => (
+                sphere_surface(&s.spheres[i], ray, hit.t),
+                s.spheres[i].material,
+            ),
+            1 => (quad_surface(&s.quads[i], ray, hit.t), s.quads[i].material),
+            2 => (box_surface(&s.boxes[i], ray, hit.t), s.boxes[i].material),
+            _ => (
+                triangle_surface(&s.triangles[i], ray, hit.t),
+                s.triangles[i].material,
+            ),
+        }
+    }
+
+    /// The gradient sky with optional sun, or a uniform sky (MODEL.md "Sky").
+    fn sky(&self, dir: Vec3A) -> Vec3A {
+        let u = &self.s.u;
+        if u.sky_uniform {
+            return u.sky_bottom;
+        }
+        let t = 0.5 * (dir.y + 1.0);
+        let mut c = (1.0 - t) * u.sky_bottom + t * u.sky_top;
+        if self.f.sun {
+            let cz = u.sun_dir.dot(dir).max(0.0);
+            if cz > 0.0 {
+                c += u.sun_radiance * cz.powf(u.sun_size);
+            }
+        }
+        c
+    }
+
+    /// Thin-lens camera through the jittered pixel (Shirley, Ray Tracing in One Weekend §13).
+    pub fn camera_ray(&self, x: u32, y: u32, rng: &mut Rng) -> Ray {
+        let u = &self.s.u;
+        let jx = rng.rand();
+        let jy = rng.rand();
+        let s = (x as f32 + jx) / u.width as f32;
+        let t = (y as f32 + jy) / u.height as f32;
+        let target = u.cam_to_corner + s * u.cam_horizontal - t * u.cam_vertical;
+        let mut lens = Vec3A::ZERO;
+        if self.f.dof && u.lens_radius > 0.0 {
+            let p = random_in_disk(rng) * u.lens_radius;
+            lens = p.x * u.cam_u + p.y * u.cam_v;
+        }
+        Ray {
+            origin: u.cam_origin + lens,
+            dir: (target - lens).normalize(),
+        }
+    }
+
+    /// Solid-angle density with which light sampling from `origin` picks the direction that
+    /// hit light primitive `hit` at `at`.
+    fn light_pdf(&self, hit: Hit, origin: Vec3A, at: Vec3A) -> f32 {
+        let i = (hit.r & INDEX) as usize;
+        match hit.r >> 30 {
+            0 => {
+                let s = &self.s.spheres[i];
+                let d = sphere_center(s) - origin;
+                let dist2 = d.dot(d);
+                let r2 = s.radius * s.radius;
+                if dist2 <= r2 {
+                    return 0.0;
+                }
+                1.0 / (2.0 * PI * cone_one_minus_cos(r2, dist2))
+            }
+            1 => {
+                let q = &self.s.quads[i];
+                let to = at - origin;
+                let dist2 = to.dot(to);
+                let cos_l = q.normal.dot(to).abs() / dist2.sqrt();
+                let area = q.u.cross(q.v).length();
+                dist2 / (area * cos_l).max(1e-30)
+            }
+            _ => 0.0,
+        }
+    }
+
+    fn light_weight(&self, l: &GpuLight, p: Vec3A, n: Vec3A) -> f32 {
+        let i = (l.prim & INDEX) as usize;
+        let (center, r2) = if l.prim >> 30 == 0 {
+            let s = &self.s.spheres[i];
+            (sphere_center(s), s.radius * s.radius)
+        } else {
+            let q = &self.s.quads[i];
+            (q.q + 0.5 * (q.u + q.v), 0.25 * (q.u + q.v).length_squared())
+        };
+        let to = center - p;
+        let d2 = to.dot(to);
+        let cos_t = n.dot(to) / d2.max(1e-30).sqrt();
+        l.pmf / d2.max(r2) * (BACKFACE_WEIGHT + cos_t.max(0.0))
+    }
+
+    fn pick_light_by_power(&self, u: f32) -> usize {
+        let lights = &self.s.lights;
+        let (mut lo, mut hi) = (0usize, lights.len() - 1);
+        while lo < hi {
+            let mid = (lo + hi) / 2;
+            if lights[mid].cdf > u {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        lo
+    }
+
+    fn choose_light(&self, u: f32, p: Vec3A, n: Vec3A) -> (usize, f32) {
+        let lights = &self.s.lights;
+        if self.s.u.n_lights > LOCAL_SELECTION_MAX {
+            let i = self.pick_light_by_power(u);
+            return (i, lights[i].pmf);
+        }
+        let total: f32 = lights.iter().map(|l| self.light_weight(l, p, n)).sum();
+        let target = u * total;
+        let mut acc = 0.0;
+        for (i, l) in lights.iter().enumerate() {
+            let w = self.light_weight(l, p, n);
+            acc += w;
+            if acc > target || i + 1 == lights.len() {
+                return (i, w / total);
+            }
+        }
+        (0, 0.0)
+    }
+
+    fn light_choice_pmf(&self, i: usize, p: Vec3A, n: Vec3A) -> f32 {
+        let lights = &self.s.lights;
+        if self.s.u.n_lights > LOCAL_SELECTION_MAX {
+            return lights[i].pmf;
+        }
+        let total: f32 = lights.iter().map(|l| self.light_weight(l, p, n)).sum();
+        self.light_weight(&lights[i], p, n) / total
+    }
+
+    /// The light-sampled estimate at p (facing normal n) for the Lambertian lobe, its 1/π
+    /// included and its tint not, MIS-weighted.
+    fn sample_light<const P: u32>(&mut self, p: Vec3A, n: Vec3A, rng: &mut Rng) -> Vec3A {
+        let (index, pmf) = self.choose_light(rng.rand(), p, n);
+        if pmf <= 0.0 {
+            return Vec3A::ZERO;
+        }
+        let light = self.s.lights[index];
+        let i = (light.prim & INDEX) as usize;
+        let (dir, pdf, material);
+        if light.prim >> 30 == 0 {
+            let s = &self.s.spheres[i];
+            let to = sphere_center(s) - p;
+            let dist2 = to.dot(to);
+            let r2 = s.radius * s.radius;
+            let u1 = rng.rand();
+            let u2 = rng.rand();
+            if dist2 <= r2 {
+                return Vec3A::ZERO;
+            }
+            let one_minus = cone_one_minus_cos(r2, dist2);
+            let cos_t = 1.0 - u1 * one_minus;
+            let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+            let (sp, cp) = (2.0 * PI * u2).sin_cos();
+            let b = basis(to / dist2.sqrt());
+            dir = (b[0] * (sin_t * cp) + b[1] * (sin_t * sp) + b[2] * cos_t).normalize();
+            pdf = 1.0 / (2.0 * PI * one_minus);
+            material = s.material;
+        } else {
+            let q = &self.s.quads[i];
+            let x = q.q + rng.rand() * q.u + rng.rand() * q.v;
+            let to = x - p;
+            let dist2 = to.dot(to);
+            dir = to / dist2.sqrt();
+            let cos_l = q.normal.dot(dir).abs();
+            if cos_l < 1e-6 {
+                return Vec3A::ZERO;
+            }
+            pdf = dist2 / (light.area * cos_l);
+            material = q.material;
+        }
+        let cos_s = n.dot(dir);
+        if cos_s <= 0.0 {
+            return Vec3A::ZERO;
+        }
+        let shadow = Ray {
+            origin: offset_ray(p, n),
+            dir,
+        };
+        let t_light = hit_primitive::<ANY>(self.s, light.prim, &shadow, T_FAR);
+        if t_light <= 0.0 || self.occluded::<P>(&shadow, t_light, light.prim) {
+            return Vec3A::ZERO;
+        }
+        let m = &self.s.materials[material as usize];
+        let pl = pmf * pdf;
+        let bsdf_pdf = cos_s / PI;
+        m.color * m.light * (cos_s / PI / pl * power_heuristic(pl, bsdf_pdf))
+    }
+
+    /// One path: its radiance and the segments it traced.
+    #[inline(never)]
+    pub fn trace_path<const P: u32, const NEE: bool>(
+        &mut self,
+        primary: Ray,
+        rng: &mut Rng,
+    ) -> (Vec3A, u32) {
+        let u = self.s.u;
+        let mut ray = primary;
+        let mut throughput = Vec3A::ONE;
+        let mut radiance = Vec3A::ZERO;
+        let mut segments = 0;
+        let nee = NEE && u.n_lights > 0;
+        let mut prev_pdf = 0.0;
+        let mut prev_point = ray.origin;
+        let mut prev_normal = Vec3A::Y;
+        let mut bounce = 0;
+        while bounce <= u.max_bounces {
+            segments += 1;
+            let Some(hit) = self.intersect::<P>(&ray) else {
+                radiance += throughput * self.sky(ray.dir);
+                break;
+            };
+            let (point, material) = self.surface_at(hit, &ray);
+            let m = &self.s.materials[material as usize];
+            if self.f.emitters && m.light > 0.0 {
+                let mut w = 1.0;
+                if nee && prev_pdf > 0.0 && m.light_slot > 0 {
+                    let choice =
+                        self.light_choice_pmf(m.light_slot as usize - 1, prev_point, prev_normal);
+                    let pl = choice * self.light_pdf(hit, prev_point, point.position);
+                    w = power_heuristic(prev_pdf, pl);
+                }
+                radiance += throughput * m.color * m.light * w;
+                break;
+            }
+            if bounce == u.max_bounces {
+                break;
+            }
+            let n_out = point.normal;
+            let sc: Scatter;
+            prev_pdf = 0.0;
+            if self.f.dielectrics && m.smoothness < 0.0 {
+                sc = scatter_dielectric(m, ray.dir, n_out, rng);
+            } else {
+                let is_spec = rng.rand() < m.specular;
+                let n = if ray.dir.dot(n_out) < 0.0 {
+                    n_out
+                } else {
+                    -n_out
+                };
+                let cosine_lobe = !is_spec || m.smoothness == 0.0;
+                if nee && cosine_lobe {
+                    let tint = if is_spec { m.specular_color } else { m.color };
+                    radiance += throughput * tint * self.sample_light::<P>(point.position, n, rng);
+                }
+                sc = scatter_surface(m, ray.dir, n_out, is_spec, rng);
+                if cosine_lobe {
+                    prev_pdf = sc.dir.dot(n).max(0.0) / PI;
+                    prev_normal = n;
+                }
+            }
+            if sc.absorbed {
+                break;
+            }
+            throughput *= sc.attenuation;
+            prev_point = point.position;
+            if nee && bounce >= RR_START {
+                let q = throughput.max_element().min(RR_MAX_SURVIVAL);
+                if rng.rand() >= q {
+                    break;
+                }
+                throughput /= q;
+            }
+            let side = if sc.dir.dot(n_out) > 0.0 {
+                n_out
+            } else {
+                -n_out
+            };
+            ray = Ray {
+                origin: offset_ray(point.position, side),
+                dir: sc.dir,
+            };
+            bounce += 1;
+        }
+        (radiance, segments)
+    }
+}
+
+/// Whether a sample's radiance must be discarded (NaN or infinite).
+pub fn invalid(v: Vec3A) -> bool {
+    not_finite(v)
+}

@@ -1,0 +1,91 @@
+//! The native CPU tracer against the GPU's: every shipped scene converges to the same image
+//! (the bias check of `converge`, tile by tile), its sums are as exact as the GPU's whatever
+//! the rounds, and `--adapter cpu-native` picks it. (The known-answer and the
+//! BVH/specialization tests run on both backends too: `on_both` in tests/common.)
+
+mod common;
+use common::*;
+use termtrace::converge::metrics;
+use termtrace::render::{Backend, RenderOptions, Renderer, Snapshot};
+use termtrace::scene::{BUILTIN_SCENES, Scene};
+
+fn render_on(backend: Backend, scene: &Scene, seed: u32, spp: u32) -> Snapshot {
+    let s = termtrace::gpu::FrameSettings {
+        seed,
+        ..settings(32, 24, scene.render.max_bounces.min(12))
+    };
+    let mut r = Renderer::new(backend, scene, s, RenderOptions::default());
+    r.render_spp(spp);
+    r.snapshot()
+}
+
+#[test]
+fn every_shipped_scene_converges_to_the_gpu_image_on_the_cpu() {
+    // Independent samples (different seeds), so that the test's variance is right; 8×8
+    // tiles, Bonferroni-corrected over all tiles of all scenes at α = 0.01. tests/nee.rs
+    // shows the same check finding a light 5 % too bright.
+    let spp = 48;
+    let mut failures = Vec::new();
+    let mut tiles = 0;
+    for (name, _) in BUILTIN_SCENES {
+        let scene = Scene::load(name).unwrap();
+        let gpu = render_on(Backend::Gpu(ctx()), &scene, 1, spp);
+        let cpu = render_on(Backend::Cpu, &scene, 2, spp);
+        assert_eq!(cpu.min_samples(), spp as u64, "{name}");
+        assert_eq!(
+            cpu.invalid_samples(),
+            0,
+            "{name}: invalid samples on the CPU"
+        );
+        let r = metrics::bias_check(&cpu, &gpu, false, 8, 0.01 / BUILTIN_SCENES.len() as f64);
+        tiles += r.tiles;
+        eprintln!("{name}: {} tiles, smallest p {:.3e}", r.tiles, r.min_p);
+        if !r.significant.is_empty() {
+            failures.push(format!("{name}: {:?}", r.significant));
+        }
+    }
+    assert!(
+        tiles >= 12 * BUILTIN_SCENES.len(),
+        "only {tiles} tiles tested"
+    );
+    assert!(failures.is_empty(), "tiles differ: {failures:#?}");
+}
+
+#[test]
+fn the_cpu_sums_are_exact_whatever_the_rounds() {
+    // Fixed-point sums: 7 samples in one go, or in rounds and submissions of any size (the
+    // first look included), give the same words bit for bit.
+    let scene = Scene::load("showcase").unwrap();
+    let s = settings(24, 16, 6);
+    let whole = {
+        let mut r = Renderer::new(Backend::Cpu, &scene, s, RenderOptions::default());
+        r.render_spp(7);
+        r.snapshot()
+    };
+    let pieces = {
+        let options = RenderOptions {
+            first_look: true,
+            submission: std::time::Duration::from_micros(1),
+            ..Default::default()
+        };
+        let mut r = Renderer::new(Backend::Cpu, &scene, s, options);
+        while r.submit(7).is_some() {
+            r.wait(0);
+        }
+        r.snapshot()
+    };
+    assert_eq!(whole.samples, 7);
+    assert_eq!(pieces.samples, 7);
+    assert_eq!(whole.data.even, pieces.data.even);
+    assert_eq!(whole.data.odd, pieces.data.odd);
+    assert!(whole.data.segments > 0 && whole.data.segments == pieces.data.segments);
+}
+
+#[test]
+fn cpu_native_is_an_adapter_name() {
+    let b = Backend::open(Some("cpu-native")).unwrap();
+    assert!(matches!(b, Backend::Cpu));
+    assert!(b.describe().contains("CPU"));
+    // Anything else still names a wgpu adapter.
+    assert!(Backend::open(Some("no-such-adapter-anywhere")).is_err());
+}
