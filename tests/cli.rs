@@ -236,7 +236,7 @@ fn adapters_lists_at_least_one_and_the_cpu_tracer() {
     assert!(out.contains("[cpu-native]"), "{out}");
     // Exactly one is marked as the default.
     assert_eq!(
-        out.lines().filter(|l| l.starts_with('*')).count(),
+        out.lines().filter(|l| l.starts_with("* [")).count(),
         1,
         "{out}"
     );

@@ -1,11 +1,12 @@
 //! Error against run time: the error metrics against analytic values, the live noise
-//! estimate against the true error, the bias check, and the files `converge` writes.
+//! estimate against the true error, the bias check, and the files `converge` writes. The
+//! estimators are tested on images of the native CPU tracer (the fastest backend here).
 
 mod common;
 use common::*;
 use termtrace::converge::{metrics, reference};
 use termtrace::output::LinearImage;
-use termtrace::render::{RenderOptions, Renderer};
+use termtrace::render::{Backend, RenderOptions, Renderer};
 use termtrace::scene::{BUILTIN_SCENES, Scene};
 
 /// The Lambertian plane under a gradient sky (see tests/statistical.rs): every pixel's mean
@@ -32,7 +33,7 @@ fn rmse_at_n_spp_is_sigma_over_root_n() {
         .sum::<f64>()
         / 3.0;
     let mut r = Renderer::new(
-        ctx(),
+        Backend::Cpu,
         &scene(PLANE),
         settings(w, h, 4),
         RenderOptions::default(),
@@ -62,9 +63,9 @@ fn the_live_estimate_tracks_the_true_error_on_every_shipped_scene() {
         let s = Scene::load(name).unwrap();
         let mut fs = settings(w, h, s.render.max_bounces.min(8));
         fs.seed = reference::REFERENCE_SEED;
-        let reference = snapshot(&s, fs, 8 * spp);
+        let reference = cpu_snapshot(&s, fs, 8 * spp);
         fs.seed = 1;
-        let run = snapshot(&s, fs, spp);
+        let run = cpu_snapshot(&s, fs, spp);
         let measured = metrics::errors(&run.image(), &reference.image()).relmse;
         let reference_own = reference.noise_estimate().unwrap().powi(2);
         let truth = (measured - reference_own).max(0.0).sqrt();
@@ -85,8 +86,8 @@ fn the_live_estimate_tracks_the_true_error_on_every_shipped_scene() {
 fn the_bias_check_finds_a_biased_image_and_passes_an_unbiased_one() {
     let s = scene(PLANE);
     let fs = settings(64, 64, 4);
-    let reference = snapshot(&s, FrameSettingsWith::seed(fs, 77), 256);
-    let fair = snapshot(&s, fs, 64);
+    let reference = cpu_snapshot(&s, FrameSettingsWith::seed(fs, 77), 256);
+    let fair = cpu_snapshot(&s, fs, 64);
     let r = metrics::bias_check(&fair, &reference, false, 16, 0.01);
     assert_eq!(r.tiles, 16);
     assert!(
@@ -97,7 +98,7 @@ fn the_bias_check_finds_a_biased_image_and_passes_an_unbiased_one() {
     // The same plane 3 % darker: a renderer that converges to the wrong answer.
     let biased_scene =
         scene(&PLANE.replace("color = [0.5, 0.5, 0.5]", "color = [0.485, 0.485, 0.485]"));
-    let biased = snapshot(&biased_scene, fs, 64);
+    let biased = cpu_snapshot(&biased_scene, fs, 64);
     let r = metrics::bias_check(&biased, &reference, false, 16, 0.01);
     assert!(
         r.significant.len() >= 12,

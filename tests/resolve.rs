@@ -57,9 +57,14 @@ fn the_noise_estimate_waits_for_a_sample_in_each_half() {
         .request(&ctx, r.accumulation().unwrap(), (8, 8), 1)
         .expect("a free slot");
     // A second request takes the other slot; a third finds none until one is taken.
-    let other = pass.request(&ctx, r.accumulation().unwrap(), (8, 8), 1).unwrap();
+    let other = pass
+        .request(&ctx, r.accumulation().unwrap(), (8, 8), 1)
+        .unwrap();
     assert_ne!(slot, other);
-    assert!(pass.request(&ctx, r.accumulation().unwrap(), (8, 8), 1).is_none());
+    assert!(
+        pass.request(&ctx, r.accumulation().unwrap(), (8, 8), 1)
+            .is_none()
+    );
     ctx.device
         .poll(wgpu::PollType::wait_indefinitely())
         .unwrap();
@@ -84,14 +89,19 @@ fn the_cpu_tracers_frames_match_the_host_downsample_and_noise_estimate() {
         r.render_spp(6);
         let snap = r.snapshot();
         let host = cells::downsample(&snap.image(), factor);
-        let frame = r.resolve_on_host(factor).expect("the CPU makes frames on the host");
+        let frame = r
+            .resolve_on_host(factor)
+            .expect("the CPU makes frames on the host");
         assert_eq!((frame.image.width, frame.image.height), (12, 6));
         for (i, (a, b)) in frame.image.pixels.iter().zip(&host.pixels).enumerate() {
             let close = (0..3).all(|c| (a[c] - b[c]).abs() <= 1e-5 * b[c].abs().max(1e-3));
             assert!(close, "factor {factor}, pixel {i}: frame {a:?}, host {b:?}");
         }
         let (f, h) = (frame.noise.unwrap(), snap.noise_estimate().unwrap());
-        assert!((f - h).abs() <= 1e-4 * h, "factor {factor}: noise {f}, host {h}");
+        assert!(
+            (f - h).abs() <= 1e-4 * h,
+            "factor {factor}: noise {f}, host {h}"
+        );
         assert!(frame.sigma.iter().all(|s| s.is_finite() && *s >= 0.0));
     }
 }

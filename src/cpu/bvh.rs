@@ -9,19 +9,20 @@
 //! Measured on `weekend` (BENCHMARKS.md, "A native CPU tracer"): 4.8 nodes visited per
 //! segment against the binary BVH's 11.6 on the GPU, for about two primitive tests each.
 
-use super::intersect::{NO_HIT, Ray, safe_inverse};
+use super::intersect::{Ray, safe_inverse};
 use crate::gpu::layout::GpuBvhNode;
 use glam::Vec4;
 
-/// A slot of a node that holds nothing.
-const EMPTY: u32 = u32::MAX;
-/// Pending entries: each visit pushes at most four and pops one, over at most
+/// Pending entries: each visit pushes at most three and descends into one, over at most
 /// `bvh::MAX_DEPTH` levels.
 const STACK: usize = 3 * crate::bvh::MAX_DEPTH + 4;
+/// The most references a leaf slot holds (a binary leaf with more, which only a degenerate
+/// scene at the builder's depth limit makes, is split over inner nodes).
+const MAX_SLOT_REFS: usize = u16::MAX as usize;
 
-/// Four children: their bounds by axis, and for each either an inner node (`count` 0,
-/// `child` its index) or a leaf (`count` references from `child` on in `refs`); a leaf hit
-/// is tested at once, an inner child pushed.
+/// Four children: their bounds by axis, and for each either an inner node (`child` its
+/// index) or a leaf (`count` references from `child` on in `refs`); `valid` and `leaves`
+/// are bit masks of the slots in use and of the leaf slots. 128 bytes, two cache lines.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub struct Node4 {
@@ -32,7 +33,9 @@ pub struct Node4 {
     max_y: Vec4,
     max_z: Vec4,
     child: [u32; 4],
-    count: [u32; 4],
+    count: [u16; 4],
+    valid: u8,
+    leaves: u8,
 }
 
 #[derive(Default)]
@@ -61,13 +64,28 @@ impl Default for Stack {
 
 #[derive(Clone, Copy, Default)]
 pub struct Entry {
-    child: u32,
+    node: u32,
     t: f32,
 }
 
 fn area(n: &GpuBvhNode) -> f32 {
     let d = [0, 1, 2].map(|c| (n.max[c] - n.min[c]).max(0.0));
     d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+}
+
+/// A child of a node being built: bounds and what it is.
+#[derive(Clone, Copy)]
+struct Kid {
+    min: [f32; 3],
+    max: [f32; 3],
+    /// A binary node to collapse, or a leaf's (first, count).
+    what: KidKind,
+}
+
+#[derive(Clone, Copy)]
+enum KidKind {
+    Inner(usize),
+    Leaf(u32, u32),
 }
 
 impl Bvh4 {
@@ -78,17 +96,34 @@ impl Bvh4 {
             refs,
         };
         if !bin.is_empty() {
-            if bin[0].count > 0 {
-                b.node_of(bin, &[0]);
-            } else {
-                b.build(bin, 0);
+            let root = b.kid(bin, 0);
+            match root.what {
+                KidKind::Inner(_) => {
+                    b.build(bin, 0);
+                }
+                KidKind::Leaf(..) => {
+                    b.node_of(bin, &[root]);
+                }
             }
         }
         b
     }
 
-    /// Adds the node holding `kids` (binary node indices) and returns its index.
-    fn node_of(&mut self, bin: &[GpuBvhNode], kids: &[usize]) -> u32 {
+    fn kid(&self, bin: &[GpuBvhNode], k: usize) -> Kid {
+        let n = &bin[k];
+        Kid {
+            min: n.min,
+            max: n.max,
+            what: if n.count > 0 {
+                KidKind::Leaf(n.first, n.count)
+            } else {
+                KidKind::Inner(k)
+            },
+        }
+    }
+
+    /// Adds the node holding `kids` and returns its index.
+    fn node_of(&mut self, bin: &[GpuBvhNode], kids: &[Kid]) -> u32 {
         let index = self.nodes.len();
         let mut n = Node4 {
             min_x: Vec4::ZERO,
@@ -97,22 +132,29 @@ impl Bvh4 {
             max_x: Vec4::ZERO,
             max_y: Vec4::ZERO,
             max_z: Vec4::ZERO,
-            child: [EMPTY; 4],
+            child: [0; 4],
             count: [0; 4],
+            valid: 0,
+            leaves: 0,
         };
         self.nodes.push(n);
         let (mut lo, mut hi) = ([[0.0f32; 4]; 3], [[0.0f32; 4]; 3]);
-        for (slot, &k) in kids.iter().enumerate() {
-            let b = &bin[k];
+        for (slot, k) in kids.iter().enumerate() {
             for c in 0..3 {
-                lo[c][slot] = b.min[c];
-                hi[c][slot] = b.max[c];
+                lo[c][slot] = k.min[c];
+                hi[c][slot] = k.max[c];
             }
-            if b.count > 0 {
-                n.child[slot] = b.first;
-                n.count[slot] = b.count;
-            } else {
-                n.child[slot] = self.build(bin, k);
+            n.valid |= 1 << slot;
+            match k.what {
+                KidKind::Leaf(first, count) if count as usize <= MAX_SLOT_REFS => {
+                    n.child[slot] = first;
+                    n.count[slot] = count as u16;
+                    n.leaves |= 1 << slot;
+                }
+                KidKind::Leaf(first, count) => {
+                    n.child[slot] = self.split_leaf(bin, k, first, count);
+                }
+                KidKind::Inner(b) => n.child[slot] = self.build(bin, b),
             }
         }
         [n.min_x, n.min_y, n.min_z] = lo.map(Vec4::from_array);
@@ -121,29 +163,53 @@ impl Bvh4 {
         index as u32
     }
 
-    /// The four-wide node for binary inner node `b`.
+    /// Inner nodes over a leaf too large for one slot: its references in slot-sized pieces,
+    /// each with the leaf's bounds.
+    fn split_leaf(&mut self, bin: &[GpuBvhNode], k: &Kid, first: u32, count: u32) -> u32 {
+        let piece = (count as usize).div_ceil(4).max(1) as u32;
+        let kids: Vec<Kid> = (0..4)
+            .map(|i| {
+                (
+                    first + i * piece,
+                    piece.min((first + count).saturating_sub(first + i * piece)),
+                )
+            })
+            .filter(|&(_, n)| n > 0)
+            .map(|(f, n)| Kid {
+                what: KidKind::Leaf(f, n),
+                ..*k
+            })
+            .collect();
+        self.node_of(bin, &kids)
+    }
+
+    /// The four-wide node for binary inner node `b`: its children, the inner child of
+    /// largest area opened until there are four.
     fn build(&mut self, bin: &[GpuBvhNode], b: usize) -> u32 {
         let first = bin[b].first as usize;
-        let mut kids = vec![first, first + 1];
+        let mut kids = vec![self.kid(bin, first), self.kid(bin, first + 1)];
         while kids.len() < 4 {
             let open = kids
                 .iter()
                 .enumerate()
-                .filter(|(_, k)| bin[**k].count == 0)
-                .max_by(|a, b| area(&bin[*a.1]).total_cmp(&area(&bin[*b.1])))
-                .map(|(i, _)| i);
-            let Some(i) = open else { break };
-            let f = bin[kids[i]].first as usize;
-            kids[i] = f;
-            kids.insert(i + 1, f + 1);
+                .filter_map(|(i, k)| match k.what {
+                    KidKind::Inner(b) => Some((i, b)),
+                    KidKind::Leaf(..) => None,
+                })
+                .max_by(|a, b| area(&bin[a.1]).total_cmp(&area(&bin[b.1])));
+            let Some((i, b)) = open else { break };
+            let f = bin[b].first as usize;
+            kids[i] = self.kid(bin, f);
+            kids.insert(i + 1, self.kid(bin, f + 1));
         }
         self.node_of(bin, &kids)
     }
 
-    /// Entry distances of a node's four children (NO_HIT where missed or empty), nearest
-    /// first clamped at 0: the slab test (Kay & Kajiya 1986; Williams et al., JGT 2005).
+    /// The slots whose boxes the ray enters before `t_max` (a bit mask) and the entry
+    /// distances (clamped at 0): four slab tests at once (Kay & Kajiya 1986; Williams et
+    /// al., JGT 2005).
     #[inline(always)]
-    fn slabs(n: &Node4, o: [Vec4; 3], inv: [Vec4; 3], t_max: f32) -> [f32; 4] {
+    fn slabs(n: &Node4, o: &[Vec4; 3], inv: &[Vec4; 3], t_max: f32) -> (u32, [f32; 4]) {
         let tx0 = (n.min_x - o[0]) * inv[0];
         let tx1 = (n.max_x - o[0]) * inv[0];
         let ty0 = (n.min_y - o[1]) * inv[1];
@@ -158,13 +224,7 @@ impl Bvh4 {
             .max(tx1)
             .min(ty0.max(ty1))
             .min(tz0.max(tz1).min(Vec4::splat(t_max)));
-        let mut out = Vec4::select(near.cmple(far), near, Vec4::splat(NO_HIT)).to_array();
-        for (t, c) in out.iter_mut().zip(n.child) {
-            if c == EMPTY {
-                *t = NO_HIT;
-            }
-        }
-        out
+        (near.cmple(far).bitmask() & n.valid as u32, near.to_array())
     }
 
     fn ray_terms(ray: &Ray) -> ([Vec4; 3], [Vec4; 3]) {
@@ -175,9 +235,18 @@ impl Bvh4 {
         )
     }
 
-    /// The nearest hit before `t_max`: (t, reference), or (`t_max`, `EMPTY`). `test` gives a
-    /// primitive's distance if nearer than its bound, else a value ≤ 0. Children are visited
-    /// nearest first, and a pending one is skipped once a nearer hit is found.
+    /// The references of leaf slot `slot` of `n`.
+    #[inline(always)]
+    fn leaf(&self, n: &Node4, slot: usize) -> &[u32] {
+        let first = n.child[slot] as usize;
+        &self.refs[first..first + n.count[slot] as usize]
+    }
+
+    /// The nearest hit before `t_max`: (t, reference). `test` gives a primitive's distance
+    /// if nearer than its bound, else a value ≤ 0. Leaves hit are tested at once (a few
+    /// primitives, which shorten the ray for what follows); the nearest inner child hit is
+    /// entered next and the others pushed, nearest on top, and skipped when popped once a
+    /// nearer hit is known.
     #[inline(always)]
     pub fn closest(
         &self,
@@ -191,58 +260,76 @@ impl Bvh4 {
             return None;
         }
         let (o, inv) = Self::ray_terms(ray);
-        let mut best = (t_max, EMPTY);
+        let mut best: Option<(f32, u32)> = None;
+        let mut t_best = t_max;
         let stack = &mut *stack.0;
         let mut sp = 0usize;
         let mut node = 0usize;
         loop {
             let n = &self.nodes[node];
             tally.visits += 1;
-            let t = Self::slabs(n, o, inv, best.0);
-            // Leaves hit are tested at once (a few primitives, which shorten the ray for
-            // what follows); inner children hit are ordered farthest first.
-            let mut hits = [(0.0f32, 0u32); 4];
-            let mut k = 0;
-            for (slot, &ts) in t.iter().enumerate() {
-                if ts < 0.0 {
-                    continue;
-                }
-                if n.count[slot] > 0 {
-                    let first = n.child[slot] as usize;
-                    tally.tests += n.count[slot] as u64;
-                    for &r in &self.refs[first..first + n.count[slot] as usize] {
-                        let th = test(r, best.0);
-                        if th > 0.0 {
-                            best = (th, r);
-                        }
+            let (mask, t) = Self::slabs(n, &o, &inv, t_best);
+            let mut leaves = mask & n.leaves as u32;
+            while leaves != 0 {
+                let slot = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let refs = self.leaf(n, slot);
+                tally.tests += refs.len() as u64;
+                for &r in refs {
+                    let th = test(r, t_best);
+                    if th > 0.0 {
+                        t_best = th;
+                        best = Some((th, r));
                     }
+                }
+            }
+            let mut inner = mask & !(n.leaves as u32);
+            // The nearest inner child hit (still nearer than the best hit) comes next; the
+            // others wait on the stack, the nearest of them on top.
+            let mut next: Option<Entry> = None;
+            let base = sp;
+            while inner != 0 {
+                let slot = inner.trailing_zeros() as usize;
+                inner &= inner - 1;
+                if t[slot] >= t_best {
                     continue;
                 }
-                let mut j = k;
-                while j > 0 && hits[j - 1].0 < ts {
-                    hits[j] = hits[j - 1];
+                let e = Entry {
+                    node: n.child[slot],
+                    t: t[slot],
+                };
+                let far = match next {
+                    Some(cur) if cur.t <= e.t => e,
+                    Some(cur) => {
+                        next = Some(e);
+                        cur
+                    }
+                    None => {
+                        next = Some(e);
+                        continue;
+                    }
+                };
+                // Below the entries of this node nearer than it.
+                let mut j = sp;
+                while j > base && stack[j - 1].t < far.t {
+                    stack[j] = stack[j - 1];
                     j -= 1;
                 }
-                hits[j] = (ts, n.child[slot]);
-                k += 1;
+                stack[j] = far;
+                sp += 1;
             }
-            // Descend into the nearest; push the others, the nearest of them on top.
-            if k > 0 && hits[k - 1].0 < best.0 {
-                for &(ts, child) in &hits[..k - 1] {
-                    stack[sp] = Entry { child, t: ts };
-                    sp += 1;
-                }
-                node = hits[k - 1].1 as usize;
+            if let Some(e) = next {
+                node = e.node as usize;
                 continue;
             }
             loop {
                 if sp == 0 {
-                    return (best.1 != EMPTY).then_some(best);
+                    return best;
                 }
                 sp -= 1;
                 let e = stack[sp];
-                if e.t < best.0 {
-                    node = e.child as usize;
+                if e.t < t_best {
+                    node = e.node as usize;
                     break;
                 }
             }
@@ -270,34 +357,32 @@ impl Bvh4 {
         loop {
             let n = &self.nodes[node];
             tally.visits += 1;
-            let t = Self::slabs(n, o, inv, t_max);
-            let mut next = None;
-            for (slot, &ts) in t.iter().enumerate() {
-                if ts < 0.0 {
-                    continue;
-                }
-                if n.count[slot] > 0 {
-                    let first = n.child[slot] as usize;
-                    tally.tests += n.count[slot] as u64;
-                    if self.refs[first..first + n.count[slot] as usize]
-                        .iter()
-                        .any(|&r| test(r))
-                    {
-                        return true;
-                    }
-                } else if let Some(c) = next.replace(n.child[slot]) {
-                    stack[sp] = Entry { child: c, t: ts };
-                    sp += 1;
+            let (mask, _) = Self::slabs(n, &o, &inv, t_max);
+            let mut leaves = mask & n.leaves as u32;
+            while leaves != 0 {
+                let slot = leaves.trailing_zeros() as usize;
+                leaves &= leaves - 1;
+                let refs = self.leaf(n, slot);
+                tally.tests += refs.len() as u64;
+                if refs.iter().any(|&r| test(r)) {
+                    return true;
                 }
             }
-            node = match next {
-                Some(c) => c as usize,
-                None if sp > 0 => {
-                    sp -= 1;
-                    stack[sp].child as usize
-                }
-                None => return false,
-            };
+            let mut inner = mask & !(n.leaves as u32);
+            while inner != 0 {
+                let slot = inner.trailing_zeros() as usize;
+                inner &= inner - 1;
+                stack[sp] = Entry {
+                    node: n.child[slot],
+                    t: 0.0,
+                };
+                sp += 1;
+            }
+            if sp == 0 {
+                return false;
+            }
+            sp -= 1;
+            node = stack[sp].node as usize;
         }
     }
 }

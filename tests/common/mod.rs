@@ -67,6 +67,14 @@ pub fn snapshot_with(
     snap
 }
 
+/// `snapshot` on the native CPU tracer: for long references and tests of the estimators
+/// rather than of a backend (many times faster than the software adapter).
+pub fn cpu_snapshot(scene: &Scene, s: FrameSettings, spp: u32) -> Snapshot {
+    let mut r = Renderer::new(Backend::Cpu, scene, s, RenderOptions::default());
+    r.render_spp(spp);
+    r.snapshot()
+}
+
 pub fn snapshot(scene: &Scene, s: FrameSettings, spp: u32) -> Snapshot {
     snapshot_with(scene, s, spp, RenderOptions::default())
 }
