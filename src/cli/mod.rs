@@ -70,9 +70,14 @@ pub struct ViewArgs {
     /// Colours: truecolor, 256 (dithered palette) or none [default: from COLORTERM/TERM].
     #[arg(long, value_enum)]
     pub color: Option<ColorMode>,
-    /// Kitty graphics (`auto` uses them only in a local kitty, never over SSH).
+    /// Pixel graphics: `auto` asks the terminal (also over SSH) and falls back to cells;
+    /// inside tmux it needs `allow-passthrough on`. The status line says which and why.
     #[arg(long, value_enum, default_value_t = Graphics::Auto)]
     pub graphics: Graphics,
+    /// With pixel graphics, trace this fraction of the terminal's pixels each way (less
+    /// work and bandwidth; the terminal scales the image up).
+    #[arg(long, default_value_t = 1.0, value_parser = scale)]
+    pub scale: f64,
     /// Most frames per second drawn.
     #[arg(long, default_value_t = 30.0, value_parser = positive)]
     pub fps: f64,
@@ -97,6 +102,13 @@ pub struct ViewArgs {
     /// Print frames drawn and bytes written when the preview ends.
     #[arg(long)]
     pub stats: bool,
+}
+
+fn scale(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x > 0.0 && x <= 1.0 => Ok(x),
+        _ => Err(format!("`{s}` is not a fraction in (0, 1]")),
+    }
 }
 
 pub(crate) fn positive(s: &str) -> Result<f64, String> {
@@ -192,6 +204,7 @@ fn view(a: ViewArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         cells: a.cells,
         color: a.color,
         graphics: a.graphics,
+        scale: a.scale,
         fps: a.fps,
         max_kbps: a.max_kbps,
         supersample: a.ss,

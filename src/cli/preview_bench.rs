@@ -165,6 +165,10 @@ const PIECE: usize = 4096;
 /// The status query the terminal answers (see `ui::flow`), and its answer.
 const QUERY: &[u8] = b"\x1b[5n";
 const ANSWER: &[u8] = b"\x1b[0n";
+/// Primary device attributes, which the preview asks once to learn the terminal's graphics,
+/// and the emulator's answer as a VT220 without sixel would give it (vt100 draws text only).
+const DA1: &[u8] = b"\x1b[c";
+const DA1_ANSWER: &[u8] = b"\x1b[?62;22c";
 
 /// Output read from the program and not yet on the link.
 struct Pipe {
@@ -311,7 +315,8 @@ impl PreviewBench {
         let far_thread = std::thread::spawn(move || {
             let nz = |n: u16| std::num::NonZeroU16::new(n.max(1)).expect("at least 1");
             *sh.parser.lock().expect("screen") = Some(vt100::Parser::new(nz(rows), nz(cols), 0));
-            let (mut frame_tail, mut query_tail) = (Vec::new(), Vec::new());
+            let (mut frame_tail, mut query_tail, mut da1_tail) =
+                (Vec::new(), Vec::new(), Vec::new());
             let mut on_wire: std::collections::VecDeque<(Instant, Vec<u8>)> = Default::default();
             let mut link_free = Instant::now();
             // Queries read and not yet answered (see `answer_gate`).
@@ -367,6 +372,9 @@ impl PreviewBench {
                     parser.process(&piece);
                     let frames = count_split(&mut frame_tail, &piece, SYNC_BEGIN);
                     let queries = count_split(&mut query_tail, &piece, QUERY);
+                    for _ in 0..count_split(&mut da1_tail, &piece, DA1) {
+                        let _ = answers.send((Instant::now() + half_rtt, DA1_ANSWER.to_vec()));
+                    }
                     let mut s = sh.seen.lock().expect("screen state");
                     let before = (s.spp, s.params.clone());
                     read_status(parser.screen(), &mut s);

@@ -65,6 +65,9 @@ pub struct App {
     pub nee: bool,
     /// The adapter, as the status line names it.
     pub adapter: String,
+    /// How the image reaches the terminal (`sixel`, `kitty via tmux`, `cells`), at the end
+    /// of the status line.
+    pub graphics: String,
     pub stats: Stats,
     /// The latest preview image.
     pub image: Option<LinearImage>,
@@ -91,6 +94,7 @@ impl App {
             cells,
             nee: true,
             adapter,
+            graphics: "cells".into(),
             stats: Stats::default(),
             image: None,
             message: None,

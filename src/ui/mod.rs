@@ -4,10 +4,11 @@
 //! input never waits on the GPU.
 
 pub mod app;
+pub mod detect;
 pub mod flow;
+pub mod graphics;
 pub mod input;
 pub mod keys;
-pub mod kitty;
 pub mod term;
 pub mod view;
 pub mod worker;
@@ -51,12 +52,17 @@ pub enum Event {
 /// How the preview reaches the terminal.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum Graphics {
-    /// Kitty graphics in a local kitty terminal, cells everywhere else (never over SSH).
+    /// Ask the terminal (`detect`): kitty graphics, else sixel, else iTerm2's images by
+    /// TERM_PROGRAM, else cells.
     Auto,
     /// Text cells.
     Cells,
     /// The kitty graphics protocol (zlib-compressed RGB).
     Kitty,
+    /// Sixel (quantized to the terminal's colour registers).
+    Sixel,
+    /// iTerm2's inline images (PNG; iTerm2, WezTerm).
+    Iterm,
 }
 
 /// The preview's options (the command line's `view` flags).
@@ -67,6 +73,8 @@ pub struct ViewOptions {
     /// `None`: detect from COLORTERM / TERM.
     pub color: Option<ColorMode>,
     pub graphics: Graphics,
+    /// In a graphics mode, trace this fraction of the terminal's pixels each way.
+    pub scale: f64,
     pub fps: f64,
     /// Lower the frame rate to stay under this many kilobits per second of output.
     pub max_kbps: Option<f64>,
@@ -84,34 +92,108 @@ pub struct ViewOptions {
     pub stats: bool,
 }
 
-/// Whether kitty graphics suit this terminal: a local kitty, not over SSH, not in tmux.
-fn kitty_here() -> bool {
-    let var = |k| std::env::var_os(k).is_some();
-    std::env::var("TERM").is_ok_and(|t| t == "xterm-kitty")
-        && !var("SSH_CONNECTION")
-        && !var("SSH_TTY")
-        && !var("TMUX")
+/// The graphics protocol for this terminal (`None`: cells) and what the status line says
+/// about it: the protocol's name, or why cells. Asks the terminal (raw mode, before the
+/// input thread reads stdin) unless the choice is forced.
+fn choose_graphics(opts: &ViewOptions) -> (Option<graphics::Encoder>, String) {
+    use graphics::{Encoder, Protocol};
+    let tmux = std::env::var_os("TMUX").is_some();
+    let forced = match opts.graphics {
+        Graphics::Cells => return (None, "cells".into()),
+        Graphics::Kitty => Some(Protocol::Kitty),
+        Graphics::Sixel => Some(Protocol::Sixel),
+        Graphics::Iterm => Some(Protocol::Iterm),
+        Graphics::Auto => None,
+    };
+    let (passthrough, outer) = if tmux {
+        detect::tmux_outer()
+    } else {
+        (false, None)
+    };
+    // Outside tmux the terminal answers; inside, tmux would answer for it.
+    let answers = if tmux {
+        detect::Answers::default()
+    } else {
+        detect::ask(Duration::from_secs(1))
+    };
+    tracing::info!("terminal's answers: {answers:?}");
+    if let Some((w, h)) = answers.cell {
+        let _ = CELL_ANSWER.set((w as f64, h as f64));
+    }
+    let protocol = match forced {
+        Some(p) => Ok(p),
+        None if tmux && !passthrough => {
+            Err("tmux: set allow-passthrough on for graphics".to_string())
+        }
+        None if tmux => match outer.as_deref() {
+            Some("xterm-kitty") => Ok(Protocol::Kitty),
+            other => Err(format!(
+                "tmux in {}: cannot ask it for graphics (--graphics sixel|kitty|iterm)",
+                other.unwrap_or("an unknown terminal")
+            )),
+        },
+        None => detect::choose(&answers, std::env::var("TERM_PROGRAM").ok().as_deref()),
+    };
+    match protocol {
+        Ok(p) => {
+            tracing::info!(
+                "graphics: {}{}",
+                p.name(),
+                if tmux { " via tmux" } else { "" }
+            );
+            let e = Encoder {
+                protocol: p,
+                tmux,
+                colors: answers.colors.unwrap_or(256),
+            };
+            let note = if tmux {
+                format!("{} via tmux", p.name())
+            } else {
+                p.name().to_string()
+            };
+            (Some(e), note)
+        }
+        Err(why) => {
+            tracing::info!("graphics: cells ({why})");
+            // A terminal without graphics is the common case: the log says why.
+            let note = if tmux || !answers.complete {
+                format!("cells ({why})")
+            } else {
+                "cells".to_string()
+            };
+            (None, note)
+        }
+    }
 }
 
-/// Cell size in pixels (width, height), when the terminal reports it.
+/// The cell size the terminal gave in answer to `CSI 16 t`.
+static CELL_ANSWER: std::sync::OnceLock<(f64, f64)> = std::sync::OnceLock::new();
+
+/// Cell size in pixels (width, height), when the terminal reports it: its answer to
+/// `CSI 16 t` (exact), else the window size ioctl (which in xterm includes the border).
 fn cell_pixels() -> Option<(f64, f64)> {
-    let ws = terminal::window_size().ok()?;
-    (ws.width > 0 && ws.height > 0 && ws.columns > 0 && ws.rows > 0).then(|| {
-        (
-            ws.width as f64 / ws.columns as f64,
-            ws.height as f64 / ws.rows as f64,
-        )
+    if let Some(&c) = CELL_ANSWER.get() {
+        return Some(c);
+    }
+    terminal::window_size().ok().and_then(|ws| {
+        (ws.width > 0 && ws.height > 0 && ws.columns > 0 && ws.rows > 0).then(|| {
+            // Cells are whole pixels; xterm counts its border in the window's size.
+            (
+                (ws.width / ws.columns).max(1) as f64,
+                (ws.height / ws.rows).max(1) as f64,
+            )
+        })
     })
 }
 
-/// Widest image sent by kitty graphics (bandwidth).
-const KITTY_MAX_WIDTH: f64 = 960.0;
+/// Widest image sent by pixel graphics (bandwidth).
+const GRAPHICS_MAX_WIDTH: f64 = 960.0;
 
 /// The preview's render settings for an image area of `area` cells.
 fn preview_settings(
     scene: &Scene,
     mode: CellMode,
-    kitty: bool,
+    graphics: Option<(graphics::Protocol, f64)>,
     ss: u32,
     nee: bool,
     area: Rect,
@@ -122,10 +204,16 @@ fn preview_settings(
     // Without a report, a cell is about twice as tall as wide.
     let (cw, ch) = cell_pixels().unwrap_or((8.0, 16.0));
     let (cols, rows) = (area.width as f64, area.height as f64);
-    let (w, h, pixel_aspect) = if kitty {
+    let (w, h, pixel_aspect) = if let Some((protocol, scale)) = graphics {
         let (pw, ph) = (cols * cw, rows * ch);
-        let k = (KITTY_MAX_WIDTH / pw).min(1.0);
-        ((pw * k).max(1.0) as u32, (ph * k).max(1.0) as u32, 1.0)
+        let k = (GRAPHICS_MAX_WIDTH / pw).min(1.0) * scale;
+        let mut h = (ph * k).max(1.0) as u32;
+        if protocol == graphics::Protocol::Sixel && h >= 6 {
+            // Sixel draws bands of six rows: a last partial band would reach below the image
+            // area, into the status lines.
+            h -= h % 6;
+        }
+        ((pw * k).max(1.0) as u32, h, 1.0)
     } else {
         let (sx, sy) = mode.subpixels();
         (
@@ -208,7 +296,8 @@ struct Ui {
     app: App,
     opts: ViewOptions,
     color: ColorMode,
-    kitty: bool,
+    /// Pixel graphics, or `None` for cells.
+    graphics: Option<graphics::Encoder>,
     grid: Grid,
     to_worker: Sender<Request>,
     generation: u64,
@@ -239,18 +328,28 @@ impl Ui {
         let s = preview_settings(
             &self.app.scene,
             self.app.cells,
-            self.kitty,
+            self.graphics.map(|g| (g.protocol, self.opts.scale)),
             self.opts.supersample,
             self.app.nee,
             image,
         );
         if let Some(settings) = s {
+            tracing::info!(
+                "preview image {}x{} ({})",
+                settings.width,
+                settings.height,
+                self.graphics.map_or("cells", |g| g.protocol.name())
+            );
             self.generation += 1;
             let _ = self.to_worker.send(Request::Scene {
                 scene: Box::new(self.app.scene.clone()),
                 settings,
-                // Cells average `--ss` traced pixels each way (kitty shows every pixel).
-                factor: if self.kitty { 1 } else { self.opts.supersample },
+                // Cells average `--ss` traced pixels each way (graphics show every pixel).
+                factor: if self.graphics.is_some() {
+                    1
+                } else {
+                    self.opts.supersample
+                },
                 generation: self.generation,
             });
         }
@@ -341,7 +440,7 @@ impl Ui {
         }
         let (image, _) = view::split(area);
         let Some(img) = &self.app.image else { return };
-        if self.kitty {
+        if self.graphics.is_some() {
             // The image goes out by the graphics protocol; the cells under it stay blank.
             let blank = cells::Cell {
                 glyph: ' ',
@@ -393,7 +492,6 @@ struct Setup {
     adapter: String,
     color: ColorMode,
     cells: CellMode,
-    kitty: bool,
 }
 
 fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
@@ -427,18 +525,12 @@ fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
     } else {
         opts.cells
     };
-    let kitty = match opts.graphics {
-        Graphics::Kitty => true,
-        Graphics::Cells => false,
-        Graphics::Auto => kitty_here(),
-    };
     Ok(Setup {
         scene,
         backend,
         adapter,
         color,
         cells,
-        kitty,
     })
 }
 
@@ -634,18 +726,20 @@ impl Ui {
 
     /// Draws one frame as one synchronized update; returns the area drawn.
     fn draw(&mut self, terminal: &mut Term, area: Rect) -> anyhow::Result<Rect> {
-        let kitty_frame = self.kitty && self.fresh_image;
+        let graphics_frame = self.graphics.filter(|_| self.fresh_image);
         self.encode(area);
         self.fresh_image = false;
         queue!(terminal.backend_mut(), terminal::BeginSynchronizedUpdate)?;
         let completed =
             terminal.draw(|f| view::draw(&self.app, &self.grid, f.area(), f.buffer_mut()))?;
         let area = completed.area;
-        if kitty_frame && let Some(img) = &self.app.image {
+        if let Some(g) = graphics_frame
+            && let Some(img) = &self.app.image
+        {
             let (image, _) = view::split(area);
             let out = terminal.backend_mut();
             queue!(out, cursor::MoveTo(image.x, image.y))?;
-            out.write_all(kitty::transmit(img, image.width, image.height).as_bytes())?;
+            out.write_all(g.frame(img, image.width, image.height).as_bytes())?;
         }
         queue!(terminal.backend_mut(), terminal::EndSynchronizedUpdate)?;
         // The status query that clocks the next frames (`flow`).
@@ -703,6 +797,10 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         let _ = signal_tx.send(Event::Signal);
     });
     let guard = term::TerminalGuard::enter(opts.log.as_deref())?;
+    let (graphics, graphics_note) = choose_graphics(&opts);
+    if let Some(g) = graphics {
+        term::set_clear(g.clear());
+    }
     spawn_input(tx.clone())?;
     let (to_worker, worker) = worker::spawn(
         setup.backend,
@@ -721,7 +819,7 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         app: App::new(setup.scene, setup.adapter, setup.cells),
         opts: opts.clone(),
         color: setup.color,
-        kitty: setup.kitty,
+        graphics,
         grid: Grid::default(),
         to_worker,
         generation: 0,
@@ -737,6 +835,11 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         quit: false,
         farewell: Vec::new(),
     };
+    // Why there are no pixel graphics, where the user may have wanted them.
+    if opts.graphics == Graphics::Auto && graphics_note.contains("tmux") && graphics.is_none() {
+        ui.app.say(format!("graphics: {graphics_note}"));
+    }
+    ui.app.graphics = graphics_note;
     let history = ui.event_loop(&mut terminal, &rx, &bytes);
     ui.shutdown(worker, &rx);
     drop(terminal);

@@ -13,6 +13,14 @@ static ACTIVE: AtomicBool = AtomicBool::new(false);
 /// The original stderr, while fd 2 points elsewhere.
 static SAVED_STDERR: AtomicI32 = AtomicI32::new(-1);
 
+/// What removes the preview's pixel graphics on exit (set once the protocol is known).
+static CLEAR: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+
+/// Sets what `restore` writes to remove the preview's pixel graphics.
+pub fn set_clear(seq: String) {
+    let _ = CLEAR.set(seq);
+}
+
 /// Owns the terminal; dropping it restores everything.
 pub struct TerminalGuard;
 
@@ -45,7 +53,9 @@ pub fn restore() {
     if ACTIVE.swap(false, Ordering::SeqCst) {
         let mut out = io::stdout();
         // A kitty image would otherwise stay on screen in some terminals.
-        let _ = out.write_all(super::kitty::delete_all().as_bytes());
+        if let Some(clear) = CLEAR.get() {
+            let _ = out.write_all(clear.as_bytes());
+        }
         let _ = execute!(
             out,
             terminal::EnableLineWrap,

@@ -178,6 +178,7 @@ pub fn stats_line(app: &App) -> Line<'static> {
     let mut parts = vec![
         format!(" {}", app.scene.short_name()),
         app.adapter.clone(),
+        app.graphics.clone(),
         format!("{}×{}", s.width, s.height),
         format!("{} spp", s.spp),
         rate(s.samples_per_second),

@@ -1,0 +1,337 @@
+//! Pixel graphics for the preview: the image by the kitty graphics protocol, sixel, or
+//! iTerm2's inline images, each wrapped for tmux's passthrough when inside tmux.
+//!
+//! Sixel goes through `icy_sixel` (Wu quantization to the terminal's colour registers with
+//! Floyd–Steinberg dithering, the part worth a crate). Kitty and iTerm2 are written here:
+//! a frame is one base64 payload in one escape sequence (kitty: chunks of 4096 bytes), a few
+//! lines that no crate offers for a stream of frames without also taking over the terminal
+//! (ratatui-image draws through its own widgets and runs its own terminal queries, which
+//! would race the preview's input thread for the answers).
+//! Protocols: <https://sw.kovidgoyal.net/kitty/graphics-protocol/>, VT330/VT340
+//! Programmer Reference Manual ch. 14 (sixel), <https://iterm2.com/documentation-images.html>.
+
+use crate::output::{LinearImage, Transfer};
+use base64::Engine;
+use std::io::Write;
+
+/// The id of the preview image in kitty (reused, so each frame replaces the last).
+pub const IMAGE_ID: u32 = 7411;
+/// Base64 bytes per kitty escape sequence, as the protocol asks.
+const CHUNK: usize = 4096;
+
+/// How pixels reach the terminal.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Protocol {
+    Kitty,
+    Sixel,
+    Iterm,
+}
+
+impl Protocol {
+    pub fn name(self) -> &'static str {
+        match self {
+            Protocol::Kitty => "kitty",
+            Protocol::Sixel => "sixel",
+            Protocol::Iterm => "iTerm2",
+        }
+    }
+}
+
+/// Encodes preview frames for one terminal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Encoder {
+    pub protocol: Protocol,
+    /// Inside tmux: every sequence goes through its passthrough.
+    pub tmux: bool,
+    /// Sixel colour registers (the terminal's answer, else 256).
+    pub colors: u16,
+}
+
+impl Encoder {
+    /// Sequences that show `img` over `cols × rows` cells at the cursor.
+    pub fn frame(&self, img: &LinearImage, cols: u16, rows: u16) -> String {
+        let seqs = match self.protocol {
+            Protocol::Kitty => kitty(img, cols, rows),
+            Protocol::Sixel => vec![sixel(img, self.colors)],
+            Protocol::Iterm => vec![iterm(img, cols, rows)],
+        };
+        self.wrap(seqs)
+    }
+
+    /// Sequences that remove what `frame` showed (kitty keeps images beyond the text).
+    pub fn clear(&self) -> String {
+        match self.protocol {
+            Protocol::Kitty => self.wrap(vec![format!("\x1b_Ga=d,d=I,i={IMAGE_ID},q=2\x1b\\")]),
+            Protocol::Sixel | Protocol::Iterm => String::new(),
+        }
+    }
+
+    fn wrap(&self, seqs: Vec<String>) -> String {
+        if self.tmux {
+            seqs.iter().map(|s| tmux_wrap(s)).collect()
+        } else {
+            seqs.concat()
+        }
+    }
+}
+
+/// `seq` through tmux's passthrough (`allow-passthrough on`): a DCS `tmux;` with every ESC
+/// doubled.
+pub fn tmux_wrap(seq: &str) -> String {
+    format!("\x1bPtmux;{}\x1b\\", seq.replace('\x1b', "\x1b\x1b"))
+}
+
+/// Kitty: zlib-compressed RGB in chunks, placed over `cols × rows` cells without moving the
+/// cursor (C=1), replacing the previous frame (same id), quietly (q=2).
+fn kitty(img: &LinearImage, cols: u16, rows: u16) -> Vec<String> {
+    let rgb = img.to_rgb8(Transfer::Srgb).into_raw();
+    let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::fast());
+    z.write_all(&rgb).expect("writing to memory");
+    let data = base64::engine::general_purpose::STANDARD.encode(z.finish().expect("zlib"));
+    let chunks: Vec<&[u8]> = data.as_bytes().chunks(CHUNK).collect();
+    chunks
+        .iter()
+        .enumerate()
+        .map(|(i, chunk)| {
+            let more = u8::from(i + 1 < chunks.len());
+            let payload = std::str::from_utf8(chunk).expect("base64 is ASCII");
+            if i == 0 {
+                format!(
+                    "\x1b_Ga=T,f=24,o=z,s={},v={},i={IMAGE_ID},c={cols},r={rows},C=1,q=2,m={more};{payload}\x1b\\",
+                    img.width, img.height
+                )
+            } else {
+                format!("\x1b_Gm={more};{payload}\x1b\\")
+            }
+        })
+        .collect()
+}
+
+/// Sixel: the image quantized to `colors` registers (at least 2), dithered.
+fn sixel(img: &LinearImage, colors: u16) -> String {
+    let rgba: Vec<u8> = img
+        .to_rgb8(Transfer::Srgb)
+        .into_raw()
+        .chunks_exact(3)
+        .flat_map(|p| [p[0], p[1], p[2], 255])
+        .collect();
+    let opts = icy_sixel::EncodeOptions {
+        max_colors: colors.clamp(2, 256),
+        ..Default::default()
+    };
+    icy_sixel::sixel_encode(&rgba, img.width as usize, img.height as usize, &opts)
+        .unwrap_or_default()
+}
+
+/// iTerm2: the image as a PNG, stretched over `cols × rows` cells.
+fn iterm(img: &LinearImage, cols: u16, rows: u16) -> String {
+    let mut png = Vec::new();
+    let rgb = img.to_rgb8(Transfer::Srgb);
+    let encoder = image::codecs::png::PngEncoder::new_with_quality(
+        &mut png,
+        image::codecs::png::CompressionType::Fast,
+        image::codecs::png::FilterType::Sub,
+    );
+    if image::ImageEncoder::write_image(
+        encoder,
+        rgb.as_raw(),
+        img.width,
+        img.height,
+        image::ExtendedColorType::Rgb8,
+    )
+    .is_err()
+    {
+        return String::new();
+    }
+    format!(
+        "\x1b]1337;File=inline=1;size={};width={cols};height={rows};preserveAspectRatio=0:{}\x07",
+        png.len(),
+        base64::engine::general_purpose::STANDARD.encode(&png)
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Read;
+
+    fn test_image(w: u32, h: u32) -> LinearImage {
+        let mut img = LinearImage::new(w, h);
+        for (i, p) in img.pixels.iter_mut().enumerate() {
+            let (x, y) = (
+                (i as u32 % w) as f32 / w as f32,
+                (i as u32 / w) as f32 / h as f32,
+            );
+            *p = [x, y, 0.5 * (1.0 - x) * y];
+        }
+        img
+    }
+
+    fn encoder(protocol: Protocol, tmux: bool) -> Encoder {
+        Encoder {
+            protocol,
+            tmux,
+            colors: 256,
+        }
+    }
+
+    #[test]
+    fn kitty_chunks_reassemble_to_the_image() {
+        let img = test_image(64, 40);
+        let s = encoder(Protocol::Kitty, false).frame(&img, 32, 10);
+        assert!(s.starts_with("\x1b_Ga=T,f=24,o=z,s=64,v=40,"));
+        assert!(s.contains("c=32,r=10"));
+        let mut payload = String::new();
+        let mut last_more = None;
+        for seq in s.split("\x1b\\").filter(|x| !x.is_empty()) {
+            let (head, data) = seq.split_once(';').unwrap();
+            assert!(data.len() <= CHUNK);
+            last_more = Some(head.ends_with("m=1"));
+            payload.push_str(data);
+        }
+        assert_eq!(last_more, Some(false), "the last chunk must say m=0");
+        let z = base64::engine::general_purpose::STANDARD
+            .decode(payload)
+            .unwrap();
+        let mut rgb = Vec::new();
+        flate2::read::ZlibDecoder::new(&z[..])
+            .read_to_end(&mut rgb)
+            .unwrap();
+        assert_eq!(rgb, img.to_rgb8(Transfer::Srgb).into_raw());
+    }
+
+    fn upside_down(img: &LinearImage) -> LinearImage {
+        let mut out = img.clone();
+        let w = img.width as usize;
+        for (y, row) in out.pixels.chunks_exact_mut(w).enumerate() {
+            let src = (img.height as usize - 1 - y) * w;
+            row.copy_from_slice(&img.pixels[src..src + w]);
+        }
+        out
+    }
+
+    /// (mean absolute error per pixel and channel, the same over 4×4 block means) of a
+    /// decoded RGBA image against the 8-bit original, in levels.
+    fn errors(rgba: &[u8], want: &[u8], w: usize, h: usize) -> (f64, f64) {
+        let px = |x: usize, y: usize, c: usize| {
+            (
+                rgba[4 * (y * w + x) + c] as f64,
+                want[3 * (y * w + x) + c] as f64,
+            )
+        };
+        let mut per_pixel = 0.0;
+        for y in 0..h {
+            for x in 0..w {
+                for c in 0..3 {
+                    let (a, b) = px(x, y, c);
+                    per_pixel += (a - b).abs();
+                }
+            }
+        }
+        let mut blocks = 0.0;
+        for by in 0..h / 4 {
+            for bx in 0..w / 4 {
+                for c in 0..3 {
+                    let (mut a, mut b) = (0.0, 0.0);
+                    for y in 0..4 {
+                        for x in 0..4 {
+                            let (p, q) = px(4 * bx + x, 4 * by + y, c);
+                            a += p;
+                            b += q;
+                        }
+                    }
+                    blocks += (a - b).abs() / 16.0;
+                }
+            }
+        }
+        (
+            per_pixel / (3 * w * h) as f64,
+            blocks / (3 * (w / 4) * (h / 4)) as f64,
+        )
+    }
+
+    #[test]
+    fn sixel_decodes_back_to_the_image_within_the_palettes_error() {
+        // A gradient over all three channels quantized to a palette with error diffusion:
+        // each pixel is off by the dither's noise, but local means keep the image (measured
+        // with 256 registers: 5.3 levels per pixel, 1.2 per 4×4 block; with 16: 16.5 and
+        // 7.3; tolerances half as much again).
+        let (w, h) = (96usize, 60usize);
+        let img = test_image(w as u32, h as u32);
+        let want = img.to_rgb8(Transfer::Srgb).into_raw();
+        for (colors, pixel_tol, block_tol) in [(256, 8.0, 2.0), (16, 24.0, 11.0)] {
+            let s = Encoder {
+                colors,
+                ..encoder(Protocol::Sixel, false)
+            }
+            .frame(&img, 12, 3);
+            assert!(s.starts_with("\x1bP") && s.ends_with("\x1b\\"));
+            let back = icy_sixel::SixelImage::decode(s.as_bytes()).expect("a valid sixel stream");
+            assert_eq!((back.width, back.height), (w, h));
+            let (pixel, block) = errors(&back.pixels, &want, w, h);
+            assert!(
+                pixel < pixel_tol && block < block_tol,
+                "{colors} registers: {pixel:.2} levels per pixel, {block:.2} per block"
+            );
+        }
+        // And the comparison sees a wrong image.
+        let other = icy_sixel::SixelImage::decode(
+            Encoder {
+                colors: 256,
+                ..encoder(Protocol::Sixel, false)
+            }
+            .frame(&upside_down(&img), 12, 3)
+            .as_bytes(),
+        )
+        .unwrap();
+        assert!(errors(&other.pixels, &want, w, h).1 > 20.0);
+    }
+
+    #[test]
+    fn iterm_carries_a_png_of_the_image() {
+        let img = test_image(40, 20);
+        let s = encoder(Protocol::Iterm, false).frame(&img, 20, 5);
+        let body = s
+            .strip_prefix("\x1b]1337;File=inline=1;")
+            .and_then(|r| r.strip_suffix('\x07'))
+            .expect("an OSC 1337 sequence");
+        let (args, data) = body.split_once(':').unwrap();
+        assert!(
+            args.contains("width=20;height=5;preserveAspectRatio=0"),
+            "{args}"
+        );
+        let png = base64::engine::general_purpose::STANDARD
+            .decode(data)
+            .unwrap();
+        assert!(args.contains(&format!("size={}", png.len())));
+        let back = image::load_from_memory(&png).unwrap().to_rgb8();
+        assert_eq!(back.into_raw(), img.to_rgb8(Transfer::Srgb).into_raw());
+    }
+
+    #[test]
+    fn tmux_passthrough_doubles_every_escape_and_wraps_each_sequence() {
+        assert_eq!(
+            tmux_wrap("\x1b_Gq=2;\x1b\\"),
+            "\x1bPtmux;\x1b\x1b_Gq=2;\x1b\x1b\\\x1b\\"
+        );
+        let img = test_image(200, 200);
+        let s = encoder(Protocol::Kitty, true).frame(&img, 40, 20);
+        let plain = encoder(Protocol::Kitty, false).frame(&img, 40, 20);
+        // Unwrapping gives back the plain sequences, one passthrough per chunk.
+        let inner: Vec<String> = s
+            .split("\x1bPtmux;")
+            .filter(|p| !p.is_empty())
+            .map(|p| {
+                p.strip_suffix("\x1b\\")
+                    .unwrap()
+                    .replace("\x1b\x1b", "\x1b")
+            })
+            .collect();
+        assert_eq!(inner.concat(), plain);
+        assert_eq!(inner.len(), plain.matches("\x1b_G").count());
+        assert_eq!(
+            encoder(Protocol::Kitty, true).clear(),
+            tmux_wrap(&encoder(Protocol::Kitty, false).clear())
+        );
+    }
+}
