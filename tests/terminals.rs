@@ -125,6 +125,9 @@ fn check(terminal: &[&str], expect: &str) {
             "--exit-after",
             "120",
         ])
+        // Every pixel of the terminal traced (not fewer, fitted to the backend's speed), so
+        // that the screen and the direct render have the same pixels.
+        .args(["--scale", "1"])
         .arg("--log")
         .arg(&log)
         .arg("-vv")

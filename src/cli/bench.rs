@@ -66,6 +66,10 @@ pub struct BenchArgs {
     /// With --preview: a press not shown within this many seconds is a miss.
     #[arg(long, default_value_t = 1.0)]
     pub timeout: f64,
+    /// With --preview: the preview's graphics (its --graphics; the harness's emulator draws
+    /// text only, so images are measured in bytes and frames, and edits by the status line).
+    #[arg(long, value_enum)]
+    pub graphics: Option<crate::ui::Graphics>,
     /// With --preview: the preview's frame cap (its --fps).
     #[arg(long)]
     pub fps: Option<f64>,
@@ -237,6 +241,15 @@ fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let mut args = vec!["--max-spp".to_string(), u32::MAX.to_string()];
     if let Some(adapter) = &g.adapter {
         args.extend(["--adapter".to_string(), adapter.clone()]);
+    }
+    if let Some(g) = a.graphics {
+        use clap::ValueEnum;
+        let name = g
+            .to_possible_value()
+            .expect("a named value")
+            .get_name()
+            .to_string();
+        args.extend(["--graphics".to_string(), name]);
     }
     if let Some(fps) = a.fps {
         args.extend(["--fps".to_string(), fps.to_string()]);

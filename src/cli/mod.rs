@@ -75,9 +75,10 @@ pub struct ViewArgs {
     #[arg(long, value_enum, default_value_t = Graphics::Auto)]
     pub graphics: Graphics,
     /// With pixel graphics, trace this fraction of the terminal's pixels each way (less
-    /// work and bandwidth; the terminal scales the image up).
-    #[arg(long, default_value_t = 1.0, value_parser = scale)]
-    pub scale: f64,
+    /// work and bandwidth; the image is scaled up) [default: what the backend traces a
+    /// sample of every pixel of in 40 ms, at most all]
+    #[arg(long, value_parser = scale)]
+    pub scale: Option<f64>,
     /// Most frames per second drawn.
     #[arg(long, default_value_t = 30.0, value_parser = positive)]
     pub fps: f64,

@@ -75,6 +75,45 @@ impl Encoder {
     }
 }
 
+/// Fraction of the pixels (8-bit RGB, three bytes each) that moved from `old` to `new` by
+/// more than their own threshold in some channel (`cells::noise_thresholds_by`): below a
+/// percent or so the change is the noise falling, and the image need not be resent.
+pub fn changed_fraction(old: &[u8], new: &[u8], thresholds: &[u8]) -> f64 {
+    if old.len() != new.len() || new.is_empty() {
+        return 1.0;
+    }
+    let moved = old
+        .chunks_exact(3)
+        .zip(new.chunks_exact(3))
+        .zip(thresholds)
+        .filter(|((a, b), t)| (0..3).any(|c| a[c].abs_diff(b[c]) > **t))
+        .count();
+    moved as f64 / (new.len() / 3) as f64
+}
+
+/// `img` resampled to `w × h` by nearest neighbour (sixel shows pixels one to one).
+pub fn resample(img: &LinearImage, w: u32, h: u32) -> LinearImage {
+    let mut out = LinearImage::new(w.max(1), h.max(1));
+    for y in 0..out.height {
+        let sy = (y as u64 * img.height as u64 / out.height as u64) as u32;
+        for x in 0..out.width {
+            let sx = (x as u64 * img.width as u64 / out.width as u64) as u32;
+            out.pixels[(y * out.width + x) as usize] = img.get(sx, sy);
+        }
+    }
+    out
+}
+
+/// The factor (1 to 4) by which to shrink an image of `pixels` before sending so that it
+/// takes at most `budget` bytes at `bytes_per_pixel`: on a slow link fewer pixels (which
+/// kitty and iTerm2 scale back up over the same cells; sixel cannot, its image is smaller).
+pub fn shrink_for(pixels: u64, bytes_per_pixel: f64, budget: Option<u64>) -> u32 {
+    let Some(budget) = budget else { return 1 };
+    (1..=4)
+        .find(|k| pixels as f64 * bytes_per_pixel / (k * k) as f64 <= budget as f64)
+        .unwrap_or(4)
+}
+
 /// `seq` through tmux's passthrough (`allow-passthrough on`): a DCS `tmux;` with every ESC
 /// doubled.
 pub fn tmux_wrap(seq: &str) -> String {
@@ -285,6 +324,22 @@ mod tests {
         )
         .unwrap();
         assert!(errors(&other.pixels, &want, w, h).1 > 20.0);
+    }
+
+    #[test]
+    fn noise_alone_does_not_count_as_change_and_a_shrink_fits_the_budget() {
+        let old = vec![100u8; 300];
+        let mut new = old.clone();
+        new[0] = 103; // one pixel of a hundred, by 3 with a threshold of 2
+        assert_eq!(changed_fraction(&old, &new, &[2; 100]), 0.01);
+        assert_eq!(changed_fraction(&old, &new, &[3; 100]), 0.0);
+        assert_eq!(changed_fraction(&old, &new[..297], &[3; 99]), 1.0);
+        // 1000 × 600 pixels at 0.5 bytes each: 300 kB; budgets of 300, 75 and 10 kB.
+        let px = 600_000;
+        assert_eq!(shrink_for(px, 0.5, Some(300_000)), 1);
+        assert_eq!(shrink_for(px, 0.5, Some(75_000)), 2);
+        assert_eq!(shrink_for(px, 0.5, Some(10_000)), 4);
+        assert_eq!(shrink_for(px, 0.5, None), 1);
     }
 
     #[test]

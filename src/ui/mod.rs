@@ -14,6 +14,7 @@ pub mod view;
 pub mod worker;
 
 use crate::gpu::FrameSettings;
+use crate::output::Transfer;
 use crate::output::cells::{self, CellMode, ColorMode};
 use crate::render::Backend;
 use crate::scene::Scene;
@@ -73,8 +74,9 @@ pub struct ViewOptions {
     /// `None`: detect from COLORTERM / TERM.
     pub color: Option<ColorMode>,
     pub graphics: Graphics,
-    /// In a graphics mode, trace this fraction of the terminal's pixels each way.
-    pub scale: f64,
+    /// In a graphics mode, trace this fraction of the terminal's pixels each way; `None`:
+    /// as many as the backend traces a sample of in [`FIRST_IMAGE`].
+    pub scale: Option<f64>,
     pub fps: f64,
     /// Lower the frame rate to stay under this many kilobits per second of output.
     pub max_kbps: Option<f64>,
@@ -287,6 +289,13 @@ pub fn write_scene(scene: &Scene) -> Result<String, String> {
     Ok(format!("wrote {}{note}", path.display()))
 }
 
+/// The time one sample per pixel of a graphics preview should take (see `graphics_scale`).
+const FIRST_IMAGE: Duration = Duration::from_millis(40);
+
+/// An image by pixel graphics may take this many frames' worth of the link's budget
+/// (`flow::frame_budget`) before it is sent at fewer pixels.
+const IMAGE_FRAMES: u64 = 4;
+
 /// Frames in a row with almost no change before the image counts as settled.
 const QUIET_FRAMES: u32 = 15;
 /// Time between frames once the image has (nearly) stopped changing.
@@ -298,6 +307,15 @@ struct Ui {
     color: ColorMode,
     /// Pixel graphics, or `None` for cells.
     graphics: Option<graphics::Encoder>,
+    /// The image last sent by pixel graphics (8-bit sRGB, its size, the area it covered),
+    /// against which a new one counts as changed or not.
+    sent_image: Option<(Vec<u8>, (u32, u32), Rect)>,
+    /// The latest image goes out by pixel graphics in this frame.
+    image_due: bool,
+    /// The graphics preview's size has been fitted to the backend's rate.
+    scale_settled: bool,
+    /// Bytes per pixel the last graphics frames took (for shrinking on a slow link).
+    image_bytes_per_pixel: f64,
     grid: Grid,
     to_worker: Sender<Request>,
     generation: u64,
@@ -323,12 +341,52 @@ struct Ui {
 }
 
 impl Ui {
+    /// The fraction of the terminal's pixels a graphics preview traces: `--scale`, or so
+    /// that one sample of every pixel takes about [`FIRST_IMAGE`] at the rate the backend
+    /// last showed (an edit's first image then comes in about that time; the terminal scales
+    /// the image up). All of them until a rate is known.
+    fn graphics_scale(&self, area: Rect) -> f64 {
+        if let Some(s) = self.opts.scale {
+            return s;
+        }
+        let rate = self.app.stats.samples_per_second;
+        let (cw, ch) = cell_pixels().unwrap_or((8.0, 16.0));
+        let pixels = (area.width as f64 * cw).min(GRAPHICS_MAX_WIDTH) * area.height as f64 * ch;
+        if rate <= 0.0 || pixels <= 0.0 {
+            return 1.0;
+        }
+        (rate * FIRST_IMAGE.as_secs_f64() / pixels)
+            .sqrt()
+            .clamp(0.25, 1.0)
+    }
+
+    /// Once the backend's rate is known (its first frames), a graphics preview started at
+    /// every pixel of the terminal restarts at the size `graphics_scale` picks, if that is
+    /// much smaller: from then on an edit's first image comes in about [`FIRST_IMAGE`].
+    fn settle_graphics_scale(&mut self, area: Rect) {
+        if self.scale_settled || self.graphics.is_none() || self.opts.scale.is_some() {
+            return;
+        }
+        let s = &self.app.stats;
+        if s.spp < 1 || s.samples_per_second <= 0.0 || s.elapsed < Duration::from_millis(100) {
+            return;
+        }
+        self.scale_settled = true;
+        let (image, _) = view::split(area);
+        let k = self.graphics_scale(image);
+        if k * k < 0.66 {
+            tracing::info!("graphics: tracing {k:.2} of the terminal's pixels each way");
+            self.send_scene(area);
+        }
+    }
+
     fn send_scene(&mut self, area: Rect) {
         let (image, _) = view::split(area);
         let s = preview_settings(
             &self.app.scene,
             self.app.cells,
-            self.graphics.map(|g| (g.protocol, self.opts.scale)),
+            self.graphics
+                .map(|g| (g.protocol, self.graphics_scale(image))),
             self.opts.supersample,
             self.app.nee,
             image,
@@ -393,6 +451,7 @@ impl Ui {
                     self.app.image_sigma = f.sigma;
                     self.exact = f.last;
                     self.fresh_image = true;
+                    self.settle_graphics_scale(area);
                 }
             }
             Event::SaveProgress { done, total } => {
@@ -450,8 +509,23 @@ impl Ui {
             let n = image.width as usize * image.height as usize;
             self.grid
                 .update(image.width, image.height, vec![blank; n], 0);
-            // The protocol resends the whole image: for the frame pacing it all changed.
-            self.cells_changed = n;
+            // Resent only when it changed beyond its own noise (the final image: at all),
+            // or the area moved; a settled image then costs nothing.
+            let rgb = img.to_rgb8(Transfer::Srgb).into_raw();
+            let base = if self.exact { 0 } else { self.opts.threshold };
+            let changed = match &self.sent_image {
+                Some((old, size, at)) if *size == (img.width, img.height) && *at == image => {
+                    let t = cells::noise_thresholds_by(img, &self.app.image_sigma, (1, 1), base);
+                    graphics::changed_fraction(old, &rgb, &t)
+                }
+                _ => 1.0,
+            };
+            self.image_due = changed > 0.01 || (self.exact && changed > 0.0);
+            if self.image_due {
+                self.sent_image = Some((rgb, (img.width, img.height), image));
+            }
+            // For the frame pacing a sent image changed every cell.
+            self.cells_changed = if self.image_due { n } else { 0 };
             self.cells_left = 0;
             return;
         }
@@ -726,8 +800,9 @@ impl Ui {
 
     /// Draws one frame as one synchronized update; returns the area drawn.
     fn draw(&mut self, terminal: &mut Term, area: Rect) -> anyhow::Result<Rect> {
-        let graphics_frame = self.graphics.filter(|_| self.fresh_image);
+        self.image_due = false;
         self.encode(area);
+        let graphics_frame = self.graphics.filter(|_| self.image_due);
         self.fresh_image = false;
         queue!(terminal.backend_mut(), terminal::BeginSynchronizedUpdate)?;
         let completed =
@@ -737,9 +812,46 @@ impl Ui {
             && let Some(img) = &self.app.image
         {
             let (image, _) = view::split(area);
+            // Kitty and iTerm2 scale the image over the cells; sixel pixels are the
+            // screen's, so a sixel image is resampled to the area's pixels here.
+            let full = match (g.protocol, cell_pixels()) {
+                (graphics::Protocol::Sixel, Some((cw, _))) => {
+                    let w = (image.width as f64 * cw).min(GRAPHICS_MAX_WIDTH) as u32;
+                    (w, (w as f64 * img.height as f64 / img.width as f64) as u32)
+                }
+                _ => (img.width, img.height),
+            };
+            // On a slow link fewer pixels: for kitty and iTerm2 scaled back up, for sixel a
+            // smaller image (what the link can carry). The final image goes out whole, once.
+            let k = if self.exact {
+                1
+            } else {
+                graphics::shrink_for(
+                    full.0 as u64 * full.1 as u64,
+                    self.image_bytes_per_pixel,
+                    self.flow.frame_budget().map(|b| b * IMAGE_FRAMES),
+                )
+            };
+            let (w, mut h) = ((full.0 / k).max(1), (full.1 / k).max(1));
+            if g.protocol == graphics::Protocol::Sixel && h >= 6 {
+                h -= h % 6;
+            }
+            let resized;
+            let sent = if (w, h) == (img.width, img.height) {
+                img
+            } else if img.width % w == 0 && img.width / w == img.height / h.max(1) {
+                resized = cells::downsample(img, img.width / w);
+                &resized
+            } else {
+                resized = graphics::resample(img, w, h);
+                &resized
+            };
+            let seq = g.frame(sent, image.width, image.height);
+            let per_pixel = seq.len() as f64 / (sent.width as f64 * sent.height as f64);
+            self.image_bytes_per_pixel = 0.5 * self.image_bytes_per_pixel + 0.5 * per_pixel;
             let out = terminal.backend_mut();
             queue!(out, cursor::MoveTo(image.x, image.y))?;
-            out.write_all(g.frame(img, image.width, image.height).as_bytes())?;
+            out.write_all(seq.as_bytes())?;
         }
         queue!(terminal.backend_mut(), terminal::EndSynchronizedUpdate)?;
         // The status query that clocks the next frames (`flow`).
@@ -820,6 +932,10 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         opts: opts.clone(),
         color: setup.color,
         graphics,
+        sent_image: None,
+        image_due: false,
+        scale_settled: false,
+        image_bytes_per_pixel: 1.0,
         grid: Grid::default(),
         to_worker,
         generation: 0,
