@@ -70,6 +70,9 @@ pub struct PreviewReport {
     /// changes most: what "frames/s while converging" means once a fast backend settles
     /// the image within the window and the preview slows to its idle rate.
     pub first_second_fps: f64,
+    /// Pixel-graphics images/s and bytes/s over the first two seconds after a restart, and
+    /// images/s over the last quarter of the window.
+    pub images: (f64, f64, f64),
     /// The status line's link field at the end (`link 2.0 Mbit/s 80 ms`).
     pub link_status: Option<String>,
 }
@@ -98,6 +101,8 @@ struct Seen {
     bytes: u64,
     parse: Duration,
     frames: u64,
+    /// Images sent by pixel graphics (kitty transmissions, sixel DCS, iTerm2 files).
+    images: u64,
     /// Most bytes read from the program and not yet delivered, at any moment.
     deepest_backlog: u64,
     /// The status line's link field (`link 2.0 Mbit/s 80 ms`), when shown.
@@ -169,6 +174,9 @@ const ANSWER: &[u8] = b"\x1b[0n";
 /// and the emulator's answer as a VT220 without sixel would give it (vt100 draws text only).
 const DA1: &[u8] = b"\x1b[c";
 const DA1_ANSWER: &[u8] = b"\x1b[?62;22c";
+/// How an image of each pixel-graphics protocol begins: kitty's transmission, sixel's DCS
+/// (`ESC P 0;1;0 q`, and the like: any DCS, which the preview sends only for sixel), iTerm2's file.
+const IMAGE_STARTS: [&[u8]; 3] = [b"\x1b_Ga=T", b"\x1bP", b"\x1b]1337;File"];
 
 /// Output read from the program and not yet on the link.
 struct Pipe {
@@ -317,6 +325,7 @@ impl PreviewBench {
             *sh.parser.lock().expect("screen") = Some(vt100::Parser::new(nz(rows), nz(cols), 0));
             let (mut frame_tail, mut query_tail, mut da1_tail) =
                 (Vec::new(), Vec::new(), Vec::new());
+            let mut image_tails = [Vec::new(), Vec::new(), Vec::new()];
             let mut on_wire: std::collections::VecDeque<(Instant, Vec<u8>)> = Default::default();
             let mut link_free = Instant::now();
             // Queries read and not yet answered (see `answer_gate`).
@@ -382,6 +391,9 @@ impl PreviewBench {
                     s.parse += parse_start.elapsed();
                     s.bytes += piece.len() as u64;
                     s.frames += frames;
+                    for (tail, start) in image_tails.iter_mut().zip(IMAGE_STARTS) {
+                        s.images += count_split(tail, &piece, start);
+                    }
                     held += queries;
                     if (s.spp, s.params.clone()) != before {
                         let change = (Instant::now(), s.spp, s.params.clone(), s.bytes, s.parse);
@@ -488,18 +500,26 @@ impl PreviewBench {
         // Converging: frames and bytes over the window, after a restart.
         type_key(b"r");
         std::thread::sleep(Duration::from_millis(100));
-        let (f0, b0, t0) = {
+        let (f0, b0, i0, t0) = {
             let s = shared.seen.lock().expect("screen state");
-            (s.frames, s.bytes, Instant::now())
+            (s.frames, s.bytes, s.images, Instant::now())
         };
         let first = Duration::from_secs(1).min(self.window.mul_f64(0.75));
         std::thread::sleep(first);
         let f_first = shared.seen.lock().expect("screen state").frames;
         report.first_second_fps = (f_first - f0) as f64 / t0.elapsed().as_secs_f64();
-        std::thread::sleep(self.window.mul_f64(0.75).saturating_sub(first));
-        let (f1, b1, t1) = {
+        let two = Duration::from_secs(2).min(self.window.mul_f64(0.75));
+        std::thread::sleep(two.saturating_sub(first));
+        {
             let s = shared.seen.lock().expect("screen state");
-            (s.frames, s.bytes, Instant::now())
+            let secs = t0.elapsed().as_secs_f64();
+            report.images.0 = (s.images - i0) as f64 / secs;
+            report.images.1 = (s.bytes - b0) as f64 / secs;
+        }
+        std::thread::sleep(self.window.mul_f64(0.75).saturating_sub(two));
+        let (f1, b1, i1, t1) = {
+            let s = shared.seen.lock().expect("screen state");
+            (s.frames, s.bytes, s.images, Instant::now())
         };
         std::thread::sleep(self.window.mul_f64(0.25));
         let s = shared.seen.lock().expect("screen state").clone();
@@ -508,6 +528,7 @@ impl PreviewBench {
         report.bytes_per_second = (s.bytes - b0) as f64 / secs;
         let last = t1.elapsed().as_secs_f64();
         report.last_quarter = ((s.frames - f1) as f64 / last, (s.bytes - b1) as f64 / last);
+        report.images.2 = (s.images - i1) as f64 / last;
         report.samples_per_second = s.rate.clone();
         report.link_status = s.link.clone();
         report.deepest_backlog = s.deepest_backlog;
@@ -683,4 +704,12 @@ pub fn print(b: &PreviewBench, r: &PreviewReport) {
         r.last_quarter.0,
         r.last_quarter.1 / 1e3
     );
+    if r.images.0 > 0.0 || r.images.2 > 0.0 {
+        println!(
+            "images       {:.1} images/s and {:.1} kB/s in the first 2 s; {:.2} images/s in the last quarter",
+            r.images.0,
+            r.images.1 / 1e3,
+            r.images.2
+        );
+    }
 }

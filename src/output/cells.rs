@@ -370,7 +370,7 @@ pub fn noise_thresholds(img: &LinearImage, sigma: &[f32], mode: CellMode, base: 
 
 /// [`noise_thresholds`] over blocks of `(sx, sy)` pixels ((1, 1): every pixel, for pixel
 /// graphics).
-pub fn noise_thresholds_by(
+fn noise_thresholds_by(
     img: &LinearImage,
     sigma: &[f32],
     (sx, sy): (u32, u32),

@@ -4,5 +4,5 @@ pub mod cells;
 pub mod image;
 pub mod write;
 
-pub use image::{LinearImage, Transfer};
+pub use image::{LinearImage, Transfer, srgb8};
 pub use write::{OutputError, check_writable, write_exr, write_png};

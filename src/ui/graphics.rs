@@ -75,9 +75,25 @@ impl Encoder {
     }
 }
 
+/// Per pixel, the change of its 8-bit sRGB value within its own noise: twice the standard
+/// error `sigma` (linear) carried through the sRGB curve at its brightest channel, at least
+/// `base` (as `cells::noise_thresholds` does for cells, here by the 8-bit table).
+pub fn pixel_thresholds(img: &LinearImage, sigma: &[f32], base: u8) -> Vec<u8> {
+    img.pixels
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let s = sigma.get(i).copied().unwrap_or(0.0);
+            let l = p.iter().copied().fold(0.0f32, f32::max).clamp(0.0, 1.0);
+            let step = crate::output::srgb8(l + 2.0 * s) - crate::output::srgb8(l);
+            step.max(base)
+        })
+        .collect()
+}
+
 /// Fraction of the pixels (8-bit RGB, three bytes each) that moved from `old` to `new` by
-/// more than their own threshold in some channel (`cells::noise_thresholds_by`): below a
-/// percent or so the change is the noise falling, and the image need not be resent.
+/// more than their own threshold in some channel (`pixel_thresholds`): below a percent or
+/// so the change is the noise falling, and the image need not be resent.
 pub fn changed_fraction(old: &[u8], new: &[u8], thresholds: &[u8]) -> f64 {
     if old.len() != new.len() || new.is_empty() {
         return 1.0;

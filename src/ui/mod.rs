@@ -316,6 +316,8 @@ struct Ui {
     scale_settled: bool,
     /// Bytes per pixel the last graphics frames took (for shrinking on a slow link).
     image_bytes_per_pixel: f64,
+    /// Seconds per pixel encoding the last graphics frames took (0: none yet).
+    image_encode_seconds_per_pixel: f64,
     grid: Grid,
     to_worker: Sender<Request>,
     generation: u64,
@@ -368,7 +370,11 @@ impl Ui {
             return;
         }
         let s = &self.app.stats;
-        if s.spp < 1 || s.samples_per_second <= 0.0 || s.elapsed < Duration::from_millis(100) {
+        if s.spp < 1
+            || s.samples_per_second <= 0.0
+            || s.elapsed < Duration::from_millis(100)
+            || self.image_encode_seconds_per_pixel <= 0.0
+        {
             return;
         }
         self.scale_settled = true;
@@ -515,7 +521,7 @@ impl Ui {
             let base = if self.exact { 0 } else { self.opts.threshold };
             let changed = match &self.sent_image {
                 Some((old, size, at)) if *size == (img.width, img.height) && *at == image => {
-                    let t = cells::noise_thresholds_by(img, &self.app.image_sigma, (1, 1), base);
+                    let t = graphics::pixel_thresholds(img, &self.app.image_sigma, base);
                     graphics::changed_fraction(old, &rgb, &t)
                 }
                 _ => 1.0,
@@ -801,6 +807,7 @@ impl Ui {
     /// Draws one frame as one synchronized update; returns the area drawn.
     fn draw(&mut self, terminal: &mut Term, area: Rect) -> anyhow::Result<Rect> {
         self.image_due = false;
+        let started = Instant::now();
         self.encode(area);
         let graphics_frame = self.graphics.filter(|_| self.image_due);
         self.fresh_image = false;
@@ -847,7 +854,15 @@ impl Ui {
                 &resized
             };
             let seq = g.frame(sent, image.width, image.height);
-            let per_pixel = seq.len() as f64 / (sent.width as f64 * sent.height as f64);
+            let sent_pixels = sent.width as f64 * sent.height as f64;
+            // The whole path from the traced image to the sequence, per traced pixel.
+            let spp = started.elapsed().as_secs_f64() / (img.width as f64 * img.height as f64);
+            self.image_encode_seconds_per_pixel = if self.image_encode_seconds_per_pixel > 0.0 {
+                0.5 * self.image_encode_seconds_per_pixel + 0.5 * spp
+            } else {
+                spp
+            };
+            let per_pixel = seq.len() as f64 / sent_pixels;
             self.image_bytes_per_pixel = 0.5 * self.image_bytes_per_pixel + 0.5 * per_pixel;
             let out = terminal.backend_mut();
             queue!(out, cursor::MoveTo(image.x, image.y))?;
@@ -936,6 +951,7 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         image_due: false,
         scale_settled: false,
         image_bytes_per_pixel: 1.0,
+        image_encode_seconds_per_pixel: 0.0,
         grid: Grid::default(),
         to_worker,
         generation: 0,
