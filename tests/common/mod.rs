@@ -160,33 +160,9 @@ pub fn rel_err(a: [f32; 3], b: [f32; 3]) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// The tracer's random stream, reproduced on the host (shaders/common/rng.wgsl).
-pub struct HostRng(pub u32);
-
-impl HostRng {
-    pub fn new(pixel: u32, sample: u32, seed: u32) -> HostRng {
-        let mut v = [pixel, sample, seed].map(|x| x.wrapping_mul(1664525).wrapping_add(1013904223));
-        let mix = |v: &mut [u32; 3]| {
-            v[0] = v[0].wrapping_add(v[1].wrapping_mul(v[2]));
-            v[1] = v[1].wrapping_add(v[2].wrapping_mul(v[0]));
-            v[2] = v[2].wrapping_add(v[0].wrapping_mul(v[1]));
-        };
-        mix(&mut v);
-        for x in v.iter_mut() {
-            *x ^= *x >> 16;
-        }
-        mix(&mut v);
-        HostRng(v[0] ^ v[1] ^ v[2])
-    }
-
-    pub fn rand(&mut self) -> f32 {
-        let s = self.0.wrapping_mul(747796405).wrapping_add(2891336453);
-        self.0 = s;
-        let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277803737);
-        let x = (word >> 22) ^ word;
-        (x >> 8) as f32 * (1.0 / 16777216.0)
-    }
-}
+/// The tracer's random stream on the host: the CPU tracer's, bit for bit the WGSL one
+/// (shaders/common/rng.wgsl).
+pub use termtrace::cpu::rng::Rng as HostRng;
 
 /// (pixels that differ, largest channel difference, first differing pixel) of two images.
 pub fn image_diff(a: &LinearImage, b: &LinearImage) -> (usize, f32, Option<(u32, u32)>) {
