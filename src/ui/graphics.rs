@@ -47,21 +47,60 @@ pub struct Encoder {
     pub colors: u16,
 }
 
+/// Cell rows per band of a kitty or iTerm2 image: each band is its own image, resent only
+/// when it changed (sixel, which cannot place an image at a pixel row that is not a multiple
+/// of its six-row bands, sends whole images).
+pub const BAND_ROWS: u16 = 4;
+
+/// The bands of an image over `rows` cell rows: (first row, rows), top to bottom.
+pub fn bands(protocol: Protocol, rows: u16) -> Vec<(u16, u16)> {
+    if protocol == Protocol::Sixel || rows == 0 {
+        return vec![(0, rows)];
+    }
+    (0..rows)
+        .step_by(BAND_ROWS as usize)
+        .map(|r| (r, BAND_ROWS.min(rows - r)))
+        .collect()
+}
+
+/// The pixel rows of `img` under cell rows `[row, row + n)` of `rows`.
+pub fn band_pixels(img_height: u32, rows: u16, (row, n): (u16, u16)) -> std::ops::Range<u32> {
+    let at = |r: u16| (r as u64 * img_height as u64 / rows.max(1) as u64) as u32;
+    at(row)..at(row + n)
+}
+
+/// Rows `range` of `img`.
+pub fn crop_rows(img: &LinearImage, range: std::ops::Range<u32>) -> LinearImage {
+    let w = img.width as usize;
+    LinearImage {
+        width: img.width,
+        height: range.end - range.start,
+        pixels: img.pixels[range.start as usize * w..range.end as usize * w].to_vec(),
+    }
+}
+
 impl Encoder {
     /// Sequences that show `img` over `cols × rows` cells at the cursor.
     pub fn frame(&self, img: &LinearImage, cols: u16, rows: u16) -> String {
+        self.band(img, cols, rows, 0)
+    }
+
+    /// Sequences that show band `index` of an image, `img`, over `cols × rows` cells at the
+    /// cursor (kitty: an image of its own, replacing that band's last one).
+    pub fn band(&self, img: &LinearImage, cols: u16, rows: u16, index: u32) -> String {
         let seqs = match self.protocol {
-            Protocol::Kitty => kitty(img, cols, rows),
+            Protocol::Kitty => kitty(img, cols, rows, IMAGE_ID + index),
             Protocol::Sixel => vec![sixel(img, self.colors)],
             Protocol::Iterm => vec![iterm(img, cols, rows)],
         };
         self.wrap(seqs)
     }
 
-    /// Sequences that remove what `frame` showed (kitty keeps images beyond the text).
+    /// Sequences that remove what `frame` showed (kitty keeps images beyond the text): every
+    /// placement, and the images' data.
     pub fn clear(&self) -> String {
         match self.protocol {
-            Protocol::Kitty => self.wrap(vec![format!("\x1b_Ga=d,d=I,i={IMAGE_ID},q=2\x1b\\")]),
+            Protocol::Kitty => self.wrap(vec!["\x1b_Ga=d,d=A,q=2\x1b\\".to_string()]),
             Protocol::Sixel | Protocol::Iterm => String::new(),
         }
     }
@@ -138,7 +177,7 @@ pub fn tmux_wrap(seq: &str) -> String {
 
 /// Kitty: zlib-compressed RGB in chunks, placed over `cols × rows` cells without moving the
 /// cursor (C=1), replacing the previous frame (same id), quietly (q=2).
-fn kitty(img: &LinearImage, cols: u16, rows: u16) -> Vec<String> {
+fn kitty(img: &LinearImage, cols: u16, rows: u16, id: u32) -> Vec<String> {
     let rgb = img.to_rgb8(Transfer::Srgb).into_raw();
     let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::fast());
     z.write_all(&rgb).expect("writing to memory");
@@ -152,7 +191,7 @@ fn kitty(img: &LinearImage, cols: u16, rows: u16) -> Vec<String> {
             let payload = std::str::from_utf8(chunk).expect("base64 is ASCII");
             if i == 0 {
                 format!(
-                    "\x1b_Ga=T,f=24,o=z,s={},v={},i={IMAGE_ID},c={cols},r={rows},C=1,q=2,m={more};{payload}\x1b\\",
+                    "\x1b_Ga=T,f=24,o=z,s={},v={},i={id},c={cols},r={rows},C=1,q=2,m={more};{payload}\x1b\\",
                     img.width, img.height
                 )
             } else {
@@ -356,6 +395,27 @@ mod tests {
         assert_eq!(shrink_for(px, 0.5, Some(75_000)), 2);
         assert_eq!(shrink_for(px, 0.5, Some(10_000)), 4);
         assert_eq!(shrink_for(px, 0.5, None), 1);
+    }
+
+    #[test]
+    fn bands_cover_the_image_rows_once() {
+        assert_eq!(bands(Protocol::Kitty, 10), vec![(0, 4), (4, 4), (8, 2)]);
+        assert_eq!(bands(Protocol::Sixel, 10), vec![(0, 10)]);
+        // 10 cell rows over 377 pixel rows: the bands' pixel rows tile 0..377.
+        let mut next = 0;
+        for b in bands(Protocol::Iterm, 10) {
+            let r = band_pixels(377, 10, b);
+            assert_eq!(r.start, next);
+            next = r.end;
+        }
+        assert_eq!(next, 377);
+        let img = test_image(8, 6);
+        let c = crop_rows(&img, 2..5);
+        assert_eq!((c.width, c.height), (8, 3));
+        assert_eq!(c.get(3, 0), img.get(3, 2));
+        // Each kitty band is an image of its own.
+        let e = encoder(Protocol::Kitty, false);
+        assert!(e.band(&c, 8, 1, 3).contains(&format!("i={}", IMAGE_ID + 3)));
     }
 
     #[test]
