@@ -511,7 +511,7 @@ impl Ui {
         }
         let (image, _) = view::split(area);
         let Some(img) = &self.app.image else { return };
-        if self.graphics.is_some() {
+        if let Some(g) = self.graphics {
             // The image goes out by the graphics protocol; the cells under it stay blank.
             let blank = cells::Cell {
                 glyph: ' ',
@@ -523,7 +523,6 @@ impl Ui {
                 .update(image.width, image.height, vec![blank; n], 0);
             // A band is resent only when it changed beyond its own noise (the final image:
             // at all), or the area moved; a settled image then costs nothing.
-            let g = self.graphics.expect("graphics");
             let rgb = img.to_rgb8(Transfer::Srgb).into_raw();
             let base = if self.exact { 0 } else { self.opts.threshold };
             let same_layout = self
