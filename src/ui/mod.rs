@@ -534,6 +534,8 @@ impl Ui {
             let row_bytes = 3 * img.width as usize;
             let all = graphics::bands(g.protocol, image.height);
             let mut due = Vec::new();
+            // Pixels that moved beyond their noise, over the whole image.
+            let mut moved = 0.0;
             for (index, band) in all.iter().enumerate() {
                 let rows = graphics::band_pixels(img.height, image.height, *band);
                 let (a, b) = (rows.start as usize, rows.end as usize);
@@ -545,6 +547,7 @@ impl Ui {
                     ),
                     _ => 1.0,
                 };
+                moved += changed * (b - a) as f64;
                 if changed > BAND_CHANGED || (self.exact && changed > 0.0) {
                     due.push((index as u32, *band));
                 }
@@ -559,9 +562,13 @@ impl Ui {
                 }
                 _ => self.sent_image = Some((rgb, (img.width, img.height), image)),
             }
-            // For the frame pacing a sent band changed every cell under it.
-            self.cells_changed =
-                due.iter().map(|(_, b)| b.1 as usize).sum::<usize>() * image.width as usize;
+            // For the frame pacing, the share of the image that moved (not the bands sent):
+            // a band resent now and then for its last noise lets the preview settle.
+            self.cells_changed = if due.is_empty() {
+                0
+            } else {
+                ((moved / img.height.max(1) as f64 * n as f64).ceil() as usize).max(1)
+            };
             self.image_due = due;
             self.cells_left = 0;
             return;
