@@ -68,6 +68,18 @@ pub struct Entry {
     t: f32,
 }
 
+/// The slots whose bits are set in `mask`, lowest first.
+#[inline(always)]
+fn slots(mut mask: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let slot = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            slot
+        })
+    })
+}
+
 fn area(n: &GpuBvhNode) -> f32 {
     let d = [0, 1, 2].map(|c| (n.max[c] - n.min[c]).max(0.0));
     d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
@@ -237,8 +249,9 @@ impl Bvh4 {
 
     /// The references of leaf slot `slot` of `n`.
     #[inline(always)]
-    fn leaf(&self, n: &Node4, slot: usize) -> &[u32] {
+    fn leaf(&self, n: &Node4, slot: usize, tally: &mut Tally) -> &[u32] {
         let first = n.child[slot] as usize;
+        tally.tests += n.count[slot] as u64;
         &self.refs[first..first + n.count[slot] as usize]
     }
 
@@ -269,13 +282,8 @@ impl Bvh4 {
             let n = &self.nodes[node];
             tally.visits += 1;
             let (mask, t) = Self::slabs(n, &o, &inv, t_best);
-            let mut leaves = mask & n.leaves as u32;
-            while leaves != 0 {
-                let slot = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                let refs = self.leaf(n, slot);
-                tally.tests += refs.len() as u64;
-                for &r in refs {
+            for slot in slots(mask & n.leaves as u32) {
+                for &r in self.leaf(n, slot, tally) {
                     let th = test(r, t_best);
                     if th > 0.0 {
                         t_best = th;
@@ -283,14 +291,11 @@ impl Bvh4 {
                     }
                 }
             }
-            let mut inner = mask & !(n.leaves as u32);
             // The nearest inner child hit (still nearer than the best hit) comes next; the
             // others wait on the stack, the nearest of them on top.
             let mut next: Option<Entry> = None;
             let base = sp;
-            while inner != 0 {
-                let slot = inner.trailing_zeros() as usize;
-                inner &= inner - 1;
+            for slot in slots(mask & !(n.leaves as u32)) {
                 if t[slot] >= t_best {
                     continue;
                 }
@@ -358,20 +363,12 @@ impl Bvh4 {
             let n = &self.nodes[node];
             tally.visits += 1;
             let (mask, _) = Self::slabs(n, &o, &inv, t_max);
-            let mut leaves = mask & n.leaves as u32;
-            while leaves != 0 {
-                let slot = leaves.trailing_zeros() as usize;
-                leaves &= leaves - 1;
-                let refs = self.leaf(n, slot);
-                tally.tests += refs.len() as u64;
-                if refs.iter().any(|&r| test(r)) {
+            for slot in slots(mask & n.leaves as u32) {
+                if self.leaf(n, slot, tally).iter().any(|&r| test(r)) {
                     return true;
                 }
             }
-            let mut inner = mask & !(n.leaves as u32);
-            while inner != 0 {
-                let slot = inner.trailing_zeros() as usize;
-                inner &= inner - 1;
+            for slot in slots(mask & !(n.leaves as u32)) {
                 stack[sp] = Entry {
                     node: n.child[slot],
                     t: 0.0,

@@ -17,7 +17,7 @@ pub mod sampling;
 pub mod scene;
 pub mod trace;
 
-use crate::gpu::accum::{ACCUM_WORDS, AccumData, decode};
+use crate::gpu::accum::{ACCUM_WORDS, AccumData, decode, decode_pixel};
 use crate::gpu::layout::DispatchUniforms;
 use crate::gpu::resolve::Resolved;
 use crate::gpu::{Features, FrameSettings};
@@ -158,7 +158,7 @@ impl CpuEngine {
                         let ray = t.camera_ray(x, y as u32, &mut rng);
                         let (radiance, segments) = t.trace_path::<P, NEE>(ray, &mut rng);
                         c.segments += segments as u64;
-                        if trace::invalid(radiance) {
+                        if !radiance.is_finite() {
                             c.invalid += 1;
                             continue;
                         }
@@ -193,13 +193,8 @@ impl CpuEngine {
         let out = ((self.width / f).max(1), (self.height / f).max(1));
         let (w, h) = (self.width as usize, self.height as usize);
         let value = |words: &[u32], p: usize| -> ([f32; 3], f32) {
-            let s = &words[p * ACCUM_WORDS..(p + 1) * ACCUM_WORDS];
-            let ch = |c: usize| {
-                (s[3 * c + 2] as f64 * 4294967296.0
-                    + s[3 * c + 1] as f64
-                    + s[3 * c] as f64 / 4294967296.0) as f32
-            };
-            ([ch(0), ch(1), ch(2)], s[9] as f32)
+            let [r, g, b, n] = decode_pixel(&words[p * ACCUM_WORDS..(p + 1) * ACCUM_WORDS]);
+            ([r, g, b], n)
         };
         let blocks: Vec<[f32; 8]> = (0..out.0 as usize * out.1 as usize)
             .into_par_iter()

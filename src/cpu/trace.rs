@@ -68,10 +68,6 @@ fn cone_one_minus_cos(r2: f32, dist2: f32) -> f32 {
     sin2 / (1.0 + (1.0 - sin2).max(0.0).sqrt())
 }
 
-fn not_finite(v: Vec3A) -> bool {
-    !v.is_finite()
-}
-
 /// Traces paths through one scene with one feature set.
 pub struct Tracer<'a> {
     s: &'a CpuScene,
@@ -417,9 +413,4 @@ impl<'a> Tracer<'a> {
         }
         (radiance, segments)
     }
-}
-
-/// Whether a sample's radiance must be discarded (NaN or infinite).
-pub fn invalid(v: Vec3A) -> bool {
-    not_finite(v)
 }

@@ -44,18 +44,19 @@ impl AccumData {
     }
 }
 
+/// One pixel's fixed-point sums (its `ACCUM_WORDS` words) as `[r, g, b, samples]`, exact
+/// until this rounding to f32.
+pub fn decode_pixel(p: &[u32]) -> [f32; 4] {
+    let channel = |c: usize| {
+        let (frac, low, high) = (p[3 * c], p[3 * c + 1], p[3 * c + 2]);
+        (high as f64 * 4294967296.0 + low as f64 + frac as f64 / 4294967296.0) as f32
+    };
+    [channel(0), channel(1), channel(2), p[9] as f32]
+}
+
 /// Decodes fixed-point sums (`ACCUM_WORDS` words per pixel) to `[r, g, b, samples]`.
 pub fn decode(words: &[u32]) -> Vec<[f32; 4]> {
-    words
-        .chunks_exact(ACCUM_WORDS)
-        .map(|p| {
-            let channel = |c: usize| {
-                let (frac, low, high) = (p[3 * c], p[3 * c + 1], p[3 * c + 2]);
-                (high as f64 * 4294967296.0 + low as f64 + frac as f64 / 4294967296.0) as f32
-            };
-            [channel(0), channel(1), channel(2), p[9] as f32]
-        })
-        .collect()
+    words.chunks_exact(ACCUM_WORDS).map(decode_pixel).collect()
 }
 
 pub struct Accumulation {

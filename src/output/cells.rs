@@ -365,17 +365,7 @@ pub fn encode(img: &LinearImage, mode: CellMode, color: ColorMode) -> Vec<Cell> 
 /// the sRGB curve at the pixel's brightest channel; at least `base`. A cell that moved by no
 /// more is not resent: its change is the noise falling, not the image.
 pub fn noise_thresholds(img: &LinearImage, sigma: &[f32], mode: CellMode, base: u8) -> Vec<u8> {
-    noise_thresholds_by(img, sigma, mode.subpixels(), base)
-}
-
-/// [`noise_thresholds`] over blocks of `(sx, sy)` pixels ((1, 1): every pixel, for pixel
-/// graphics).
-fn noise_thresholds_by(
-    img: &LinearImage,
-    sigma: &[f32],
-    (sx, sy): (u32, u32),
-    base: u8,
-) -> Vec<u8> {
+    let (sx, sy) = mode.subpixels();
     let (cols, rows) = (img.width / sx, img.height / sy);
     let mut out = Vec::with_capacity((cols * rows) as usize);
     for row in 0..rows {

@@ -68,6 +68,17 @@ pub struct RenderOptions {
     pub no_tune: bool,
 }
 
+impl RenderOptions {
+    /// The generic pipeline with these options' own switches (segment counting, BVH).
+    fn generic_features(&self) -> Features {
+        Features {
+            count_segments: self.count_segments,
+            bvh: !self.no_bvh,
+            ..Features::generic()
+        }
+    }
+}
+
 impl Default for RenderOptions {
     fn default() -> Self {
         RenderOptions {
@@ -356,11 +367,7 @@ impl Renderer {
 
     /// The generic pipeline with this renderer's own switches (segment counting, BVH).
     fn generic_features(&self) -> Features {
-        Features {
-            count_segments: self.options.count_segments,
-            bvh: !self.options.no_bvh,
-            ..Features::generic()
-        }
+        self.options.generic_features()
     }
 
     /// The pipeline the next submission uses: the tuner's pick (or the scene's own) when
@@ -604,12 +611,7 @@ impl GpuEngine {
         trace.prepare(device, features);
         if options.compile_in_background {
             // The fallback for the feature sets edits will introduce.
-            let generic = Features {
-                count_segments: options.count_segments,
-                bvh: !options.no_bvh,
-                ..Features::generic()
-            };
-            trace.prepare_in_background(device, generic);
+            trace.prepare_in_background(device, options.generic_features());
         }
         let buffers = SceneBuffers::new(device, scene, settings);
         let accum = Accumulation::new(

@@ -14,15 +14,15 @@ pub mod view;
 pub mod worker;
 
 use crate::gpu::FrameSettings;
-use crate::output::Transfer;
 use crate::output::cells::{self, CellMode, ColorMode};
+use crate::output::{LinearImage, Transfer};
 use crate::render::Backend;
 use crate::scene::Scene;
 use app::{App, Effect, Saving};
 use ratatui::Terminal;
 use ratatui::backend::CrosstermBackend;
 use ratatui::crossterm::event::{Event as TermEvent, KeyEventKind};
-use ratatui::crossterm::{queue, terminal};
+use ratatui::crossterm::{Command, cursor, queue, terminal};
 use ratatui::layout::Rect;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -877,43 +877,8 @@ impl Ui {
                     self.flow.frame_budget().map(|b| b * IMAGE_FRAMES),
                 )
             };
-            let (w, mut h) = ((full.0 / k).max(1), (full.1 / k).max(1));
-            if g.protocol == graphics::Protocol::Sixel && h >= 6 {
-                h -= h % 6;
-            }
-            let (mut seq, mut sent_pixels) = (String::new(), 0.0);
-            for &(index, band) in &self.image_due {
-                // The band's rows of the traced image, at the size to send.
-                let rows = graphics::band_pixels(img.height, image.height, band);
-                let part;
-                let src = if rows == (0..img.height) {
-                    img
-                } else {
-                    part = graphics::crop_rows(img, rows);
-                    &part
-                };
-                let bh = if src.height == img.height {
-                    h
-                } else {
-                    (src.height / k).max(1)
-                };
-                let resized;
-                let sent = if (w, bh) == (src.width, src.height) {
-                    src
-                } else if src.width % w == 0
-                    && src.height % bh == 0
-                    && src.width / w == src.height / bh
-                {
-                    resized = cells::downsample(src, src.width / w);
-                    &resized
-                } else {
-                    resized = graphics::resample(src, w, bh);
-                    &resized
-                };
-                sent_pixels += sent.width as f64 * sent.height as f64;
-                seq.push_str(&format!("\x1b[{};{}H", image.y + band.0 + 1, image.x + 1));
-                seq.push_str(&g.band(sent, image.width, band.1, index));
-            }
+            let size = ((full.0 / k).max(1), (full.1 / k).max(1));
+            let (seq, sent_pixels) = image_sequences(g, img, image, &self.image_due, size, k)?;
             // The whole path from the traced image to the sequences, per traced pixel.
             let spp = started.elapsed().as_secs_f64() / (img.width as f64 * img.height as f64);
             self.image_encode_seconds_per_pixel = if self.image_encode_seconds_per_pixel > 0.0 {
@@ -945,6 +910,52 @@ impl Ui {
             }
         }
     }
+}
+
+/// The sequences that send `due` bands of `img` over the image area `image`, the whole image
+/// being `(w, h)` pixels when sent (`k`: the shrink factor), and the pixels they carry.
+fn image_sequences(
+    g: graphics::Encoder,
+    img: &LinearImage,
+    image: Rect,
+    due: &[(u32, (u16, u16))],
+    (w, mut h): (u32, u32),
+    k: u32,
+) -> anyhow::Result<(String, f64)> {
+    if g.protocol == graphics::Protocol::Sixel && h >= 6 {
+        h -= h % 6;
+    }
+    let (mut seq, mut sent_pixels) = (String::new(), 0.0);
+    for &(index, band) in due {
+        // The band's rows of the traced image, at the size to send.
+        let rows = graphics::band_pixels(img.height, image.height, band);
+        let part;
+        let src = if rows == (0..img.height) {
+            img
+        } else {
+            part = graphics::crop_rows(img, rows);
+            &part
+        };
+        let bh = if src.height == img.height {
+            h
+        } else {
+            (src.height / k).max(1)
+        };
+        let resized;
+        let sent = if (w, bh) == (src.width, src.height) {
+            src
+        } else if src.width % w == 0 && src.height % bh == 0 && src.width / w == src.height / bh {
+            resized = cells::downsample(src, src.width / w);
+            &resized
+        } else {
+            resized = graphics::resample(src, w, bh);
+            &resized
+        };
+        sent_pixels += sent.width as f64 * sent.height as f64;
+        cursor::MoveTo(image.x, image.y + band.0).write_ansi(&mut seq)?;
+        seq.push_str(&g.band(sent, image.width, band.1, index));
+    }
+    Ok((seq, sent_pixels))
 }
 
 /// `--stats`: frames and bytes over the run, and over its last quarter (when the noise has

@@ -53,26 +53,35 @@ pub fn settings(w: u32, h: u32, max_bounces: u32) -> FrameSettings {
     FrameSettings::new(w, h, max_bounces, 1)
 }
 
-/// Renders `spp` samples per pixel and returns the accumulation.
-pub fn snapshot_with(
+/// Renders `spp` samples per pixel on `b` and returns the accumulation.
+pub fn snapshot_on(
+    b: Backend,
     scene: &Scene,
     s: FrameSettings,
     spp: u32,
     options: RenderOptions,
 ) -> Snapshot {
-    let mut r = Renderer::new(backend(), scene, s, options);
+    let mut r = Renderer::new(b, scene, s, options);
     r.render_spp(spp);
     let snap = r.snapshot();
     assert_eq!(snap.min_samples(), spp as u64);
     snap
 }
 
+/// Renders `spp` samples per pixel on the current backend and returns the accumulation.
+pub fn snapshot_with(
+    scene: &Scene,
+    s: FrameSettings,
+    spp: u32,
+    options: RenderOptions,
+) -> Snapshot {
+    snapshot_on(backend(), scene, s, spp, options)
+}
+
 /// `snapshot` on the native CPU tracer: for long references and tests of the estimators
 /// rather than of a backend (many times faster than the software adapter).
 pub fn cpu_snapshot(scene: &Scene, s: FrameSettings, spp: u32) -> Snapshot {
-    let mut r = Renderer::new(Backend::Cpu, scene, s, RenderOptions::default());
-    r.render_spp(spp);
-    r.snapshot()
+    snapshot_on(Backend::Cpu, scene, s, spp, RenderOptions::default())
 }
 
 pub fn snapshot(scene: &Scene, s: FrameSettings, spp: u32) -> Snapshot {
