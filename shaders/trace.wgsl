@@ -38,7 +38,7 @@ override USE_BVH: bool = true;
 // Per-invocation tallies of node visits and primitive tests (COUNT_SEGMENTS only).
 var<private> visits: u32;
 var<private> tests: u32;
-@group(0) @binding(9) var<storage, read> nodes: array<BvhNode>;
+@group(0) @binding(9) var<storage, read> nodes: array<BvhNode4>;
 // Primitive references in leaf order: kind (KIND_* - 1) in the top two bits, index below.
 @group(0) @binding(10) var<storage, read> refs: array<u32>;
 @group(0) @binding(11) var<storage, read> triangles: array<Triangle>;
@@ -52,8 +52,14 @@ const KIND_QUAD: u32 = 2u;
 const KIND_BOX: u32 = 3u;
 const KIND_TRIANGLE: u32 = 4u;
 const T_FAR: f32 = 3.0e38;
-// Deepest BVH the builder makes (src/bvh: MAX_DEPTH): the stack never overflows.
-const STACK_SIZE: u32 = 64u;
+// Pending BVH nodes of a walk: at most three pushed per level of the deepest tree the builder
+// makes (src/bvh/wide.rs: STACK), so the stack never overflows. It lives at module scope:
+// WGSL zeroes every variable where it is declared, and a stack declared in the walk was
+// zeroed on every ray (lavapipe: 1.37x the samples/s once it moved here).
+const STACK_SIZE: u32 = 196u;
+const EMPTY_SLOT: u32 = 0xffffffffu;
+var<private> stack_node: array<u32, STACK_SIZE>;
+var<private> stack_t: array<f32, STACK_SIZE>;
 
 struct Hit {
     t: f32,
@@ -105,16 +111,60 @@ fn intersect_all(ray: Ray) -> Hit {
     return hit;
 }
 
-// Tallies one BVH node visit and its primitive tests (benchmarks only).
-fn count_visit(n: BvhNode) {
+// Tallies one BVH node visit (benchmarks only).
+fn count_visit() {
     if COUNT_SEGMENTS {
         visits += 1u;
-        tests += n.count;
     }
 }
 
-// The nearest hit, by walking the BVH nearest child first with a short stack; a node popped
-// from the stack is skipped if its entry distance is beyond the nearest hit found since.
+fn count_tests(n: u32) {
+    if COUNT_SEGMENTS {
+        tests += n;
+    }
+}
+
+// The slots where `b` is true, as a bit mask (slot k: bit k).
+fn slot_bits(b: vec4<bool>) -> u32 {
+    return dot(select(vec4u(0u), vec4u(1u, 2u, 4u, 8u), b), vec4u(1u));
+}
+
+// Takes the lowest slot out of a non-empty mask.
+fn pop_slot(mask: ptr<function, u32>) -> u32 {
+    let k = firstTrailingBit(*mask);
+    *mask &= *mask - 1u;
+    return k;
+}
+
+// A node's four slab tests at once (Kay & Kajiya 1986; Williams et al., "An Efficient and
+// Robust Ray-Box Intersection Algorithm", JGT 2005): the leaf and the inner slots the ray
+// enters before t_max, as bit masks, and the entry distances (clamped at 0).
+struct Slabs {
+    near: vec4f,
+    leaves: u32,
+    inner: u32,
+}
+
+fn slabs(n: BvhNode4, origin: vec3f, inv: vec3f, t_max: f32) -> Slabs {
+    let tx0 = (n.min_x - origin.x) * inv.x;
+    let tx1 = (n.max_x - origin.x) * inv.x;
+    let ty0 = (n.min_y - origin.y) * inv.y;
+    let ty1 = (n.max_y - origin.y) * inv.y;
+    let tz0 = (n.min_z - origin.z) * inv.z;
+    let tz1 = (n.max_z - origin.z) * inv.z;
+    let near = max(max(min(tx0, tx1), min(ty0, ty1)), max(min(tz0, tz1), vec4f(0.0)));
+    let far = min(min(max(tx0, tx1), max(ty0, ty1)), min(max(tz0, tz1), vec4f(t_max)));
+    let entered = (near <= far) & (n.count != vec4u(EMPTY_SLOT));
+    let leaf = slot_bits(n.count != vec4u(0u));
+    let hit = slot_bits(entered);
+    return Slabs(near, hit & leaf, hit & ~leaf);
+}
+
+// The nearest hit, by walking the four-wide BVH: the leaf slots a node's ray enters are tested
+// at once (a few primitives, which shorten the ray for what follows); of the inner slots, the
+// nearest is entered next and the others pushed, nearest on top, and skipped when popped if
+// a nearer hit was found since. The CPU tracer walks the same nodes the same way
+// (src/cpu/bvh.rs).
 fn intersect_scene(ray: Ray) -> Hit {
     if !USE_BVH {
         return intersect_all(ray);
@@ -124,46 +174,62 @@ fn intersect_scene(ray: Ray) -> Hit {
         return hit;
     }
     let inv = safe_inverse(ray.dir);
-    if hit_bounds(nodes[0].min, nodes[0].max, ray.origin, inv, T_FAR) < 0.0 {
-        return hit;
-    }
-    var stack_node: array<u32, STACK_SIZE>;
-    var stack_t: array<f32, STACK_SIZE>;
     var sp = 0u;
     var node = 0u;
     loop {
         let n = nodes[node];
-        var next_found = false;
-        count_visit(n);
-        if n.count > 0u {
-            for (var i = n.first; i < n.first + n.count; i++) {
-                let r = refs[i];
-                let t = hit_primitive(r, ray, hit.t);
-                if t > 0.0 {
-                    hit = Hit(t, (r >> 30u) + 1u, r & 0x3fffffffu);
+        count_visit();
+        let s = slabs(n, ray.origin, inv, hit.t);
+        var leaves = s.leaves;
+        while leaves != 0u {
+            let k = pop_slot(&leaves);
+            {
+                count_tests(n.count[k]);
+                for (var i = n.child[k]; i < n.child[k] + n.count[k]; i++) {
+                    let r = refs[i];
+                    let t = hit_primitive(r, ray, hit.t);
+                    if t > 0.0 {
+                        hit = Hit(t, (r >> 30u) + 1u, r & 0x3fffffffu);
+                    }
                 }
             }
-        } else {
-            let l = nodes[n.first];
-            let r = nodes[n.first + 1u];
-            let tl = hit_bounds(l.min, l.max, ray.origin, inv, hit.t);
-            let tr = hit_bounds(r.min, r.max, ray.origin, inv, hit.t);
-            if tl >= 0.0 && tr >= 0.0 && sp < STACK_SIZE {
-                let left_first = tl <= tr;
-                node = select(n.first + 1u, n.first, left_first);
-                stack_node[sp] = select(n.first, n.first + 1u, left_first);
-                stack_t[sp] = max(tl, tr);
+        }
+        var next_found = false;
+        var next_t = 0.0;
+        let base = sp;
+        var inner = s.inner;
+        while inner != 0u {
+            let k = pop_slot(&inner);
+            if s.near[k] < hit.t {
+                var e_node = n.child[k];
+                var e_t = s.near[k];
+                if !next_found {
+                    node = e_node;
+                    next_t = e_t;
+                    next_found = true;
+                    continue;
+                }
+                if e_t < next_t {
+                    let far_node = node;
+                    let far_t = next_t;
+                    node = e_node;
+                    next_t = e_t;
+                    e_node = far_node;
+                    e_t = far_t;
+                }
+                // Below the entries of this node that are nearer than it.
+                var j = sp;
+                while j > base && stack_t[j - 1u] < e_t {
+                    stack_node[j] = stack_node[j - 1u];
+                    stack_t[j] = stack_t[j - 1u];
+                    j -= 1u;
+                }
+                stack_node[j] = e_node;
+                stack_t[j] = e_t;
                 sp += 1u;
-                next_found = true;
-            } else if tl >= 0.0 {
-                node = n.first;
-                next_found = true;
-            } else if tr >= 0.0 {
-                node = n.first + 1u;
-                next_found = true;
             }
         }
-        // Pop the nearest pending node that can still hold a nearer hit.
+        // Else the nearest pending node that can still hold a nearer hit.
         while !next_found && sp > 0u {
             sp -= 1u;
             if stack_t[sp] < hit.t {
@@ -194,45 +260,35 @@ fn occluded(ray: Ray, t_max: f32, skip: u32) -> bool {
         return false;
     }
     let inv = safe_inverse(ray.dir);
-    if hit_bounds(nodes[0].min, nodes[0].max, ray.origin, inv, t_max) < 0.0 {
-        return false;
-    }
-    var stack: array<u32, STACK_SIZE>;
     var sp = 0u;
     var node = 0u;
     loop {
         let n = nodes[node];
-        count_visit(n);
-        if n.count > 0u {
-            for (var i = n.first; i < n.first + n.count; i++) {
-                let r = refs[i];
-                if r != skip && hit_primitive(r, ray, t_max) > 0.0 {
-                    return true;
+        count_visit();
+        let s = slabs(n, ray.origin, inv, t_max);
+        var leaves = s.leaves;
+        while leaves != 0u {
+            let k = pop_slot(&leaves);
+            {
+                count_tests(n.count[k]);
+                for (var i = n.child[k]; i < n.child[k] + n.count[k]; i++) {
+                    let r = refs[i];
+                    if r != skip && hit_primitive(r, ray, t_max) > 0.0 {
+                        return true;
+                    }
                 }
             }
-        } else {
-            let l = nodes[n.first];
-            let rn = nodes[n.first + 1u];
-            let hl = hit_bounds(l.min, l.max, ray.origin, inv, t_max) >= 0.0;
-            let hr = hit_bounds(rn.min, rn.max, ray.origin, inv, t_max) >= 0.0;
-            if hl && hr && sp < STACK_SIZE {
-                stack[sp] = n.first + 1u;
-                sp += 1u;
-                node = n.first;
-                continue;
-            } else if hl {
-                node = n.first;
-                continue;
-            } else if hr {
-                node = n.first + 1u;
-                continue;
-            }
+        }
+        var inner = s.inner;
+        while inner != 0u {
+            stack_node[sp] = n.child[pop_slot(&inner)];
+            sp += 1u;
         }
         if sp == 0u {
             break;
         }
         sp -= 1u;
-        node = stack[sp];
+        node = stack_node[sp];
     }
     return false;
 }

@@ -191,19 +191,6 @@ fn triangle_surface(tri: Triangle, ray: Ray, t: f32) -> SurfacePoint {
     return SurfacePoint(tri.v0 + v * tri.e1 + w * tri.e2, normalize(cross(tri.e1, tri.e2)));
 }
 
-// Ray/box slab test against a BVH node's bounds, with the ray's reciprocal direction: the
-// entry distance if the box is hit before t_max, else NO_HIT (Kay & Kajiya 1986; Williams et
-// al., "An Efficient and Robust Ray-Box Intersection Algorithm", JGT 2005).
-fn hit_bounds(bmin: vec3f, bmax: vec3f, origin: vec3f, inv_dir: vec3f, t_max: f32) -> f32 {
-    let t0 = (bmin - origin) * inv_dir;
-    let t1 = (bmax - origin) * inv_dir;
-    let lo = min(t0, t1);
-    let hi = max(t0, t1);
-    let near = max(max(lo.x, lo.y), max(lo.z, 0.0));
-    let far = min(min(hi.x, hi.y), min(hi.z, t_max));
-    return select(NO_HIT, near, near <= far);
-}
-
 // 1 / dir with components too small to invert replaced by a tiny positive number: the slab
 // test then sees an axis-parallel ray, and nothing becomes infinite or NaN (WGSL may assume
 // neither occurs).

@@ -115,14 +115,19 @@ struct Triangle {
     _pad1: f32,             //  44
 }                           //  48
 
-// A node of the BVH (src/bvh): an inner node's children are `first` and `first + 1`; a leaf
-// (count > 0) holds primitives refs[first .. first + count].
-struct BvhNode {
-    min: vec3f,             //   0
-    first: u32,             //  12
-    max: vec3f,             //  16
-    count: u32,             //  28
-}                           //  32
+// A four-wide node of the BVH (src/bvh/wide.rs): the bounds of its four child slots by axis,
+// and for each slot an inner node (count 0, child its index), a leaf (count references from
+// refs[child]) or nothing (count EMPTY_SLOT).
+struct BvhNode4 {
+    min_x: vec4f,           //   0
+    min_y: vec4f,           //  16
+    min_z: vec4f,           //  32
+    max_x: vec4f,           //  48
+    max_y: vec4f,           //  64
+    max_z: vec4f,           //  80
+    child: vec4u,           //  96
+    count: vec4u,           // 112
+}                           // 128
 
 // A light for next-event estimation: an emissive sphere or quad, picked in proportion to its
 // power (src/gpu/scene_buffers.rs: Lights).

@@ -5,6 +5,8 @@
 
 use glam::DVec3;
 
+pub mod wide;
+
 /// An axis-aligned box.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Aabb {
@@ -96,7 +98,7 @@ const BINS: usize = 16;
 const TRAVERSAL_COST: f64 = 1.0;
 /// Subtrees with more primitives than this are built on another thread.
 const PARALLEL_THRESHOLD: usize = 4096;
-/// Deepest tree the GPU's traversal stack can walk (shaders/trace.wgsl: STACK_SIZE).
+/// Deepest tree the traversal stacks can walk (`wide::STACK`; shaders/trace.wgsl: STACK_SIZE).
 pub const MAX_DEPTH: usize = 64;
 
 #[derive(Clone, Copy)]

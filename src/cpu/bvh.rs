@@ -1,24 +1,14 @@
-//! The BVH as the CPU walks it: the GPU's binary BVH (`bvh::Bvh`, the same nodes and leaves)
-//! collapsed to four children per node, their bounds stored as structure of arrays so that
-//! one node's four slab tests are one SSE operation each (`glam::Vec4`), as Embree's BVH4
-//! does (Wald et al., "Embree: A Kernel Framework for Efficient CPU Ray Tracing", SIGGRAPH
-//! 2014). Collapsing opens, at each node, the child with the largest surface area until four
-//! remain (the "BVH4 by collapsing a BVH2" of Wald, Benthin & Boulos, "Getting Rid of
-//! Packets", RT 2008).
+//! The BVH as the CPU walks it: the four-wide nodes both tracers share (`bvh::wide`), their
+//! bounds as `glam::Vec4` so that one node's four slab tests are one SSE operation each, and
+//! the slots in use and the leaf slots as bit masks.
 //!
 //! Measured on `weekend` (BENCHMARKS.md, "A native CPU tracer"): 4.8 nodes visited per
-//! segment against the binary BVH's 11.6 on the GPU, for about two primitive tests each.
+//! segment, for about two primitive tests each.
 
 use super::intersect::{Ray, safe_inverse};
-use crate::gpu::layout::GpuBvhNode;
+use crate::bvh::wide::{EMPTY_SLOT, STACK};
+use crate::gpu::layout::GpuBvhNode4;
 use glam::Vec4;
-
-/// Pending entries: each visit pushes at most three and descends into one, over at most
-/// `bvh::MAX_DEPTH` levels.
-const STACK: usize = 3 * crate::bvh::MAX_DEPTH + 4;
-/// The most references a leaf slot holds (a binary leaf with more, which only a degenerate
-/// scene at the builder's depth limit makes, is split over inner nodes).
-const MAX_SLOT_REFS: usize = u16::MAX as usize;
 
 /// Four children: their bounds by axis, and for each either an inner node (`child` its
 /// index) or a leaf (`count` references from `child` on in `refs`); `valid` and `leaves`
@@ -80,141 +70,35 @@ fn slots(mut mask: u32) -> impl Iterator<Item = usize> {
     })
 }
 
-fn area(n: &GpuBvhNode) -> f32 {
-    let d = [0, 1, 2].map(|c| (n.max[c] - n.min[c]).max(0.0));
-    d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
-}
-
-/// A child of a node being built: bounds and what it is.
-#[derive(Clone, Copy)]
-struct Kid {
-    min: [f32; 3],
-    max: [f32; 3],
-    /// A binary node to collapse, or a leaf's (first, count).
-    what: KidKind,
-}
-
-#[derive(Clone, Copy)]
-enum KidKind {
-    Inner(usize),
-    Leaf(u32, u32),
+impl Node4 {
+    fn of(n: &GpuBvhNode4) -> Node4 {
+        let mask = |f: &dyn Fn(u32) -> bool| {
+            (0..4)
+                .filter(|&s| f(n.count[s]))
+                .fold(0u8, |m, s| m | 1 << s)
+        };
+        Node4 {
+            min_x: Vec4::from_array(n.min_x),
+            min_y: Vec4::from_array(n.min_y),
+            min_z: Vec4::from_array(n.min_z),
+            max_x: Vec4::from_array(n.max_x),
+            max_y: Vec4::from_array(n.max_y),
+            max_z: Vec4::from_array(n.max_z),
+            child: n.child,
+            count: n.count.map(|c| if c == EMPTY_SLOT { 0 } else { c as u16 }),
+            valid: mask(&|c| c != EMPTY_SLOT),
+            leaves: mask(&|c| c != EMPTY_SLOT && c > 0),
+        }
+    }
 }
 
 impl Bvh4 {
-    /// Collapses the binary BVH `bin` (inner nodes' children at `first`, `first + 1`).
-    pub fn collapse(bin: &[GpuBvhNode], refs: Vec<u32>) -> Bvh4 {
-        let mut b = Bvh4 {
-            nodes: Vec::new(),
+    /// The shared four-wide nodes (their leaf slots hold at most `wide::MAX_SLOT_REFS`).
+    pub fn new(nodes: &[GpuBvhNode4], refs: Vec<u32>) -> Bvh4 {
+        Bvh4 {
+            nodes: nodes.iter().map(Node4::of).collect(),
             refs,
-        };
-        if !bin.is_empty() {
-            let root = b.kid(bin, 0);
-            match root.what {
-                KidKind::Inner(_) => {
-                    b.build(bin, 0);
-                }
-                KidKind::Leaf(..) => {
-                    b.node_of(bin, &[root]);
-                }
-            }
         }
-        b
-    }
-
-    fn kid(&self, bin: &[GpuBvhNode], k: usize) -> Kid {
-        let n = &bin[k];
-        Kid {
-            min: n.min,
-            max: n.max,
-            what: if n.count > 0 {
-                KidKind::Leaf(n.first, n.count)
-            } else {
-                KidKind::Inner(k)
-            },
-        }
-    }
-
-    /// Adds the node holding `kids` and returns its index.
-    fn node_of(&mut self, bin: &[GpuBvhNode], kids: &[Kid]) -> u32 {
-        let index = self.nodes.len();
-        let mut n = Node4 {
-            min_x: Vec4::ZERO,
-            min_y: Vec4::ZERO,
-            min_z: Vec4::ZERO,
-            max_x: Vec4::ZERO,
-            max_y: Vec4::ZERO,
-            max_z: Vec4::ZERO,
-            child: [0; 4],
-            count: [0; 4],
-            valid: 0,
-            leaves: 0,
-        };
-        self.nodes.push(n);
-        let (mut lo, mut hi) = ([[0.0f32; 4]; 3], [[0.0f32; 4]; 3]);
-        for (slot, k) in kids.iter().enumerate() {
-            for c in 0..3 {
-                lo[c][slot] = k.min[c];
-                hi[c][slot] = k.max[c];
-            }
-            n.valid |= 1 << slot;
-            match k.what {
-                KidKind::Leaf(first, count) if count as usize <= MAX_SLOT_REFS => {
-                    n.child[slot] = first;
-                    n.count[slot] = count as u16;
-                    n.leaves |= 1 << slot;
-                }
-                KidKind::Leaf(first, count) => {
-                    n.child[slot] = self.split_leaf(bin, k, first, count);
-                }
-                KidKind::Inner(b) => n.child[slot] = self.build(bin, b),
-            }
-        }
-        [n.min_x, n.min_y, n.min_z] = lo.map(Vec4::from_array);
-        [n.max_x, n.max_y, n.max_z] = hi.map(Vec4::from_array);
-        self.nodes[index] = n;
-        index as u32
-    }
-
-    /// Inner nodes over a leaf too large for one slot: its references in slot-sized pieces,
-    /// each with the leaf's bounds.
-    fn split_leaf(&mut self, bin: &[GpuBvhNode], k: &Kid, first: u32, count: u32) -> u32 {
-        let piece = (count as usize).div_ceil(4).max(1) as u32;
-        let kids: Vec<Kid> = (0..4)
-            .map(|i| {
-                (
-                    first + i * piece,
-                    piece.min((first + count).saturating_sub(first + i * piece)),
-                )
-            })
-            .filter(|&(_, n)| n > 0)
-            .map(|(f, n)| Kid {
-                what: KidKind::Leaf(f, n),
-                ..*k
-            })
-            .collect();
-        self.node_of(bin, &kids)
-    }
-
-    /// The four-wide node for binary inner node `b`: its children, the inner child of
-    /// largest area opened until there are four.
-    fn build(&mut self, bin: &[GpuBvhNode], b: usize) -> u32 {
-        let first = bin[b].first as usize;
-        let mut kids = vec![self.kid(bin, first), self.kid(bin, first + 1)];
-        while kids.len() < 4 {
-            let open = kids
-                .iter()
-                .enumerate()
-                .filter_map(|(i, k)| match k.what {
-                    KidKind::Inner(b) => Some((i, b)),
-                    KidKind::Leaf(..) => None,
-                })
-                .max_by(|a, b| area(&bin[a.1]).total_cmp(&area(&bin[b.1])));
-            let Some((i, b)) = open else { break };
-            let f = bin[b].first as usize;
-            kids[i] = self.kid(bin, f);
-            kids.insert(i + 1, self.kid(bin, f + 1));
-        }
-        self.node_of(bin, &kids)
     }
 
     /// The slots whose boxes the ray enters before `t_max` (a bit mask) and the entry

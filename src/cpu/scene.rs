@@ -131,7 +131,7 @@ pub struct CpuScene {
     pub triangles: Vec<Triangle>,
     pub lights: Vec<GpuLight>,
     pub bvh: Bvh4,
-    /// Nodes of the binary BVH it was collapsed from, and the seconds its build took.
+    /// Nodes of the BVH, and the seconds its build took.
     pub node_count: usize,
     pub build_seconds: f64,
     /// As on the GPU (`SceneBuffers`): positions are relative to this floating origin, kept
@@ -147,7 +147,7 @@ impl CpuScene {
         let p = Primitives::of(scene, origin, s.nee);
         let t = std::time::Instant::now();
         let (nodes, refs) = gpu_bvh(&p);
-        let bvh = Bvh4::collapse(&nodes, refs);
+        let bvh = Bvh4::new(&nodes, refs);
         let build_seconds = t.elapsed().as_secs_f64();
         let mut c = CpuScene {
             u: Uniforms::of(&scene_uniforms(scene, s, origin)),

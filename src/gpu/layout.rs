@@ -127,11 +127,15 @@ pub struct GpuTriangle {
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
-pub struct GpuBvhNode {
-    pub min: [f32; 3],
-    pub first: u32,
-    pub max: [f32; 3],
-    pub count: u32,
+pub struct GpuBvhNode4 {
+    pub min_x: [f32; 4],
+    pub min_y: [f32; 4],
+    pub min_z: [f32; 4],
+    pub max_x: [f32; 4],
+    pub max_y: [f32; 4],
+    pub max_z: [f32; 4],
+    pub child: [u32; 4],
+    pub count: [u32; 4],
 }
 
 #[repr(C)]
@@ -227,7 +231,11 @@ pub fn mirrors() -> Vec<MirrorLayout> {
             [center, material, half_extents, axis_x, axis_y, axis_z]
         ),
         m!("Triangle", GpuTriangle, [v0, material, e1, e2]),
-        m!("BvhNode", GpuBvhNode, [min, first, max, count]),
+        m!(
+            "BvhNode4",
+            GpuBvhNode4,
+            [min_x, min_y, min_z, max_x, max_y, max_z, child, count]
+        ),
         m!("Light", GpuLight, [prim, cdf, pmf, area]),
     ]
 }
@@ -241,6 +249,6 @@ const _: () = {
     assert!(std::mem::size_of::<GpuQuad>() == 80);
     assert!(std::mem::size_of::<GpuCuboid>() == 80);
     assert!(std::mem::size_of::<GpuTriangle>() == 48);
-    assert!(std::mem::size_of::<GpuBvhNode>() == 32);
+    assert!(std::mem::size_of::<GpuBvhNode4>() == 128);
     assert!(std::mem::size_of::<GpuLight>() == 16);
 };

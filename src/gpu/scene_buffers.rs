@@ -324,39 +324,16 @@ pub fn lights(scene: &Scene, nee: bool) -> (Vec<GpuLight>, Vec<u32>) {
     (table, slots)
 }
 
-/// f32 bounds that contain the f64 ones: padded by a millionth of their extent and
-/// magnitude, far more than the rounding to f32 (2^-24 relative), so that no hit is lost to
-/// rounding and a flat box (an axis-aligned quad) still has a thickness.
-fn padded(b: &Aabb) -> ([f32; 3], [f32; 3]) {
-    let extent = (b.max - b.min).max_element();
-    let magnitude = b.min.abs().max(b.max.abs()).max_element();
-    let pad = 1e-6 * (extent + magnitude) + 1e-30;
-    (f(b.min - DVec3::splat(pad)), f(b.max + DVec3::splat(pad)))
-}
-
-/// The BVH over `p`, as the GPU reads it: nodes, and the references in leaf order. A scene
-/// without primitives gets an empty list (the buffer then holds one zeroed node, which the
-/// tracer never reads: it checks the primitive counts first).
-pub fn gpu_bvh(p: &Primitives) -> (Vec<GpuBvhNode>, Vec<u32>) {
+/// The BVH over `p`, as both tracers read it: four-wide nodes (`bvh::wide`), and the
+/// references in leaf order. A scene without primitives gets an empty list (the buffer then
+/// holds one zeroed node, which the tracer never reads: it checks the primitive counts first).
+pub fn gpu_bvh(p: &Primitives) -> (Vec<GpuBvhNode4>, Vec<u32>) {
     if p.bounds.is_empty() {
         return (Vec::new(), Vec::new());
     }
     let bvh = Bvh::build(&p.bounds);
-    let nodes = bvh
-        .nodes
-        .iter()
-        .map(|n| {
-            let (min, max) = padded(&n.bounds);
-            GpuBvhNode {
-                min,
-                first: n.first,
-                max,
-                count: n.count,
-            }
-        })
-        .collect();
     let refs = bvh.order.iter().map(|&i| p.refs[i as usize]).collect();
-    (nodes, refs)
+    (crate::bvh::wide::collapse(&bvh), refs)
 }
 
 fn material(o: &Object) -> GpuMaterial {
