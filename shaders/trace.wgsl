@@ -556,87 +556,93 @@ fn sample_light(p: vec3f, n: vec3f, state: ptr<function, u32>) -> vec3f {
     return m.color * m.light * (cos_s / PI / pl * power_heuristic(pl, bsdf_pdf));
 }
 
-struct PathResult {
+// A path being traced: the ray of its next segment and what the segments so far have found.
+// MIS state: the solid-angle density with which the last bounce sampled the current ray
+// (0: a delta lobe or the camera, which light sampling could not have matched), and the point
+// and facing normal it sampled from (light selection depends on both).
+struct Path {
+    ray: Ray,
+    throughput: vec3f,
     radiance: vec3f,
-    segments: u32,
+    bounce: u32,
+    prev_pdf: f32,
+    prev_point: vec3f,
+    prev_normal: vec3f,
 }
 
-// One path (MODEL.md "Scattering"): at most max_bounces scatterings, and the ray leaving the
-// last one is still traced, so at most max_bounces + 1 segments.
-fn trace_path(primary: Ray, state: ptr<function, u32>) -> PathResult {
-    var ray = primary;
-    var throughput = vec3f(1.0);
-    var radiance = vec3f(0.0);
-    var segments = 0u;
+fn path_start(primary: Ray) -> Path {
+    return Path(primary, vec3f(1.0), vec3f(0.0), 0u, 0.0, primary.origin, vec3f(0.0, 1.0, 0.0));
+}
+
+// One segment of a path (MODEL.md "Scattering"): traces its ray and either ends the path
+// (true: its radiance is final) or scatters into the next ray. At most max_bounces
+// scatterings, and the ray leaving the last one is still traced, so at most max_bounces + 1
+// segments.
+fn path_step(path: ptr<function, Path>, state: ptr<function, u32>) -> bool {
+    let ray = (*path).ray;
+    let bounce = (*path).bounce;
     let nee = HAS_NEE && scene.n_lights > 0u;
-    // MIS state: the solid-angle density with which the last bounce sampled the current ray
-    // (0: a delta lobe or the camera, which light sampling could not have matched), and the
-    // point and facing normal it sampled from (light selection depends on both).
-    var prev_pdf = 0.0;
-    var prev_point = ray.origin;
-    var prev_normal = vec3f(0.0, 1.0, 0.0);
-    for (var bounce = 0u; bounce <= scene.max_bounces; bounce++) {
-        segments += 1u;
-        let hit = intersect_scene(ray);
-        if hit.kind == KIND_NONE {
-            radiance += throughput * sky(ray.dir);
-            break;
-        }
-        let surf = surface_at(hit, ray);
-        let m = materials[surf.material];
-        if HAS_EMITTERS && m.light > 0.0 {
-            var w = 1.0;
-            if nee && prev_pdf > 0.0 && m.light_slot > 0u {
-                let choice = light_choice_pmf(m.light_slot - 1u, prev_point, prev_normal);
-                let pl = choice * light_pdf(hit, prev_point, surf.point.position);
-                w = power_heuristic(prev_pdf, pl);
-            }
-            radiance += throughput * m.color * m.light * w;
-            break;
-        }
-        if bounce == scene.max_bounces {
-            break;
-        }
-        let n_out = surf.point.normal;
-        var sc: Scatter;
-        prev_pdf = 0.0;
-        if HAS_DIELECTRICS && m.smoothness < 0.0 {
-            sc = scatter_dielectric(m, ray.dir, n_out, state);
-        } else {
-            let is_spec = rand(state) < m.specular;
-            let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);
-            // A lobe with the cosine density: the Lambertian one, or the specular one at
-            // smoothness 0 (the same distribution, its own tint).
-            let cosine_lobe = !is_spec || m.smoothness == 0.0;
-            if nee && cosine_lobe {
-                let tint = select(m.color, m.specular_color, is_spec);
-                radiance += throughput * tint * sample_light(surf.point.position, n, state);
-            }
-            sc = scatter_surface(m, ray.dir, n_out, is_spec, state);
-            if cosine_lobe {
-                prev_pdf = max(dot(sc.dir, n), 0.0) / PI;
-                prev_normal = n;
-            }
-        }
-        if sc.absorbed {
-            break;
-        }
-        throughput *= sc.attenuation;
-        prev_point = surf.point.position;
-        // Russian roulette (Arvo & Kirk 1990), unbiased: a survivor's throughput is divided by
-        // its survival probability. With light sampling only, so that the exact furnace tests
-        // (no lights) keep zero variance.
-        if nee && bounce >= RR_START {
-            let q = min(max(max(throughput.x, throughput.y), throughput.z), RR_MAX_SURVIVAL);
-            if rand(state) >= q {
-                break;
-            }
-            throughput /= q;
-        }
-        let side = select(-n_out, n_out, dot(sc.dir, n_out) > 0.0);
-        ray = Ray(offset_ray(surf.point.position, side), sc.dir);
+    let hit = intersect_scene(ray);
+    if hit.kind == KIND_NONE {
+        (*path).radiance += (*path).throughput * sky(ray.dir);
+        return true;
     }
-    return PathResult(radiance, segments);
+    let surf = surface_at(hit, ray);
+    let m = materials[surf.material];
+    if HAS_EMITTERS && m.light > 0.0 {
+        var w = 1.0;
+        if nee && (*path).prev_pdf > 0.0 && m.light_slot > 0u {
+            let choice = light_choice_pmf(m.light_slot - 1u, (*path).prev_point, (*path).prev_normal);
+            let pl = choice * light_pdf(hit, (*path).prev_point, surf.point.position);
+            w = power_heuristic((*path).prev_pdf, pl);
+        }
+        (*path).radiance += (*path).throughput * m.color * m.light * w;
+        return true;
+    }
+    if bounce == scene.max_bounces {
+        return true;
+    }
+    let n_out = surf.point.normal;
+    var sc: Scatter;
+    (*path).prev_pdf = 0.0;
+    if HAS_DIELECTRICS && m.smoothness < 0.0 {
+        sc = scatter_dielectric(m, ray.dir, n_out, state);
+    } else {
+        let is_spec = rand(state) < m.specular;
+        let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);
+        // A lobe with the cosine density: the Lambertian one, or the specular one at
+        // smoothness 0 (the same distribution, its own tint).
+        let cosine_lobe = !is_spec || m.smoothness == 0.0;
+        if nee && cosine_lobe {
+            let tint = select(m.color, m.specular_color, is_spec);
+            (*path).radiance += (*path).throughput * tint * sample_light(surf.point.position, n, state);
+        }
+        sc = scatter_surface(m, ray.dir, n_out, is_spec, state);
+        if cosine_lobe {
+            (*path).prev_pdf = max(dot(sc.dir, n), 0.0) / PI;
+            (*path).prev_normal = n;
+        }
+    }
+    if sc.absorbed {
+        return true;
+    }
+    var throughput = (*path).throughput * sc.attenuation;
+    (*path).prev_point = surf.point.position;
+    // Russian roulette (Arvo & Kirk 1990), unbiased: a survivor's throughput is divided by
+    // its survival probability. With light sampling only, so that the exact furnace tests
+    // (no lights) keep zero variance.
+    if nee && bounce >= RR_START {
+        let q = min(max(max(throughput.x, throughput.y), throughput.z), RR_MAX_SURVIVAL);
+        if rand(state) >= q {
+            return true;
+        }
+        throughput /= q;
+    }
+    (*path).throughput = throughput;
+    let side = select(-n_out, n_out, dot(sc.dir, n_out) > 0.0);
+    (*path).ray = Ray(offset_ray(surf.point.position, side), sc.dir);
+    (*path).bounce = bounce + 1u;
+    return false;
 }
 
 fn fixed_load(buf: u32, pixel: u32) -> Fixed {
@@ -714,20 +720,35 @@ fn trace(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_in
             odd = fixed_load(1u, pixel);
         }
         var invalid = 0u;
-        for (var i = lane; i < batch.sample_count; i += batch.lanes) {
-            let sample = batch.sample_base + i;
-            var state = rng_init(pixel, sample, scene.seed);
-            let path = trace_path(camera_ray(px, &state), &state);
-            segments += path.segments;
-            if not_finite(path.radiance) {
-                invalid += 1u;
+        // One loop over the segments of all this lane's paths, a finished path replaced by the
+        // next sample's at once (path regeneration: Novák, Havran & Dachsbacher, "Path
+        // Regeneration for Interactive Path Tracing", Eurographics 2010 short papers). With a
+        // loop over samples around a loop over bounces, a warp waited at every sample for its
+        // longest path; here it waits once, for the lane with the most segments in all.
+        var i = lane;
+        var state = 0u;
+        var path: Path;
+        var fresh = true;
+        while i < batch.sample_count {
+            if fresh {
+                state = rng_init(pixel, batch.sample_base + i, scene.seed);
+                path = path_start(camera_ray(px, &state));
+                fresh = false;
+            }
+            segments += 1u;
+            if !path_step(&path, &state) {
                 continue;
             }
-            if (sample & 1u) == 0u {
+            let sample = batch.sample_base + i;
+            if not_finite(path.radiance) {
+                invalid += 1u;
+            } else if (sample & 1u) == 0u {
                 fixed_add(&even, path.radiance);
             } else {
                 fixed_add(&odd, path.radiance);
             }
+            i += batch.lanes;
+            fresh = true;
         }
         if batch.lanes == 1u {
             fixed_store(0u, pixel, even);
