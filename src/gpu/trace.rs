@@ -4,6 +4,22 @@
 //! A new feature set can be compiled on another thread while the generic pipeline, which
 //! gives the same image bit for bit (tests/specialization.rs), keeps tracing: a key in the
 //! preview that turns a sphere into glass never stalls on the compiler.
+//!
+//! The kernel is one "megakernel" (a path per invocation), made fast by measurement on the
+//! H200 (BENCHMARKS.md, issue 12; `weekend` 1920×1080, max_bounces 50, segments/s):
+//! - the BVH walk's stacks live at module scope: WGSL zeroes every variable where it is
+//!   declared, and the stacks declared inside the walk (2 × 64 words) were zeroed for every
+//!   ray: 3.05e9 → 3.72e9, and the loss of the specialized pipelines (issue 12) went with it;
+//! - four-wide BVH nodes (`bvh::wide`, the CPU tracer's too): 4.8 node visits per segment
+//!   instead of 11.7, a shorter chain of dependent loads: → 4.21e9;
+//! - path regeneration: an invocation's paths are one loop over segments, a finished path
+//!   replaced at once by its next sample's, so a warp no longer waits at every sample for its
+//!   longest path: → 5.90e9.
+//!
+//! A wavefront tracer (Laine, Karras & Aila, "Megakernels Considered Harmful", HPG 2013)
+//! was the other road; with these three the megakernel reached the issue's goal (5e9) without
+//! the queues' memory traffic, and specialization (the features compiled in) stays one
+//! pipeline per scene.
 
 use super::accum::Accumulation;
 use super::features::Features;
