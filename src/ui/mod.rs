@@ -94,14 +94,15 @@ pub struct ViewOptions {
     pub stats: bool,
 }
 
-/// The graphics protocol for this terminal (`None`: cells) and what the status line says
-/// about it: the protocol's name, or why cells. Asks the terminal (raw mode, before the
-/// input thread reads stdin) unless the choice is forced.
-fn choose_graphics(opts: &ViewOptions) -> (Option<graphics::Encoder>, String) {
+/// The graphics protocol for this terminal (`None`: cells), what the status line calls it
+/// (the protocol's name, or `cells`), and why cells where the user may have wanted graphics
+/// (for the start-up message and the log: the status line has no room for it). Asks the
+/// terminal (raw mode, before the input thread reads stdin) unless the choice is forced.
+fn choose_graphics(opts: &ViewOptions) -> (Option<graphics::Encoder>, String, Option<String>) {
     use graphics::{Encoder, Protocol};
     let tmux = std::env::var_os("TMUX").is_some();
     let forced = match opts.graphics {
-        Graphics::Cells => return (None, "cells".into()),
+        Graphics::Cells => return (None, "cells".into(), None),
         Graphics::Kitty => Some(Protocol::Kitty),
         Graphics::Sixel => Some(Protocol::Sixel),
         Graphics::Iterm => Some(Protocol::Iterm),
@@ -153,17 +154,14 @@ fn choose_graphics(opts: &ViewOptions) -> (Option<graphics::Encoder>, String) {
             } else {
                 p.name().to_string()
             };
-            (Some(e), note)
+            (Some(e), note, None)
         }
         Err(why) => {
             tracing::info!("graphics: cells ({why})");
-            // A terminal without graphics is the common case: the log says why.
-            let note = if tmux || !answers.complete {
-                format!("cells ({why})")
-            } else {
-                "cells".to_string()
-            };
-            (None, note)
+            // A terminal without graphics is the common case: only the log says why. Inside
+            // tmux, or where the terminal did not answer, the start-up message says it too.
+            let told = (tmux || !answers.complete).then_some(why);
+            (None, "cells".to_string(), told)
         }
     }
 }
@@ -992,7 +990,7 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         let _ = signal_tx.send(Event::Signal);
     });
     let guard = term::TerminalGuard::enter(opts.log.as_deref())?;
-    let (graphics, graphics_note) = choose_graphics(&opts);
+    let (graphics, graphics_note, graphics_why) = choose_graphics(&opts);
     if let Some(g) = graphics {
         term::set_clear(g.clear());
     }
@@ -1036,8 +1034,8 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         farewell: Vec::new(),
     };
     // Why there are no pixel graphics, where the user may have wanted them.
-    if opts.graphics == Graphics::Auto && graphics_note.contains("tmux") && graphics.is_none() {
-        ui.app.say(format!("graphics: {graphics_note}"));
+    if let Some(why) = graphics_why {
+        ui.app.say(format!("graphics: cells ({why})"));
     }
     ui.app.graphics = graphics_note;
     let history = ui.event_loop(&mut terminal, &rx, &bytes);
