@@ -92,6 +92,8 @@ impl PreviewReport {
 #[derive(Clone, Debug, Default)]
 struct Seen {
     spp: Option<u64>,
+    /// The status line's time since the accumulation started, in seconds.
+    elapsed: Option<f64>,
     /// The status line's size and rate fields.
     size: String,
     rate: String,
@@ -109,7 +111,7 @@ struct Seen {
     link: Option<String>,
     /// Every change of what the screen shows of spp or parameters: when it was read, and
     /// the output bytes by then.
-    history: Vec<(Instant, Option<u64>, String, u64, Duration)>,
+    history: Vec<(Instant, Option<u64>, String, u64, Duration, Option<f64>)>,
     exited: bool,
 }
 
@@ -133,6 +135,9 @@ fn read_status(screen: &vt100::Screen, seen: &mut Seen) {
         seen.spp = fields
             .iter()
             .find_map(|f| f.strip_suffix(" spp").and_then(|n| n.trim().parse().ok()));
+        seen.elapsed = fields
+            .iter()
+            .find_map(|f| f.strip_suffix(" s").and_then(|n| n.parse().ok()));
         if let Some(f) = fields.iter().find(|f| f.contains('×')) {
             seen.size = f.to_string();
         }
@@ -396,7 +401,14 @@ impl PreviewBench {
                     }
                     held += queries;
                     if (s.spp, s.params.clone()) != before {
-                        let change = (Instant::now(), s.spp, s.params.clone(), s.bytes, s.parse);
+                        let change = (
+                            Instant::now(),
+                            s.spp,
+                            s.params.clone(),
+                            s.bytes,
+                            s.parse,
+                            s.elapsed,
+                        );
                         s.history.push(change);
                     }
                     sh.cond.notify_all();
@@ -467,8 +479,16 @@ impl PreviewBench {
             let spp_before = before.spp.unwrap_or(0);
             let t0 = Instant::now();
             type_key(key);
+            // The edit is shown when the status line has the new value and its accumulation
+            // restarted after the key: fewer spp than before, or (on a fast GPU behind a slow
+            // link, whose count may pass the old one before the first frame arrives) a time
+            // since the start shorter than the time since the key.
+            let restarted = |spp: Option<u64>, elapsed: Option<f64>, at: Instant| {
+                spp.is_some_and(|n| n < spp_before)
+                    || elapsed.is_some_and(|e| e <= at.duration_since(t0).as_secs_f64() + 0.05)
+            };
             let shown = wait_for(shared, self.timeout, |s| {
-                s.params != before.params && s.spp.is_some_and(|n| n < spp_before)
+                s.params != before.params && restarted(s.spp, s.elapsed, Instant::now())
             });
             match shown {
                 Some((now, after)) => {
@@ -476,10 +496,8 @@ impl PreviewBench {
                     let at = after
                         .history
                         .iter()
-                        .find(|(t, spp, params, _, _)| {
-                            *t >= t0
-                                && *params != before.params
-                                && spp.is_some_and(|n| n < spp_before)
+                        .find(|(t, spp, params, _, _, elapsed)| {
+                            *t >= t0 && *params != before.params && restarted(*spp, *elapsed, *t)
                         })
                         .map_or((now, after.bytes, after.parse), |h| (h.0, h.3, h.4));
                     report
