@@ -109,10 +109,20 @@ struct Seen {
     deepest_backlog: u64,
     /// The status line's link field (`link 2.0 Mbit/s 80 ms`), when shown.
     link: Option<String>,
-    /// Every change of what the screen shows of spp or parameters: when it was read, and
-    /// the output bytes by then.
-    history: Vec<(Instant, Option<u64>, String, u64, Duration, Option<f64>)>,
+    /// Every change of what the screen shows of spp or parameters.
+    history: Vec<Change>,
     exited: bool,
+}
+
+/// What the status lines showed at one moment, and the output by then.
+#[derive(Clone, Debug)]
+struct Change {
+    at: Instant,
+    spp: Option<u64>,
+    params: String,
+    elapsed: Option<f64>,
+    bytes: u64,
+    parse: Duration,
 }
 
 struct Shared {
@@ -401,14 +411,14 @@ impl PreviewBench {
                     }
                     held += queries;
                     if (s.spp, s.params.clone()) != before {
-                        let change = (
-                            Instant::now(),
-                            s.spp,
-                            s.params.clone(),
-                            s.bytes,
-                            s.parse,
-                            s.elapsed,
-                        );
+                        let change = Change {
+                            at: Instant::now(),
+                            spp: s.spp,
+                            params: s.params.clone(),
+                            elapsed: s.elapsed,
+                            bytes: s.bytes,
+                            parse: s.parse,
+                        };
                         s.history.push(change);
                     }
                     sh.cond.notify_all();
@@ -496,10 +506,14 @@ impl PreviewBench {
                     let at = after
                         .history
                         .iter()
-                        .find(|(t, spp, params, _, _, elapsed)| {
-                            *t >= t0 && *params != before.params && restarted(*spp, *elapsed, *t)
+                        .find(|c| {
+                            c.at >= t0
+                                && c.params != before.params
+                                && restarted(c.spp, c.elapsed, c.at)
                         })
-                        .map_or((now, after.bytes, after.parse), |h| (h.0, h.3, h.4));
+                        .map_or((now, after.bytes, after.parse), |c| {
+                            (c.at, c.bytes, c.parse)
+                        });
                     report
                         .latencies
                         .push(at.0.saturating_duration_since(t0).as_secs_f64());
