@@ -56,7 +56,7 @@ const T_FAR: f32 = 3.0e38;
 // makes (src/bvh/wide.rs: STACK), so the stack never overflows. It lives at module scope:
 // WGSL zeroes every variable where it is declared, and a stack declared in the walk was
 // zeroed on every ray (lavapipe: 1.37x the samples/s once it moved here).
-const STACK_SIZE: u32 = 196u;
+const STACK_SIZE: u32 = 220u;
 const EMPTY_SLOT: u32 = 0xffffffffu;
 var<private> stack_node: array<u32, STACK_SIZE>;
 var<private> stack_t: array<f32, STACK_SIZE>;

@@ -1,7 +1,7 @@
 //! The acceleration structure: a bounding volume hierarchy over every primitive, built on the
 //! CPU with the binned surface area heuristic (Wald, "On fast Construction of SAH-based
 //! Bounding Volume Hierarchies", IEEE RT 2007), subtrees in parallel (rayon), then flattened
-//! so that siblings are adjacent and the GPU walks it with a short stack.
+//! so that siblings are adjacent, then collapsed to four-wide nodes for both tracers (`wide`).
 
 use glam::DVec3;
 

@@ -20,9 +20,14 @@ pub const EMPTY_SLOT: u32 = u32::MAX;
 /// The most references a leaf slot holds (a binary leaf with more, which only a degenerate
 /// scene at the builder's depth limit makes, is split over inner nodes).
 pub const MAX_SLOT_REFS: u32 = u16::MAX as u32;
-/// Pending entries a walk may need: each visit pushes at most three and descends into one,
-/// over at most `super::MAX_DEPTH` levels (shaders/trace.wgsl: STACK_SIZE).
-pub const STACK: usize = 3 * super::MAX_DEPTH + 4;
+/// Levels that splitting leaves too large for a slot can add below the binary tree's
+/// deepest: each level divides a leaf by four, and 4^8 slots of `MAX_SLOT_REFS` hold any u32
+/// count.
+const SPLIT_LEVELS: usize = 8;
+/// Pending entries a walk may need: each visit pushes at most three more than it takes, over
+/// at most `super::MAX_DEPTH + SPLIT_LEVELS` levels (shaders/trace.wgsl: STACK_SIZE, checked
+/// by a test).
+pub const STACK: usize = 3 * (super::MAX_DEPTH + SPLIT_LEVELS) + 4;
 
 /// A node of the binary tree with its bounds rounded outward to f32.
 #[derive(Clone, Copy, Debug)]
@@ -283,6 +288,51 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The WGSL walk's stack is as deep as the CPU's, which the bound above sizes.
+    #[test]
+    fn the_shader_stack_has_the_bound_of_the_tree() {
+        let src = crate::gpu::shader::source("trace.wgsl").unwrap();
+        let line = src
+            .lines()
+            .find(|l| l.starts_with("const STACK_SIZE: u32 = "))
+            .expect("trace.wgsl declares STACK_SIZE");
+        let n: usize = line["const STACK_SIZE: u32 = ".len()..]
+            .trim_end_matches(';')
+            .trim_end_matches('u')
+            .parse()
+            .unwrap();
+        assert_eq!(n, STACK);
+    }
+
+    /// A leaf far too large for one slot (which only a degenerate scene at the builder's depth
+    /// limit makes) is split over inner nodes, every reference kept once.
+    #[test]
+    fn a_huge_leaf_is_split_over_slots() {
+        let bvh = Bvh {
+            nodes: vec![crate::bvh::Node {
+                bounds: Aabb {
+                    min: DVec3::ZERO,
+                    max: DVec3::ONE,
+                },
+                first: 0,
+                count: 300_000,
+            }],
+            order: (0..300_000).collect(),
+        };
+        let wide = collapse(&bvh);
+        let mut covered = 0u64;
+        for n in &wide {
+            for s in 0..4 {
+                if n.count[s] != EMPTY_SLOT && n.count[s] > 0 {
+                    assert!(n.count[s] <= MAX_SLOT_REFS);
+                    covered += n.count[s] as u64;
+                }
+            }
+        }
+        assert_eq!(covered, 300_000);
+        assert!(depth(&wide) <= 1 + SPLIT_LEVELS);
     }
 
     #[test]

@@ -96,7 +96,7 @@ impl CpuEngine {
         }
     }
 
-    /// Nodes of the binary BVH and the seconds its build (and collapse) took.
+    /// Nodes of the (four-wide) BVH and the seconds its build and collapse took.
     pub fn bvh_stats(&self) -> (usize, f64) {
         (self.scene.node_count, self.scene.build_seconds)
     }
