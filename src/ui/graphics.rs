@@ -118,8 +118,9 @@ impl Encoder {
 /// error `sigma` (linear) carried through the sRGB curve at its brightest channel, at least
 /// `base` (as `cells::noise_thresholds` does for cells, here by the 8-bit table).
 pub fn pixel_thresholds(img: &LinearImage, sigma: &[f32], base: u8) -> Vec<u8> {
+    use rayon::prelude::*;
     img.pixels
-        .iter()
+        .par_iter()
         .enumerate()
         .map(|(i, p)| {
             let s = sigma.get(i).copied().unwrap_or(0.0);

@@ -24,6 +24,7 @@ use ratatui::backend::CrosstermBackend;
 use ratatui::crossterm::event::{Event as TermEvent, KeyEventKind};
 use ratatui::crossterm::{Command, cursor, queue, terminal};
 use ratatui::layout::Rect;
+use rayon::prelude::*;
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -923,36 +924,43 @@ fn image_sequences(
     if g.protocol == graphics::Protocol::Sixel && h >= 6 {
         h -= h % 6;
     }
-    let (mut seq, mut sent_pixels) = (String::new(), 0.0);
-    for &(index, band) in due {
-        // The band's rows of the traced image, at the size to send.
-        let rows = graphics::band_pixels(img.height, image.height, band);
-        let part;
-        let src = if rows == (0..img.height) {
-            img
-        } else {
-            part = graphics::crop_rows(img, rows);
-            &part
-        };
-        let bh = if src.height == img.height {
-            h
-        } else {
-            (src.height / k).max(1)
-        };
-        let resized;
-        let sent = if (w, bh) == (src.width, src.height) {
-            src
-        } else if src.width % w == 0 && src.height % bh == 0 && src.width / w == src.height / bh {
-            resized = cells::downsample(src, src.width / w);
-            &resized
-        } else {
-            resized = graphics::resample(src, w, bh);
-            &resized
-        };
-        sent_pixels += sent.width as f64 * sent.height as f64;
-        cursor::MoveTo(image.x, image.y + band.0).write_ansi(&mut seq)?;
-        seq.push_str(&g.band(sent, image.width, band.1, index));
-    }
+    // The bands are separate images: encoded (sRGB, compression) on every core at once.
+    let parts = due
+        .par_iter()
+        .map(|&(index, band)| -> anyhow::Result<(String, f64)> {
+            // The band's rows of the traced image, at the size to send.
+            let rows = graphics::band_pixels(img.height, image.height, band);
+            let part;
+            let src = if rows == (0..img.height) {
+                img
+            } else {
+                part = graphics::crop_rows(img, rows);
+                &part
+            };
+            let bh = if src.height == img.height {
+                h
+            } else {
+                (src.height / k).max(1)
+            };
+            let resized;
+            let sent = if (w, bh) == (src.width, src.height) {
+                src
+            } else if src.width % w == 0 && src.height % bh == 0 && src.width / w == src.height / bh
+            {
+                resized = cells::downsample(src, src.width / w);
+                &resized
+            } else {
+                resized = graphics::resample(src, w, bh);
+                &resized
+            };
+            let mut seq = String::new();
+            cursor::MoveTo(image.x, image.y + band.0).write_ansi(&mut seq)?;
+            seq.push_str(&g.band(sent, image.width, band.1, index));
+            Ok((seq, sent.width as f64 * sent.height as f64))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let sent_pixels = parts.iter().map(|p| p.1).sum();
+    let seq = parts.into_iter().map(|p| p.0).collect();
     Ok((seq, sent_pixels))
 }
 
