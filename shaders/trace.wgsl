@@ -183,14 +183,12 @@ fn intersect_scene(ray: Ray) -> Hit {
         var leaves = s.leaves;
         while leaves != 0u {
             let k = pop_slot(&leaves);
-            {
-                count_tests(n.count[k]);
-                for (var i = n.child[k]; i < n.child[k] + n.count[k]; i++) {
-                    let r = refs[i];
-                    let t = hit_primitive(r, ray, hit.t);
-                    if t > 0.0 {
-                        hit = Hit(t, (r >> 30u) + 1u, r & 0x3fffffffu);
-                    }
+            count_tests(n.count[k]);
+            for (var i = n.child[k]; i < n.child[k] + n.count[k]; i++) {
+                let r = refs[i];
+                let t = hit_primitive(r, ray, hit.t);
+                if t > 0.0 {
+                    hit = Hit(t, (r >> 30u) + 1u, r & 0x3fffffffu);
                 }
             }
         }
@@ -269,13 +267,11 @@ fn occluded(ray: Ray, t_max: f32, skip: u32) -> bool {
         var leaves = s.leaves;
         while leaves != 0u {
             let k = pop_slot(&leaves);
-            {
-                count_tests(n.count[k]);
-                for (var i = n.child[k]; i < n.child[k] + n.count[k]; i++) {
-                    let r = refs[i];
-                    if r != skip && hit_primitive(r, ray, t_max) > 0.0 {
-                        return true;
-                    }
+            count_tests(n.count[k]);
+            for (var i = n.child[k]; i < n.child[k] + n.count[k]; i++) {
+                let r = refs[i];
+                if r != skip && hit_primitive(r, ray, t_max) > 0.0 {
+                    return true;
                 }
             }
         }
