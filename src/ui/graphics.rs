@@ -160,14 +160,37 @@ pub fn resample(img: &LinearImage, w: u32, h: u32) -> LinearImage {
     out
 }
 
-/// The factor (1 to 4) by which to shrink an image of `pixels` before sending so that it
+/// The factor (1 to `max`) by which to shrink an image of `pixels` before sending so that it
 /// takes at most `budget` bytes at `bytes_per_pixel`: on a slow link fewer pixels (which
 /// kitty and iTerm2 scale back up over the same cells; sixel cannot, its image is smaller).
-pub fn shrink_for(pixels: u64, bytes_per_pixel: f64, budget: Option<u64>) -> u32 {
+pub fn shrink_for(pixels: u64, bytes_per_pixel: f64, budget: Option<u64>, max: u32) -> u32 {
     let Some(budget) = budget else { return 1 };
-    (1..=4)
+    (1..=max.max(1))
         .find(|k| pixels as f64 * bytes_per_pixel / (k * k) as f64 <= budget as f64)
-        .unwrap_or(4)
+        .unwrap_or(max.max(1))
+}
+
+/// A band to send: its index and its cell rows (first, count).
+pub type Band = (u32, (u16, u16));
+
+/// The bands of `due` that go in this frame: in order, as many as `bytes` estimates to fit in
+/// `budget`, and always the first; and the indices of the rest, for the next frames.
+pub fn fit_bands(
+    due: Vec<Band>,
+    bytes: impl Fn((u16, u16)) -> f64,
+    budget: f64,
+) -> (Vec<Band>, Vec<u32>) {
+    let (mut now, mut later, mut used) = (Vec::new(), Vec::new(), 0.0);
+    for (index, band) in due {
+        let b = bytes(band);
+        if !now.is_empty() && (!later.is_empty() || used + b > budget) {
+            later.push(index);
+        } else {
+            used += b;
+            now.push((index, band));
+        }
+    }
+    (now, later)
 }
 
 /// `seq` through tmux's passthrough (`allow-passthrough on`): a DCS `tmux;` with every ESC
@@ -392,10 +415,28 @@ mod tests {
         assert_eq!(changed_fraction(&old, &new[..297], &[3; 99]), 1.0);
         // 1000 × 600 pixels at 0.5 bytes each: 300 kB; budgets of 300, 75 and 10 kB.
         let px = 600_000;
-        assert_eq!(shrink_for(px, 0.5, Some(300_000)), 1);
-        assert_eq!(shrink_for(px, 0.5, Some(75_000)), 2);
-        assert_eq!(shrink_for(px, 0.5, Some(10_000)), 4);
-        assert_eq!(shrink_for(px, 0.5, None), 1);
+        assert_eq!(shrink_for(px, 0.5, Some(300_000), 4), 1);
+        assert_eq!(shrink_for(px, 0.5, Some(75_000), 4), 2);
+        assert_eq!(shrink_for(px, 0.5, Some(10_000), 4), 4);
+        assert_eq!(shrink_for(px, 0.5, Some(10_000), 8), 6);
+        assert_eq!(shrink_for(px, 0.5, Some(1_000), 8), 8);
+        assert_eq!(shrink_for(px, 0.5, None, 8), 1);
+    }
+
+    #[test]
+    fn a_frame_takes_the_bands_that_fit_and_leaves_the_rest_in_order() {
+        let due: Vec<(u32, (u16, u16))> = (0..5).map(|i| (i, (4 * i as u16, 4))).collect();
+        // 10 bytes a band: a budget of 25 takes two, the rest wait.
+        let (now, later) = fit_bands(due.clone(), |_| 10.0, 25.0);
+        assert_eq!(now, due[..2].to_vec());
+        assert_eq!(later, vec![2, 3, 4]);
+        // The first band goes even over budget; a small band after one that waits waits too
+        // (the screen fills top to bottom).
+        let (now, later) = fit_bands(due.clone(), |b| if b.0 == 4 { 100.0 } else { 1.0 }, 5.0);
+        assert_eq!(now, due[..1].to_vec());
+        assert_eq!(later, vec![1, 2, 3, 4]);
+        let (now, later) = fit_bands(due.clone(), |_| 10.0, 1000.0);
+        assert_eq!((now.len(), later.len()), (5, 0));
     }
 
     #[test]

@@ -297,8 +297,14 @@ const BAND_CHANGED: f64 = 0.03;
 const FIRST_IMAGE: Duration = Duration::from_millis(40);
 
 /// An image by pixel graphics may take this many frames' worth of the link's budget
-/// (`flow::frame_budget`) before it is sent at fewer pixels.
+/// (`flow::frame_budget`) before it is sent at fewer pixels, at most `IMAGE_SHRINK` fewer each
+/// way.
 const IMAGE_FRAMES: u64 = 4;
+const IMAGE_SHRINK: u32 = 4;
+/// The first image of an edit, which the user waits for, takes one frame's budget and may be
+/// shrunk further (kitty and iTerm2 scale it up; at 8 it is about the cells' own resolution):
+/// it arrives about as soon as cells would, and the next images bring the detail.
+const EDIT_IMAGE_SHRINK: u32 = 8;
 
 /// Frames in a row with almost no change before the image counts as settled.
 const QUIET_FRAMES: u32 = 15;
@@ -329,6 +335,13 @@ struct Ui {
     fresh_image: bool,
     /// A frame that shows an edit arrived: draw it now.
     urgent: bool,
+    /// The frame being drawn is the first of an edit.
+    edit_frame: bool,
+    /// The image on screen was sent coarser than the link needs (an edit's first): the next
+    /// image goes out whole, changed or not.
+    sent_coarse: bool,
+    /// Bands due that did not fit in the last frame's budget: they go in the next frames.
+    pending_bands: Vec<u32>,
     /// The generation of the last frame taken.
     shown_generation: u64,
     /// Frames clocked by the terminal's answers.
@@ -547,7 +560,8 @@ impl Ui {
                     _ => 1.0,
                 };
                 moved += changed * (b - a) as f64;
-                if changed > BAND_CHANGED || (self.exact && changed > 0.0) {
+                let owed = self.sent_coarse || self.pending_bands.contains(&(index as u32));
+                if changed > BAND_CHANGED || (self.exact && changed > 0.0) || owed {
                     due.push((index as u32, *band));
                 }
             }
@@ -569,6 +583,7 @@ impl Ui {
                 ((moved / img.height.max(1) as f64 * n as f64).ceil() as usize).max(1)
             };
             self.image_due = due;
+            self.pending_bands.clear();
             self.cells_left = 0;
             return;
         }
@@ -781,6 +796,7 @@ impl Ui {
             if self.urgent {
                 self.quiet_frames = 0;
             }
+            self.edit_frame = self.urgent;
             self.urgent = false;
             let before = bytes.load(Ordering::Relaxed);
             area = self.draw(terminal, area)?;
@@ -867,15 +883,44 @@ impl Ui {
             };
             // On a slow link fewer pixels: for kitty and iTerm2 scaled back up, for sixel a
             // smaller image (what the link can carry). The final image goes out whole, once.
-            let k = if self.exact {
-                1
+            let scales = g.protocol != graphics::Protocol::Sixel;
+            let (frames, most) = if self.edit_frame && scales {
+                (1, EDIT_IMAGE_SHRINK)
             } else {
+                (IMAGE_FRAMES, IMAGE_SHRINK)
+            };
+            let shrink = |frames: u64, most: u32| {
                 graphics::shrink_for(
                     full.0 as u64 * full.1 as u64,
                     self.image_bytes_per_pixel,
-                    self.flow.frame_budget().map(|b| b * IMAGE_FRAMES),
+                    self.flow.frame_budget().map(|b| b * frames),
+                    most,
                 )
             };
+            let k = if self.exact { 1 } else { shrink(frames, most) };
+            if !self.image_due.is_empty() {
+                self.sent_coarse = k > shrink(IMAGE_FRAMES, IMAGE_SHRINK);
+            }
+            // A frame carries the bands that fit in one frame's budget (at least one); the
+            // rest follow in the next frames, so that a key's frame never waits behind a whole
+            // image in the link. An edit's first image goes whole (it is small enough).
+            if let Some(budget) = self.flow.frame_budget()
+                && !self.exact
+                && !self.edit_frame
+            {
+                let per_pixel = self.image_bytes_per_pixel / (k * k) as f64;
+                let (now, later) = graphics::fit_bands(
+                    std::mem::take(&mut self.image_due),
+                    |band| {
+                        let rows = graphics::band_pixels(img.height, image.height, band);
+                        (rows.end - rows.start) as f64 * full.0 as f64 * per_pixel
+                    },
+                    budget as f64,
+                );
+                self.image_due = now;
+                self.pending_bands = later;
+                self.cells_left = self.pending_bands.len();
+            }
             let size = ((full.0 / k).max(1), (full.1 / k).max(1));
             let (seq, sent_pixels) = image_sequences(g, img, image, &self.image_due, size, k)?;
             // The whole path from the traced image to the sequences, per traced pixel.
@@ -1031,6 +1076,9 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         generation: 0,
         fresh_image: false,
         urgent: false,
+        edit_frame: false,
+        sent_coarse: false,
+        pending_bands: Vec::new(),
         shown_generation: 0,
         flow: flow::Flow::default(),
         bytes_per_cell: 40.0,
