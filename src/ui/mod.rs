@@ -857,6 +857,67 @@ impl Ui {
         Ok(history)
     }
 
+    /// The size at which this frame's image bands go (the full size and the shrink factor
+    /// `k`), and which of the due bands go now. Kitty and iTerm2 scale the image over the
+    /// cells; sixel pixels are the screen's, so a sixel image is resampled to the area's
+    /// pixels. On a slow link fewer pixels (for kitty and iTerm2 scaled back up, for sixel a
+    /// smaller image) and only the bands that fit in one frame's budget, the rest in the next
+    /// frames, so that a key's frame never waits behind a whole image in the link; an edit's
+    /// first image goes whole in one frame's budget, coarser, and the next one whole again.
+    /// The final image goes out whole, once.
+    fn pace_image(
+        &mut self,
+        g: graphics::Encoder,
+        (width, height): (u32, u32),
+        image: Rect,
+    ) -> ((u32, u32), u32) {
+        let full = match (g.protocol, cell_pixels()) {
+            (graphics::Protocol::Sixel, Some((cw, _))) => {
+                let w = (image.width as f64 * cw).min(GRAPHICS_MAX_WIDTH) as u32;
+                (w, (w as f64 * height as f64 / width as f64) as u32)
+            }
+            _ => (width, height),
+        };
+        if self.exact {
+            self.sent_coarse = false;
+            return (full, 1);
+        }
+        let budget = self.flow.frame_budget();
+        let shrink = |frames: u64, most: u32| {
+            graphics::shrink_for(
+                full.0 as u64 * full.1 as u64,
+                self.image_bytes_per_pixel,
+                budget.map(|b| b * frames),
+                most,
+            )
+        };
+        let usual = shrink(IMAGE_FRAMES, IMAGE_SHRINK);
+        let edit = self.edit_frame && g.protocol != graphics::Protocol::Sixel;
+        let k = if edit {
+            shrink(1, EDIT_IMAGE_SHRINK)
+        } else {
+            usual
+        };
+        self.sent_coarse = k > usual;
+        if let Some(budget) = budget
+            && !edit
+        {
+            let per_pixel = self.image_bytes_per_pixel / (k * k) as f64;
+            let (now, later) = graphics::fit_bands(
+                std::mem::take(&mut self.image_due),
+                |band| {
+                    let rows = graphics::band_pixels(height, image.height, band);
+                    (rows.end - rows.start) as f64 * full.0 as f64 * per_pixel
+                },
+                budget as f64,
+            );
+            self.image_due = now;
+            self.pending_bands = later;
+            self.cells_left = self.pending_bands.len();
+        }
+        (full, k)
+    }
+
     /// Draws one frame as one synchronized update; returns the area drawn.
     fn draw(&mut self, terminal: &mut Term, area: Rect) -> anyhow::Result<Rect> {
         self.image_due.clear();
@@ -869,58 +930,11 @@ impl Ui {
             terminal.draw(|f| view::draw(&self.app, &self.grid, f.area(), f.buffer_mut()))?;
         let area = completed.area;
         if let Some(g) = graphics_frame
-            && let Some(img) = &self.app.image
+            && let Some(traced) = self.app.image.as_ref().map(|i| (i.width, i.height))
         {
             let (image, _) = view::split(area);
-            // Kitty and iTerm2 scale the image over the cells; sixel pixels are the
-            // screen's, so a sixel image is resampled to the area's pixels here.
-            let full = match (g.protocol, cell_pixels()) {
-                (graphics::Protocol::Sixel, Some((cw, _))) => {
-                    let w = (image.width as f64 * cw).min(GRAPHICS_MAX_WIDTH) as u32;
-                    (w, (w as f64 * img.height as f64 / img.width as f64) as u32)
-                }
-                _ => (img.width, img.height),
-            };
-            // On a slow link fewer pixels: for kitty and iTerm2 scaled back up, for sixel a
-            // smaller image (what the link can carry). The final image goes out whole, once.
-            let scales = g.protocol != graphics::Protocol::Sixel;
-            let (frames, most) = if self.edit_frame && scales {
-                (1, EDIT_IMAGE_SHRINK)
-            } else {
-                (IMAGE_FRAMES, IMAGE_SHRINK)
-            };
-            let shrink = |frames: u64, most: u32| {
-                graphics::shrink_for(
-                    full.0 as u64 * full.1 as u64,
-                    self.image_bytes_per_pixel,
-                    self.flow.frame_budget().map(|b| b * frames),
-                    most,
-                )
-            };
-            let k = if self.exact { 1 } else { shrink(frames, most) };
-            if !self.image_due.is_empty() {
-                self.sent_coarse = k > shrink(IMAGE_FRAMES, IMAGE_SHRINK);
-            }
-            // A frame carries the bands that fit in one frame's budget (at least one); the
-            // rest follow in the next frames, so that a key's frame never waits behind a whole
-            // image in the link. An edit's first image goes whole (it is small enough).
-            if let Some(budget) = self.flow.frame_budget()
-                && !self.exact
-                && !self.edit_frame
-            {
-                let per_pixel = self.image_bytes_per_pixel / (k * k) as f64;
-                let (now, later) = graphics::fit_bands(
-                    std::mem::take(&mut self.image_due),
-                    |band| {
-                        let rows = graphics::band_pixels(img.height, image.height, band);
-                        (rows.end - rows.start) as f64 * full.0 as f64 * per_pixel
-                    },
-                    budget as f64,
-                );
-                self.image_due = now;
-                self.pending_bands = later;
-                self.cells_left = self.pending_bands.len();
-            }
+            let (full, k) = self.pace_image(g, traced, image);
+            let img = self.app.image.as_ref().expect("an image to draw");
             let size = ((full.0 / k).max(1), (full.1 / k).max(1));
             let (seq, sent_pixels) = image_sequences(g, img, image, &self.image_due, size, k)?;
             // The whole path from the traced image to the sequences, per traced pixel.
