@@ -65,8 +65,8 @@ pub struct App {
     pub nee: bool,
     /// The adapter, as the status line names it.
     pub adapter: String,
-    /// How the image reaches the terminal (`sixel`, `kitty via tmux`, `cells`), at the end
-    /// of the status line.
+    /// How the image reaches the terminal (`sixel`, `kitty via tmux`, `cells`), in the
+    /// status line after the adapter.
     pub graphics: String,
     pub stats: Stats,
     /// The latest preview image.

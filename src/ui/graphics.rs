@@ -63,6 +63,12 @@ pub fn bands(protocol: Protocol, rows: u16) -> Vec<(u16, u16)> {
         .collect()
 }
 
+/// `h` pixel rows cut to whole six-row sixel bands (from 6 rows on): a last partial band
+/// would reach below the image area, into the status lines.
+pub fn sixel_height(h: u32) -> u32 {
+    if h >= 6 { h - h % 6 } else { h }
+}
+
 /// The pixel rows of `img` under cell rows `[row, row + n)` of `rows`.
 pub fn band_pixels(img_height: u32, rows: u16, (row, n): (u16, u16)) -> std::ops::Range<u32> {
     let at = |r: u16| (r as u64 * img_height as u64 / rows.max(1) as u64) as u32;

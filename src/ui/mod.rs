@@ -209,10 +209,8 @@ fn preview_settings(
         let (pw, ph) = (cols * cw, rows * ch);
         let k = (GRAPHICS_MAX_WIDTH / pw).min(1.0) * scale;
         let mut h = (ph * k).max(1.0) as u32;
-        if protocol == graphics::Protocol::Sixel && h >= 6 {
-            // Sixel draws bands of six rows: a last partial band would reach below the image
-            // area, into the status lines.
-            h -= h % 6;
+        if protocol == graphics::Protocol::Sixel {
+            h = graphics::sixel_height(h);
         }
         ((pw * k).max(1.0) as u32, h, 1.0)
     } else {
@@ -322,13 +320,11 @@ struct Ui {
     sent_image: Option<(Vec<u8>, (u32, u32), Rect)>,
     /// The bands of the latest image (`graphics::bands`) that go out by pixel graphics in
     /// this frame.
-    image_due: Vec<(u32, (u16, u16))>,
+    image_due: Vec<graphics::Band>,
     /// The graphics preview's size has been fitted to the backend's rate.
     scale_settled: bool,
     /// Bytes per pixel the last graphics frames took (for shrinking on a slow link).
     image_bytes_per_pixel: f64,
-    /// Seconds per pixel encoding the last graphics frames took (0: none yet).
-    image_encode_seconds_per_pixel: f64,
     grid: Grid,
     to_worker: Sender<Request>,
     generation: u64,
@@ -391,7 +387,7 @@ impl Ui {
         if s.spp < 1
             || s.samples_per_second <= 0.0
             || s.elapsed < Duration::from_millis(100)
-            || self.image_encode_seconds_per_pixel <= 0.0
+            || self.sent_image.is_none()
         {
             return;
         }
@@ -921,7 +917,6 @@ impl Ui {
     /// Draws one frame as one synchronized update; returns the area drawn.
     fn draw(&mut self, terminal: &mut Term, area: Rect) -> anyhow::Result<Rect> {
         self.image_due.clear();
-        let started = Instant::now();
         self.encode(area);
         let graphics_frame = self.graphics.filter(|_| !self.image_due.is_empty());
         self.fresh_image = false;
@@ -937,13 +932,6 @@ impl Ui {
             let img = self.app.image.as_ref().expect("an image to draw");
             let size = ((full.0 / k).max(1), (full.1 / k).max(1));
             let (seq, sent_pixels) = image_sequences(g, img, image, &self.image_due, size, k)?;
-            // The whole path from the traced image to the sequences, per traced pixel.
-            let spp = started.elapsed().as_secs_f64() / (img.width as f64 * img.height as f64);
-            self.image_encode_seconds_per_pixel = if self.image_encode_seconds_per_pixel > 0.0 {
-                0.5 * self.image_encode_seconds_per_pixel + 0.5 * spp
-            } else {
-                spp
-            };
             let per_pixel = seq.len() as f64 / sent_pixels.max(1.0);
             self.image_bytes_per_pixel = 0.5 * self.image_bytes_per_pixel + 0.5 * per_pixel;
             terminal.backend_mut().write_all(seq.as_bytes())?;
@@ -976,12 +964,12 @@ fn image_sequences(
     g: graphics::Encoder,
     img: &LinearImage,
     image: Rect,
-    due: &[(u32, (u16, u16))],
+    due: &[graphics::Band],
     (w, mut h): (u32, u32),
     k: u32,
 ) -> anyhow::Result<(String, f64)> {
-    if g.protocol == graphics::Protocol::Sixel && h >= 6 {
-        h -= h % 6;
+    if g.protocol == graphics::Protocol::Sixel {
+        h = graphics::sixel_height(h);
     }
     // The bands are separate images: encoded (sRGB, compression) on every core at once.
     let parts = due
@@ -1084,7 +1072,6 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         image_due: Vec::new(),
         scale_settled: false,
         image_bytes_per_pixel: 1.0,
-        image_encode_seconds_per_pixel: 0.0,
         grid: Grid::default(),
         to_worker,
         generation: 0,
