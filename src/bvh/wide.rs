@@ -54,10 +54,6 @@ enum KidKind {
     Leaf(u32, u32),
 }
 
-fn f(v: DVec3) -> [f32; 3] {
-    [v.x as f32, v.y as f32, v.z as f32]
-}
-
 /// f32 bounds that contain the f64 ones: padded by a millionth of their extent and
 /// magnitude, far more than the rounding to f32 (2^-24 relative), so that no hit is lost to
 /// rounding and a flat box (an axis-aligned quad) still has a thickness.
@@ -65,7 +61,11 @@ fn padded(b: &Aabb) -> ([f32; 3], [f32; 3]) {
     let extent = (b.max - b.min).max_element();
     let magnitude = b.min.abs().max(b.max.abs()).max_element();
     let pad = 1e-6 * (extent + magnitude) + 1e-30;
-    (f(b.min - DVec3::splat(pad)), f(b.max + DVec3::splat(pad)))
+    let lo = (b.min - DVec3::splat(pad)).as_vec3();
+    (
+        lo.to_array(),
+        (b.max + DVec3::splat(pad)).as_vec3().to_array(),
+    )
 }
 
 fn area(k: &Kid) -> f32 {
