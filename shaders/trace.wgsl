@@ -331,11 +331,10 @@ fn sky(dir: vec3f) -> vec3f {
 // Thin-lens camera (the lecture's "Desfocando"; Shirley, Ray Tracing in One Weekend §13):
 // the ray starts on the lens disk and passes through the jittered pixel's point on the focus
 // plane. Directions are built relative to the camera so that a far-away camera loses nothing.
-fn camera_ray(px: vec2u, state: ptr<function, u32>) -> Ray {
-    let jx = rand(state);
-    let jy = rand(state);
-    let s = (f32(px.x) + jx) / f32(scene.width);
-    let t = (f32(px.y) + jy) / f32(scene.height);
+fn camera_ray(px: vec2u, state: ptr<function, Rng>) -> Ray {
+    let j = rand2(state);
+    let s = (f32(px.x) + j.x) / f32(scene.width);
+    let t = (f32(px.y) + j.y) / f32(scene.height);
     let target_rel = scene.cam_to_corner + s * scene.cam_horizontal - t * scene.cam_vertical;
     var lens = vec3f(0.0);
     if HAS_DOF && scene.lens_radius > 0.0 {
@@ -494,7 +493,7 @@ fn light_choice_pmf(i: u32, p: vec3f, n: vec3f) -> f32 {
 
 // The light-sampled estimate at point p with facing normal n, for the Lambertian lobe
 // (its 1/π included, its tint not): emitted radiance × cos / π / pdf, MIS-weighted.
-fn sample_light(p: vec3f, n: vec3f, state: ptr<function, u32>) -> vec3f {
+fn sample_light(p: vec3f, n: vec3f, state: ptr<function, Rng>) -> vec3f {
     let choice = choose_light(rand(state), p, n);
     if choice.pmf <= 0.0 {
         return vec3f(0.0);
@@ -510,8 +509,9 @@ fn sample_light(p: vec3f, n: vec3f, state: ptr<function, u32>) -> vec3f {
         let to = sphere_center(s) - p;
         let dist2 = dot(to, to);
         let r2 = s.radius * s.radius;
-        let u1 = rand(state);
-        let u2 = rand(state);
+        let u = rand2(state);
+        let u1 = u.x;
+        let u2 = u.y;
         if dist2 <= r2 {
             return vec3f(0.0);
         }
@@ -524,7 +524,8 @@ fn sample_light(p: vec3f, n: vec3f, state: ptr<function, u32>) -> vec3f {
         material = s.material;
     } else {
         let q = quads[index];
-        let x = q.q + rand(state) * q.u + rand(state) * q.v;
+        let u = rand2(state);
+        let x = q.q + u.x * q.u + u.y * q.v;
         let to = x - p;
         let dist2 = dot(to, to);
         dir = to * inverseSqrt(dist2);
@@ -574,7 +575,7 @@ fn path_start(primary: Ray) -> Path {
 // (true: its radiance is final) or scatters into the next ray. At most max_bounces
 // scatterings, and the ray leaving the last one is still traced, so at most max_bounces + 1
 // segments.
-fn path_step(path: ptr<function, Path>, state: ptr<function, u32>) -> bool {
+fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     let ray = (*path).ray;
     let bounce = (*path).bounce;
     let nee = HAS_NEE && scene.n_lights > 0u;
@@ -604,7 +605,8 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, u32>) -> bool {
     if HAS_DIELECTRICS && m.smoothness < 0.0 {
         sc = scatter_dielectric(m, ray.dir, n_out, state);
     } else {
-        let is_spec = rand(state) < m.specular;
+        // A certain lobe takes no draw.
+        let is_spec = m.specular >= 1.0 || (m.specular > 0.0 && rand(state) < m.specular);
         let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);
         // A lobe with the cosine density: the Lambertian one, or the specular one at
         // smoothness 0 (the same distribution, its own tint).
@@ -722,7 +724,7 @@ fn trace(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_in
         // loop over samples around a loop over bounces, a warp waited at every sample for its
         // longest path; here it waits once, for the lane with the most segments in all.
         var i = lane;
-        var state = 0u;
+        var state: Rng;
         var path: Path;
         var fresh = true;
         while i < batch.sample_count {

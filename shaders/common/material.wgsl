@@ -30,7 +30,7 @@ fn refract_dir(d: vec3f, n: vec3f, cos_theta: f32, ratio: f32) -> vec3f {
 // refract by Snell's law (r_perp, r_par as in the lecture). An index-matched interface
 // (ratio exactly 1) has no reflectance, so the ray goes straight on: Schlick's formula would
 // still give (1 - cos)^5 there, an artefact of the approximation (docs/MODEL-NOTES.md).
-fn scatter_dielectric(m: Material, d: vec3f, n_out: vec3f, state: ptr<function, u32>) -> Scatter {
+fn scatter_dielectric(m: Material, d: vec3f, n_out: vec3f, state: ptr<function, Rng>) -> Scatter {
     let front = dot(d, n_out) < 0.0;
     let n = select(-n_out, n_out, front);
     let ratio = select(m.ior, 1.0 / m.ior, front);
@@ -54,7 +54,7 @@ fn scatter_dielectric(m: Material, d: vec3f, n_out: vec3f, state: ptr<function, 
 // Lambertian, smoothness blend, fuzz and the specular-probability lobe of the lecture; the
 // lobe is chosen by the caller (`is_spec`: rand() < specular) so that light sampling can
 // happen between the choice and the bounce.
-fn scatter_surface(m: Material, d: vec3f, n_out: vec3f, is_spec: bool, state: ptr<function, u32>) -> Scatter {
+fn scatter_surface(m: Material, d: vec3f, n_out: vec3f, is_spec: bool, state: ptr<function, Rng>) -> Scatter {
     let n = select(-n_out, n_out, dot(d, n_out) < 0.0);
     let diffuse = normalize_or(n + random_unit_vector(state), n);
     var dir = diffuse;

@@ -4,17 +4,19 @@
 const PI: f32 = 3.14159265358979;
 
 // Uniform on the unit sphere (Archimedes: z uniform in [-1, 1], azimuth uniform).
-fn random_unit_vector(state: ptr<function, u32>) -> vec3f {
-    let z = 1.0 - 2.0 * rand(state);
-    let phi = 2.0 * PI * rand(state);
+fn random_unit_vector(state: ptr<function, Rng>) -> vec3f {
+    let u = rand2(state);
+    let z = 1.0 - 2.0 * u.x;
+    let phi = 2.0 * PI * u.y;
     let r = sqrt(max(0.0, 1.0 - z * z));
     return vec3f(r * cos(phi), r * sin(phi), z);
 }
 
 // Uniform in the unit disk (polar mapping, r = sqrt(u)).
-fn random_in_disk(state: ptr<function, u32>) -> vec2f {
-    let r = sqrt(rand(state));
-    let phi = 2.0 * PI * rand(state);
+fn random_in_disk(state: ptr<function, Rng>) -> vec2f {
+    let u = rand2(state);
+    let r = sqrt(u.x);
+    let phi = 2.0 * PI * u.y;
     return vec2f(r * cos(phi), r * sin(phi));
 }
 

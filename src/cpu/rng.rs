@@ -1,6 +1,25 @@
-//! Random numbers, bit for bit those of shaders/common/rng.wgsl: one independent stream per
-//! (pixel, sample, seed). PCG hash and pcg3d from Jarzynski & Olano, "Hash Functions for GPU
-//! Rendering", JCGT 9(3), 2020; steps are PCG-RXS-M-XS 32 (O'Neill 2014).
+//! Random numbers, bit for bit those of shaders/common/rng.wgsl: one sampler per (pixel,
+//! sample, seed). The first `QMC_SLOTS` draws of a sample (camera, lens and the first
+//! bounces) are points of Owen-scrambled Sobol sequences, the rest a PCG stream.
+//!
+//! Quasi-Monte Carlo as Burley, "Practical Hash-based Owen Scrambling", JCGT 9(4), 2020: each
+//! draw (a 1D or a 2D one) is its own "padded" sequence, indexed by the sample's number
+//! within its half, shuffled by a nested uniform scramble of that number and Owen-scrambled,
+//! both with seeds hashed from (pixel, half, draw). Every prefix of 2^m samples of a half is
+//! then a stratified (0, m, 2)-net in each draw's dimensions, and every point is uniform in
+//! its cube, so the estimate stays unbiased. The even and odd samples (the two halves the
+//! noise estimate compares) are independently scrambled sequences, so their difference still
+//! measures the error of their mean without bias. Owen scrambling by Vegdahl's improved
+//! Laine–Karras hash ("Building a Better LK Hash", psychopath.io, 2021). The second Sobol
+//! dimension's generator (the Pascal matrix mod 2) is applied by the superset-sum transform:
+//! by Lucas' theorem its output digit k is the XOR of the index bits j with j ⊇ k.
+//!
+//! PCG hash and pcg3d from Jarzynski & Olano, "Hash Functions for GPU Rendering", JCGT 9(3),
+//! 2020; the stream's steps are PCG-RXS-M-XS 32 (O'Neill 2014).
+
+/// Draws (1D or 2D) per sample taken from the scrambled Sobol sequences; later draws come
+/// from the PCG stream, where stratification no longer pays for its cost.
+pub const QMC_SLOTS: u32 = 6;
 
 fn pcg3d(v: [u32; 3]) -> [u32; 3] {
     let mut v = v.map(|x| x.wrapping_mul(1664525).wrapping_add(1013904223));
@@ -14,23 +33,136 @@ fn pcg3d(v: [u32; 3]) -> [u32; 3] {
     v
 }
 
-/// The random stream of one sample of one pixel.
-pub struct Rng(u32);
+fn hash3(v: [u32; 3]) -> u32 {
+    let h = pcg3d(v);
+    h[0] ^ h[1] ^ h[2]
+}
+
+/// The PCG hash (Jarzynski & Olano): one word to one well-mixed word.
+#[inline(always)]
+fn pcg_hash(x: u32) -> u32 {
+    let s = x.wrapping_mul(747796405).wrapping_add(2891336453);
+    let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277803737);
+    (word >> 22) ^ word
+}
+
+/// A cheap bijective mix (multiply and xorshift) for the seeds derived from a hashed one.
+#[inline(always)]
+fn mix(s: u32) -> u32 {
+    let x = (s ^ (s >> 16)).wrapping_mul(0x2c1b_3c6d);
+    x ^ (x >> 15)
+}
+
+/// Vegdahl's Laine–Karras-style hash: every output bit depends only on the input bits at
+/// and below it, so on bit-reversed digits it is a nested uniform scramble.
+#[inline(always)]
+fn lk_hash(mut x: u32, seed: u32) -> u32 {
+    x ^= x.wrapping_mul(0x3d20adea);
+    x = x.wrapping_add(seed);
+    x = x.wrapping_mul((seed >> 16) | 1);
+    x ^= x.wrapping_mul(0x05526c56);
+    x ^= x.wrapping_mul(0x53a22864);
+    x
+}
+
+/// A nested uniform scramble of an integer's digits from the most significant one: a
+/// shuffle of sample numbers that maps every aligned block of 2^m numbers onto one. It takes
+/// the number with its bits reversed (kept so by `Rng`).
+#[inline(always)]
+fn shuffle(reversed: u32, seed: u32) -> u32 {
+    lk_hash(reversed, seed).reverse_bits()
+}
+
+/// The superset-sum transform over GF(2): bit k of the result is the XOR of the bits j of
+/// `i` with j ⊇ k (as bit sets of the positions).
+#[inline(always)]
+pub fn pascal(mut y: u32) -> u32 {
+    y ^= (y >> 1) & 0x5555_5555;
+    y ^= (y >> 2) & 0x3333_3333;
+    y ^= (y >> 4) & 0x0f0f_0f0f;
+    y ^= (y >> 8) & 0x00ff_00ff;
+    y ^= (y >> 16) & 0x0000_ffff;
+    y
+}
+
+/// A 32-bit fraction (its digits most significant first in the bits from 31 down) as a
+/// float in [0, 1) with 24 of them.
+#[inline(always)]
+fn unit(x: u32) -> f32 {
+    (x >> 8) as f32 * (1.0 / 16777216.0)
+}
+
+/// The random numbers of one sample of one pixel.
+pub struct Rng {
+    /// Hash of (pixel, half, seed): the root of every draw's scrambles.
+    seed: u32,
+    /// The sample's number within its half, its bits reversed.
+    index: u32,
+    /// Draws taken so far.
+    slot: u32,
+    /// The PCG stream's state, for the draws after `QMC_SLOTS`.
+    state: u32,
+}
 
 impl Rng {
     pub fn new(pixel: u32, sample: u32, seed: u32) -> Rng {
-        let h = pcg3d([pixel, sample, seed]);
-        Rng(h[0] ^ h[1] ^ h[2])
+        Rng {
+            seed: hash3([pixel, u32::MAX - (sample & 1), seed]),
+            index: (sample >> 1).reverse_bits(),
+            slot: 0,
+            state: hash3([pixel, sample, seed]),
+        }
     }
 
-    /// Next uniform float in [0, 1): 24 random bits.
+    /// The next draw's scramble seed and the sample's shuffled number in it, or None once
+    /// the draws come from the PCG stream.
+    #[inline(always)]
+    fn next_slot(&mut self) -> Option<(u32, u32)> {
+        if self.slot >= QMC_SLOTS {
+            return None;
+        }
+        let s = pcg_hash(self.seed.wrapping_add(self.slot.wrapping_mul(0x9e37_79b9)));
+        self.slot += 1;
+        Some((s, shuffle(self.index, s)))
+    }
+
+    /// The PCG stream's next float in [0, 1): 24 random bits.
+    #[inline(always)]
+    fn stream(&mut self) -> f32 {
+        let s = self.state.wrapping_mul(747796405).wrapping_add(2891336453);
+        self.state = s;
+        let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277803737);
+        unit((word >> 22) ^ word)
+    }
+
+    /// One uniform float in [0, 1) (an Owen-scrambled van der Corput point while the
+    /// sample's draws are stratified).
     #[inline(always)]
     pub fn rand(&mut self) -> f32 {
-        let s = self.0.wrapping_mul(747796405).wrapping_add(2891336453);
-        self.0 = s;
-        let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277803737);
-        let x = (word >> 22) ^ word;
-        (x >> 8) as f32 * (1.0 / 16777216.0)
+        match self.next_slot() {
+            Some((s, i)) => unit(lk_hash(i, mix(s)).reverse_bits()),
+            None => self.stream(),
+        }
+    }
+
+    /// A uniform point of [0, 1)² (the first two Sobol dimensions, Owen-scrambled, while
+    /// the sample's draws are stratified).
+    #[inline(always)]
+    pub fn rand2(&mut self) -> (f32, f32) {
+        match self.next_slot() {
+            Some((s, i)) => {
+                let s1 = mix(s);
+                let s2 = mix(s1);
+                (
+                    unit(lk_hash(i, s1).reverse_bits()),
+                    unit(lk_hash(pascal(i), s2).reverse_bits()),
+                )
+            }
+            None => {
+                let a = self.stream();
+                (a, self.stream())
+            }
+        }
     }
 }
 
@@ -38,14 +170,118 @@ impl Rng {
 mod tests {
     use super::*;
 
+    /// Sobol's second dimension by its definition: direction numbers v₀ = 2³¹,
+    /// vⱼ₊₁ = vⱼ ^ (vⱼ >> 1), XORed for the set bits of the index.
+    fn sobol1(mut i: u32) -> u32 {
+        let (mut v, mut x) = (1u32 << 31, 0);
+        while i != 0 {
+            if i & 1 == 1 {
+                x ^= v;
+            }
+            i >>= 1;
+            v ^= v >> 1;
+        }
+        x
+    }
+
+    #[test]
+    fn pascal_transform_is_sobols_second_dimension() {
+        for i in (0..70_000u32).chain([u32::MAX, 0x8000_0000, 0xdead_beef]) {
+            assert_eq!(pascal(i).reverse_bits(), sobol1(i), "index {i}");
+        }
+    }
+
+    #[test]
+    fn shuffle_permutes_aligned_blocks() {
+        // The first 2^m numbers go to one aligned block of 2^m, each once.
+        for m in [1u32, 4, 8] {
+            let n = 1u32 << m;
+            let mut seen: Vec<u32> = (0..n)
+                .map(|i| shuffle(i.reverse_bits(), 0x1234_5678))
+                .collect();
+            let block = seen[0] >> m;
+            assert!(seen.iter().all(|&x| x >> m == block));
+            seen.sort();
+            seen.dedup();
+            assert_eq!(seen.len(), n as usize);
+        }
+    }
+
+    #[test]
+    fn every_power_of_two_prefix_is_stratified() {
+        // 2^m samples of a half: in every draw, each 1D stratum of width 2^-m holds one, and
+        // for 2D draws each elementary box of 2^-a × 2^-(m-a) holds one.
+        for pixel in [0u32, 17, 999] {
+            let m = 6;
+            let n = 1u32 << m;
+            let draws: Vec<[(f32, f32); 3]> = (0..n)
+                .map(|i| {
+                    let mut r = Rng::new(pixel, 2 * i + 1, 7);
+                    let a = r.rand2();
+                    let b = r.rand();
+                    let c = r.rand2();
+                    [a, (b, 0.0), c]
+                })
+                .collect();
+            for d in [0, 2] {
+                for a in 0..=m {
+                    let mut cells = vec![0; n as usize];
+                    for p in &draws {
+                        let (x, y) = p[d];
+                        let cx = (x * (1u32 << a) as f32) as u32;
+                        let cy = (y * (1u32 << (m - a)) as f32) as u32;
+                        cells[(cx << (m - a) | cy) as usize] += 1;
+                    }
+                    assert!(cells.iter().all(|&c| c == 1), "draw {d}, boxes 2^-{a}");
+                }
+            }
+            let mut strata = vec![0; n as usize];
+            for p in &draws {
+                strata[(p[1].0 * n as f32) as usize] += 1;
+            }
+            assert!(strata.iter().all(|&c| c == 1));
+        }
+    }
+
     #[test]
     fn floats_lie_in_the_unit_interval_and_streams_differ() {
         let mut a = Rng::new(3, 0, 7);
-        let mut b = Rng::new(3, 1, 7);
+        let mut b = Rng::new(3, 2, 7);
         let xs: Vec<f32> = (0..1000).map(|_| a.rand()).collect();
         assert!(xs.iter().all(|x| (0.0..1.0).contains(x)));
-        let mean = xs.iter().sum::<f32>() / 1000.0;
+        let mean = xs[20..].iter().sum::<f32>() / 980.0;
         assert!((mean - 0.5).abs() < 0.05, "mean {mean}");
-        assert_ne!(a.rand(), b.rand());
+        assert_ne!(Rng::new(3, 0, 7).rand(), b.rand());
+    }
+
+    #[test]
+    fn draws_are_uniform_over_pixels_and_samples() {
+        // Each draw of each slot, over many pixels and samples: mean 1/2, variance 1/12,
+        // and the two coordinates of a 2D draw uncorrelated (3.5 standard errors).
+        let n = 40_000usize;
+        for slot in 0..QMC_SLOTS + 2 {
+            let (mut sx, mut sxx, mut sxy) = (0.0f64, 0.0f64, 0.0f64);
+            for k in 0..n as u32 {
+                let mut r = Rng::new(k / 8, k % 8, 1);
+                for _ in 0..slot {
+                    r.rand();
+                }
+                let (x, y) = r.rand2();
+                let (x, y) = (x as f64 - 0.5, y as f64 - 0.5);
+                sx += x;
+                sxx += x * x;
+                sxy += x * y;
+            }
+            let nf = n as f64;
+            assert!(
+                (sx / nf).abs() < 3.5 * (1.0 / 12.0 / nf).sqrt(),
+                "slot {slot} mean"
+            );
+            assert!((sxx / nf - 1.0 / 12.0).abs() < 3.5 * (1.0 / 180.0 / nf).sqrt());
+            assert!(
+                (sxy / nf).abs() < 3.5 * (1.0 / 144.0 / nf).sqrt(),
+                "slot {slot}"
+            );
+        }
     }
 }

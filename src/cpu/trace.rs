@@ -14,7 +14,7 @@ use super::bvh::{Stack, Tally};
 use super::intersect::*;
 use super::material::{Scatter, scatter_dielectric, scatter_surface};
 use super::rng::Rng;
-use super::sampling::{PI, basis, random_in_disk};
+use super::sampling::{PI, basis, random_in_disk, sin_cos_turns};
 use super::scene::{CpuScene, Sphere};
 use crate::gpu::Features;
 use crate::gpu::layout::GpuLight;
@@ -167,8 +167,7 @@ impl<'a> Tracer<'a> {
     /// Thin-lens camera through the jittered pixel (Shirley, Ray Tracing in One Weekend §13).
     pub fn camera_ray(&self, x: u32, y: u32, rng: &mut Rng) -> Ray {
         let u = &self.s.u;
-        let jx = rng.rand();
-        let jy = rng.rand();
+        let (jx, jy) = rng.rand2();
         let s = (x as f32 + jx) / u.width as f32;
         let t = (y as f32 + jy) / u.height as f32;
         let target = u.cam_to_corner + s * u.cam_horizontal - t * u.cam_vertical;
@@ -282,22 +281,22 @@ impl<'a> Tracer<'a> {
             let to = sphere_center(s) - p;
             let dist2 = to.dot(to);
             let r2 = s.radius * s.radius;
-            let u1 = rng.rand();
-            let u2 = rng.rand();
+            let (u1, u2) = rng.rand2();
             if dist2 <= r2 {
                 return Vec3A::ZERO;
             }
             let one_minus = cone_one_minus_cos(r2, dist2);
             let cos_t = 1.0 - u1 * one_minus;
             let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-            let (sp, cp) = (2.0 * PI * u2).sin_cos();
+            let (sp, cp) = sin_cos_turns(u2);
             let b = basis(to / dist2.sqrt());
             dir = (b[0] * (sin_t * cp) + b[1] * (sin_t * sp) + b[2] * cos_t).normalize();
             pdf = 1.0 / (2.0 * PI * one_minus);
             material = s.material;
         } else {
             let q = &self.s.quads[i];
-            let x = q.q + rng.rand() * q.u + rng.rand() * q.v;
+            let (a, b) = rng.rand2();
+            let x = q.q + a * q.u + b * q.v;
             let to = x - p;
             let dist2 = to.dot(to);
             dir = to / dist2.sqrt();
@@ -371,7 +370,8 @@ impl<'a> Tracer<'a> {
             if self.f.dielectrics && m.smoothness < 0.0 {
                 sc = scatter_dielectric(m, ray.dir, n_out, rng);
             } else {
-                let is_spec = rng.rand() < m.specular;
+                // A certain lobe takes no draw.
+                let is_spec = m.specular >= 1.0 || (m.specular > 0.0 && rng.rand() < m.specular);
                 let n = if ray.dir.dot(n_out) < 0.0 {
                     n_out
                 } else {

@@ -63,13 +63,15 @@ impl Snapshot {
     /// needed); `None` until each half of every pixel holds a sample.
     ///
     /// Each pixel keeps the sums of its even and of its odd samples: two independent means
-    /// E and O of n_e and n_o samples of the same distribution (variance σ²), and the image
-    /// is their pooled mean M. Then Var(E - O) = σ²(1/n_e + 1/n_o) and Var(M) = σ²/(n_e + n_o),
-    /// so D² · n_e·n_o / (n_e + n_o)², with D = E - O, is an unbiased estimate of Var(M), the
-    /// mean squared error of M when the estimator is unbiased (E[M] is the true value).
-    /// Assumptions: the samples of a pixel are independent and identically distributed (each
-    /// sample has its own random stream), and the renderer is unbiased; bias is invisible to
-    /// this estimate (that is what `converge --bias-check` is for).
+    /// E and O of n_e and n_o samples, and the image is their pooled mean M. With i.i.d.
+    /// samples (variance σ²), Var(E - O) = σ²(1/n_e + 1/n_o) and Var(M) = σ²/(n_e + n_o), so
+    /// D² · n_e·n_o / (n_e + n_o)², with D = E - O, is an unbiased estimate of Var(M), the
+    /// mean squared error of M when the estimator is unbiased (E[M] is the true value). The
+    /// tracers stratify a half's samples (scrambled Sobol points, `cpu::rng`), so Var(E) and
+    /// Var(O) fall faster than 1/n; the halves are independently scrambled sequences of equal
+    /// or next-to-equal length, Var(E) ≈ Var(O), and with k = n_e·n_o/(n_e + n_o)² ≈ 1/4 the
+    /// same D²·k still estimates Var(M) = (Var(E) + Var(O))/4 without bias. Bias is
+    /// invisible to this estimate (that is what `converge --bias-check` is for).
     ///
     /// Returned as errors over the whole image: `rmse` the root of the mean estimated MSE, and
     /// `rel_rmse` the root of pbrt's relative MSE, MSE / (reference² + 0.01), with the

@@ -151,7 +151,7 @@ pub fn first_sample_dirs(u: &SceneUniforms, w: u32, h: u32) -> Vec<(u32, u32, DV
     for y in 0..h {
         for x in 0..w {
             let mut rng = HostRng::new(y * w + x, 0, 1);
-            let (jx, jy) = (rng.rand(), rng.rand());
+            let (jx, jy) = rng.rand2();
             out.push((
                 x,
                 y,
