@@ -13,7 +13,7 @@ struct Rng {
     index: u32,
     // Draws taken so far.
     slot: u32,
-    // The PCG stream's state, for the draws after QMC_SLOTS.
+    // The PCG stream's state, for the draws after QMC_SLOTS (seeded at the first of them).
     state: u32,
 }
 
@@ -72,12 +72,15 @@ fn unit_float(x: u32) -> f32 {
 }
 
 fn rng_init(pixel: u32, sample: u32, seed: u32) -> Rng {
-    return Rng(hash3(vec3u(pixel, 0xffffffffu - (sample & 1u), seed)), reverseBits(sample >> 1u), 0u,
-        hash3(vec3u(pixel, sample, seed)));
+    return Rng(hash3(vec3u(pixel, 0xffffffffu - (sample & 1u), seed)), reverseBits(sample >> 1u), 0u, 0u);
 }
 
 // The PCG stream's next float in [0, 1): 24 random bits.
 fn rng_stream(r: ptr<function, Rng>) -> f32 {
+    if (*r).slot == QMC_SLOTS {
+        (*r).state = pcg_hash((*r).seed ^ pcg_hash((*r).index));
+        (*r).slot += 1u;
+    }
     let s = (*r).state * 747796405u + 2891336453u;
     (*r).state = s;
     let word = ((s >> ((s >> 28u) + 4u)) ^ s) * 277803737u;

@@ -19,7 +19,7 @@
 
 /// Draws (1D or 2D) per sample taken from the scrambled Sobol sequences; later draws come
 /// from the PCG stream, where stratification no longer pays for its cost.
-pub const QMC_SLOTS: u32 = 6;
+pub const QMC_SLOTS: u32 = 10;
 
 fn pcg3d(v: [u32; 3]) -> [u32; 3] {
     let mut v = v.map(|x| x.wrapping_mul(1664525).wrapping_add(1013904223));
@@ -100,7 +100,8 @@ pub struct Rng {
     index: u32,
     /// Draws taken so far.
     slot: u32,
-    /// The PCG stream's state, for the draws after `QMC_SLOTS`.
+    /// The PCG stream's state, for the draws after `QMC_SLOTS` (seeded at the first of
+    /// them, which most paths never reach).
     state: u32,
 }
 
@@ -110,7 +111,7 @@ impl Rng {
             seed: hash3([pixel, u32::MAX - (sample & 1), seed]),
             index: (sample >> 1).reverse_bits(),
             slot: 0,
-            state: hash3([pixel, sample, seed]),
+            state: 0,
         }
     }
 
@@ -129,6 +130,10 @@ impl Rng {
     /// The PCG stream's next float in [0, 1): 24 random bits.
     #[inline(always)]
     fn stream(&mut self) -> f32 {
+        if self.slot == QMC_SLOTS {
+            self.state = pcg_hash(self.seed ^ pcg_hash(self.index));
+            self.slot += 1;
+        }
         let s = self.state.wrapping_mul(747796405).wrapping_add(2891336453);
         self.state = s;
         let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277803737);
