@@ -6,15 +6,15 @@
 
 const QMC_SLOTS: u32 = 10u;
 
+// The low bits of Rng.index that count the draws taken, and their value once the PCG
+// stream is seeded.
+const SLOT_BITS: u32 = 0xfu;
+const STREAMING: u32 = 0xfu;
+
+// Two words (src/cpu/rng.rs says what they hold).
 struct Rng {
-    // Hash of (pixel, half, seed): the root of every draw's scrambles.
     seed: u32,
-    // The sample's number within its half (even or odd samples), its bits reversed.
     index: u32,
-    // Draws taken so far.
-    slot: u32,
-    // The PCG stream's state, for the draws after QMC_SLOTS (seeded at the first of them).
-    state: u32,
 }
 
 fn pcg3d(v_in: vec3u) -> vec3u {
@@ -72,31 +72,32 @@ fn unit_float(x: u32) -> f32 {
 }
 
 fn rng_init(pixel: u32, sample: u32, seed: u32) -> Rng {
-    return Rng(hash3(vec3u(pixel, 0xffffffffu - (sample & 1u), seed)), reverseBits(sample >> 1u), 0u, 0u);
+    return Rng(hash3(vec3u(pixel, 0xffffffffu - (sample & 1u), seed)),
+        reverseBits((sample >> 1u) & 0x0fffffffu));
 }
 
-// The PCG stream's next float in [0, 1): 24 random bits.
+// The PCG stream's next float in [0, 1): 24 random bits; seeded at its first draw.
 fn rng_stream(r: ptr<function, Rng>) -> f32 {
-    if (*r).slot == QMC_SLOTS {
-        (*r).state = pcg_hash((*r).seed ^ pcg_hash((*r).index));
-        (*r).slot += 1u;
+    if ((*r).index & SLOT_BITS) != STREAMING {
+        (*r).seed = pcg_hash((*r).seed ^ pcg_hash((*r).index & ~SLOT_BITS));
+        (*r).index |= STREAMING;
     }
-    let s = (*r).state * 747796405u + 2891336453u;
-    (*r).state = s;
+    let s = (*r).seed * 747796405u + 2891336453u;
+    (*r).seed = s;
     let word = ((s >> ((s >> 28u) + 4u)) ^ s) * 277803737u;
     return unit_float((word >> 22u) ^ word);
 }
 
 // The next draw's scramble seed (x) and the sample's shuffled number in it (y).
 fn rng_slot(r: ptr<function, Rng>) -> vec2u {
-    let s = pcg_hash((*r).seed + (*r).slot * 0x9e3779b9u);
-    (*r).slot += 1u;
-    return vec2u(s, reverseBits(lk_hash((*r).index, s)));
+    let s = pcg_hash((*r).seed + ((*r).index & SLOT_BITS) * 0x9e3779b9u);
+    (*r).index += 1u;
+    return vec2u(s, reverseBits(lk_hash((*r).index & ~SLOT_BITS, s)));
 }
 
 // One uniform float in [0, 1).
 fn rand(r: ptr<function, Rng>) -> f32 {
-    if (*r).slot >= QMC_SLOTS {
+    if ((*r).index & SLOT_BITS) >= QMC_SLOTS {
         return rng_stream(r);
     }
     let si = rng_slot(r);
@@ -105,7 +106,7 @@ fn rand(r: ptr<function, Rng>) -> f32 {
 
 // A uniform point of [0, 1)².
 fn rand2(r: ptr<function, Rng>) -> vec2f {
-    if (*r).slot >= QMC_SLOTS {
+    if ((*r).index & SLOT_BITS) >= QMC_SLOTS {
         let a = rng_stream(r);
         return vec2f(a, rng_stream(r));
     }

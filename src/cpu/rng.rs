@@ -92,26 +92,29 @@ fn unit(x: u32) -> f32 {
     (x >> 8) as f32 * (1.0 / 16777216.0)
 }
 
-/// The random numbers of one sample of one pixel.
+/// The low bits of `Rng::index` that count the draws taken.
+const SLOT_BITS: u32 = 0xf;
+/// The draw count once the PCG stream is seeded.
+const STREAMING: u32 = SLOT_BITS;
+const _: () = assert!(QMC_SLOTS < STREAMING);
+
+/// The random numbers of one sample of one pixel, in two words (registers are what a GPU
+/// lane is short of).
 pub struct Rng {
-    /// Hash of (pixel, half, seed): the root of every draw's scrambles.
+    /// Hash of (pixel, half, seed), the root of every draw's scrambles; the PCG stream's
+    /// state once the stratified draws are spent.
     seed: u32,
-    /// The sample's number within its half, its bits reversed.
+    /// The sample's number within its half, its bits reversed, over the number of draws
+    /// taken in the low four bits (free below 2^28 samples per half; past that the number
+    /// wraps: the same points again, unbiased but no longer new).
     index: u32,
-    /// Draws taken so far.
-    slot: u32,
-    /// The PCG stream's state, for the draws after `QMC_SLOTS` (seeded at the first of
-    /// them, which most paths never reach).
-    state: u32,
 }
 
 impl Rng {
     pub fn new(pixel: u32, sample: u32, seed: u32) -> Rng {
         Rng {
             seed: hash3([pixel, u32::MAX - (sample & 1), seed]),
-            index: (sample >> 1).reverse_bits(),
-            slot: 0,
-            state: 0,
+            index: ((sample >> 1) & 0x0fff_ffff).reverse_bits(),
         }
     }
 
@@ -119,23 +122,25 @@ impl Rng {
     /// the draws come from the PCG stream.
     #[inline(always)]
     fn next_slot(&mut self) -> Option<(u32, u32)> {
-        if self.slot >= QMC_SLOTS {
+        let slot = self.index & SLOT_BITS;
+        if slot >= QMC_SLOTS {
             return None;
         }
-        let s = pcg_hash(self.seed.wrapping_add(self.slot.wrapping_mul(0x9e37_79b9)));
-        self.slot += 1;
-        Some((s, shuffle(self.index, s)))
+        let s = pcg_hash(self.seed.wrapping_add(slot.wrapping_mul(0x9e37_79b9)));
+        self.index += 1;
+        Some((s, shuffle(self.index & !SLOT_BITS, s)))
     }
 
-    /// The PCG stream's next float in [0, 1): 24 random bits.
+    /// The PCG stream's next float in [0, 1): 24 random bits. It is seeded at its first
+    /// draw, which most paths never reach.
     #[inline(always)]
     fn stream(&mut self) -> f32 {
-        if self.slot == QMC_SLOTS {
-            self.state = pcg_hash(self.seed ^ pcg_hash(self.index));
-            self.slot += 1;
+        if self.index & SLOT_BITS != STREAMING {
+            self.seed = pcg_hash(self.seed ^ pcg_hash(self.index & !SLOT_BITS));
+            self.index |= STREAMING;
         }
-        let s = self.state.wrapping_mul(747796405).wrapping_add(2891336453);
-        self.state = s;
+        let s = self.seed.wrapping_mul(747796405).wrapping_add(2891336453);
+        self.seed = s;
         let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277803737);
         unit((word >> 22) ^ word)
     }
