@@ -53,10 +53,9 @@ fn both_tracers_draw_the_same_numbers() {
     // The same seed on both backends: showcase takes every kind of draw (jitter, lens, lobe,
     // light choice and point, direction, fuzz, glass, roulette) and more than the stratified
     // ten, so if rng.wgsl and cpu::rng differed in any draw, pixels would differ by the
-    // noise nearly everywhere (another seed agrees on 17 %: sky). They trace the same paths (all
-    // 768 pixels agree today), up to the
-    // rare path that float rounding (GPU sin/cos against the CPU's polynomial) sends the
-    // other way at an edge or a Russian-roulette threshold.
+    // noise nearly everywhere (another seed agrees on 17 %: sky). They trace the same paths
+    // (all 768 pixels agree today), up to the rare path that float rounding (GPU sin/cos
+    // against the CPU's polynomial) sends the other way at an edge or a roulette threshold.
     let scene = Scene::load("showcase").unwrap();
     let gpu = render_on(Backend::Gpu(ctx()), &scene, 5, 4).image();
     let cpu = render_on(Backend::Cpu, &scene, 5, 4).image();
