@@ -6,6 +6,7 @@
 mod common;
 use common::*;
 use termtrace::converge::metrics;
+use termtrace::output::LinearImage;
 use termtrace::render::{Backend, RenderOptions, Renderer, Snapshot};
 use termtrace::scene::{BUILTIN_SCENES, Scene};
 
@@ -48,6 +49,14 @@ fn every_shipped_scene_converges_to_the_gpu_image_on_the_cpu() {
     assert!(failures.is_empty(), "tiles differ: {failures:#?}");
 }
 
+/// The share of pixels whose colours agree to a relative 10⁻³.
+fn agreeing(a: &LinearImage, b: &LinearImage) -> f64 {
+    let same = (a.pixels.iter().zip(&b.pixels))
+        .filter(|(p, q)| rel_err(**p, **q) < 1e-3)
+        .count();
+    same as f64 / a.pixels.len() as f64
+}
+
 #[test]
 fn both_tracers_draw_the_same_numbers() {
     // The same seed on both backends: showcase takes every kind of draw (jitter, lens, lobe,
@@ -59,24 +68,12 @@ fn both_tracers_draw_the_same_numbers() {
     let scene = Scene::load("showcase").unwrap();
     let gpu = render_on(Backend::Gpu(ctx()), &scene, 5, 4).image();
     let cpu = render_on(Backend::Cpu, &scene, 5, 4).image();
-    let same = gpu
-        .pixels
-        .iter()
-        .zip(&cpu.pixels)
-        .filter(|(g, c)| rel_err(**g, **c) < 1e-3)
-        .count();
-    let share = same as f64 / gpu.pixels.len() as f64;
+    let share = agreeing(&gpu, &cpu);
     eprintln!("pixels equal to 1e-3: {:.1} %", 100.0 * share);
     assert!(share > 0.95, "only {:.1} % of pixels agree", 100.0 * share);
     // And a different seed does not agree: the comparison can fail.
     let other = render_on(Backend::Cpu, &scene, 6, 4).image();
-    let chance = cpu
-        .pixels
-        .iter()
-        .zip(&other.pixels)
-        .filter(|(a, b)| rel_err(**a, **b) < 1e-3)
-        .count() as f64
-        / cpu.pixels.len() as f64;
+    let chance = agreeing(&cpu, &other);
     eprintln!("with another seed: {:.1} %", 100.0 * chance);
     assert!(
         chance < 0.5,

@@ -82,10 +82,9 @@ fn rng_stream(r: ptr<function, Rng>) -> f32 {
         (*r).seed = pcg_hash((*r).seed ^ pcg_hash((*r).index & ~SLOT_BITS));
         (*r).index |= STREAMING;
     }
-    let s = (*r).seed * 747796405u + 2891336453u;
-    (*r).seed = s;
-    let word = ((s >> ((s >> 28u) + 4u)) ^ s) * 277803737u;
-    return unit_float((word >> 22u) ^ word);
+    let x = pcg_hash((*r).seed);
+    (*r).seed = (*r).seed * 747796405u + 2891336453u;
+    return unit_float(x);
 }
 
 // The next draw's scramble seed (x) and the sample's shuffled number in it (y).

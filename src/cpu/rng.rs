@@ -38,10 +38,16 @@ fn hash3(v: [u32; 3]) -> u32 {
     h[0] ^ h[1] ^ h[2]
 }
 
+/// PCG's linear congruential step.
+#[inline(always)]
+fn lcg(x: u32) -> u32 {
+    x.wrapping_mul(747796405).wrapping_add(2891336453)
+}
+
 /// The PCG hash (Jarzynski & Olano): one word to one well-mixed word.
 #[inline(always)]
 fn pcg_hash(x: u32) -> u32 {
-    let s = x.wrapping_mul(747796405).wrapping_add(2891336453);
+    let s = lcg(x);
     let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277803737);
     (word >> 22) ^ word
 }
@@ -139,10 +145,10 @@ impl Rng {
             self.seed = pcg_hash(self.seed ^ pcg_hash(self.index & !SLOT_BITS));
             self.index |= STREAMING;
         }
-        let s = self.seed.wrapping_mul(747796405).wrapping_add(2891336453);
-        self.seed = s;
-        let word = ((s >> ((s >> 28) + 4)) ^ s).wrapping_mul(277803737);
-        unit((word >> 22) ^ word)
+        // A PCG step: the hash of the state is the output, its LCG step the next state.
+        let x = pcg_hash(self.seed);
+        self.seed = lcg(self.seed);
+        unit(x)
     }
 
     /// One uniform float in [0, 1) (an Owen-scrambled van der Corput point while the
