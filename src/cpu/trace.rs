@@ -269,7 +269,13 @@ impl<'a> Tracer<'a> {
     /// The light-sampled estimate at p (facing normal n) for the Lambertian lobe, its 1/π
     /// included and its tint not, MIS-weighted.
     fn sample_light<const P: u32>(&mut self, p: Vec3A, n: Vec3A, rng: &mut Rng) -> Vec3A {
-        let (index, pmf) = self.choose_light(rng.rand(), p, n);
+        // One light is chosen without a draw.
+        let u = if self.s.u.n_lights > 1 {
+            rng.rand()
+        } else {
+            0.0
+        };
+        let (index, pmf) = self.choose_light(u, p, n);
         if pmf <= 0.0 {
             return Vec3A::ZERO;
         }
