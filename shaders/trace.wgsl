@@ -495,11 +495,11 @@ fn light_choice_pmf(i: u32, p: vec3f, n: vec3f) -> f32 {
 // (its 1/π included, its tint not): emitted radiance × cos / π / pdf, MIS-weighted.
 fn sample_light(p: vec3f, n: vec3f, state: ptr<function, Rng>) -> vec3f {
     // One light is chosen without a draw.
-    var u = 0.0;
+    var pick = 0.0;
     if scene.n_lights > 1u {
-        u = rand(state);
+        pick = rand(state);
     }
-    let choice = choose_light(u, p, n);
+    let choice = choose_light(pick, p, n);
     if choice.pmf <= 0.0 {
         return vec3f(0.0);
     }

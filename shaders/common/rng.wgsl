@@ -34,8 +34,13 @@ fn hash3(v: vec3u) -> u32 {
     return h.x ^ h.y ^ h.z;
 }
 
+// PCG's linear congruential step.
+fn lcg(x: u32) -> u32 {
+    return x * 747796405u + 2891336453u;
+}
+
 fn pcg_hash(x: u32) -> u32 {
-    let s = x * 747796405u + 2891336453u;
+    let s = lcg(x);
     let word = ((s >> ((s >> 28u) + 4u)) ^ s) * 277803737u;
     return (word >> 22u) ^ word;
 }
@@ -80,7 +85,7 @@ fn rng_init(pixel: u32, sample: u32, seed: u32) -> Rng {
 // The PCG stream's next float in [0, 1): 24 random bits.
 fn rng_stream(r: ptr<function, Rng>) -> f32 {
     let x = pcg_hash((*r).state);
-    (*r).state = (*r).state * 747796405u + 2891336453u;
+    (*r).state = lcg((*r).state);
     return unit_float(x);
 }
 

@@ -293,17 +293,8 @@ mod tests {
     /// The WGSL walk's stack is as deep as the CPU's, which the bound above sizes.
     #[test]
     fn the_shader_stack_has_the_bound_of_the_tree() {
-        let src = crate::gpu::shader::source("trace.wgsl").unwrap();
-        let line = src
-            .lines()
-            .find(|l| l.starts_with("const STACK_SIZE: u32 = "))
-            .expect("trace.wgsl declares STACK_SIZE");
-        let n: usize = line["const STACK_SIZE: u32 = ".len()..]
-            .trim_end_matches(';')
-            .trim_end_matches('u')
-            .parse()
-            .unwrap();
-        assert_eq!(n, STACK);
+        let n = crate::gpu::shader::u32_constant("trace.wgsl", "STACK_SIZE");
+        assert_eq!(n as usize, STACK);
     }
 
     /// A leaf far too large for one slot (which only a degenerate scene at the builder's depth

@@ -200,21 +200,7 @@ mod tests {
     /// rng.wgsl stratifies as many draws and keeps the draw count in the same bits.
     #[test]
     fn the_shader_sampler_has_the_same_constants() {
-        let src = crate::gpu::shader::source("common/rng.wgsl").unwrap();
-        let constant = |name: &str| -> u32 {
-            let head = format!("const {name}: u32 = ");
-            let line = src
-                .lines()
-                .find(|l| l.starts_with(&head))
-                .unwrap_or_else(|| panic!("rng.wgsl declares {name}"));
-            let v = line[head.len()..]
-                .trim_end_matches(';')
-                .trim_end_matches('u');
-            match v.strip_prefix("0x") {
-                Some(hex) => u32::from_str_radix(hex, 16).unwrap(),
-                None => v.parse().unwrap(),
-            }
-        };
+        let constant = |name| crate::gpu::shader::u32_constant("common/rng.wgsl", name);
         assert_eq!(constant("QMC_SLOTS"), QMC_SLOTS);
         assert_eq!(constant("SLOT_BITS"), SLOT_BITS);
     }

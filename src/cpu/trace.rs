@@ -270,12 +270,12 @@ impl<'a> Tracer<'a> {
     /// included and its tint not, MIS-weighted.
     fn sample_light<const P: u32>(&mut self, p: Vec3A, n: Vec3A, rng: &mut Rng) -> Vec3A {
         // One light is chosen without a draw.
-        let u = if self.s.u.n_lights > 1 {
+        let pick = if self.s.u.n_lights > 1 {
             rng.rand()
         } else {
             0.0
         };
-        let (index, pmf) = self.choose_light(u, p, n);
+        let (index, pmf) = self.choose_light(pick, p, n);
         if pmf <= 0.0 {
             return Vec3A::ZERO;
         }

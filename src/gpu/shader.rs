@@ -44,6 +44,25 @@ pub fn source(name: &str) -> Option<&'static str> {
     SOURCES.iter().find(|(n, _)| *n == name).map(|(_, s)| *s)
 }
 
+/// The value of `const NAME: u32 = …;` (decimal or 0x hex) declared at the start of a line of
+/// a compiled-in file: the tests that tie a WGSL constant to its Rust twin read it here.
+#[cfg(test)]
+pub fn u32_constant(file: &str, name: &str) -> u32 {
+    let src = source(file).unwrap_or_else(|| panic!("no shader {file}"));
+    let head = format!("const {name}: u32 = ");
+    let line = src
+        .lines()
+        .find(|l| l.starts_with(&head))
+        .unwrap_or_else(|| panic!("{file} declares {name}"));
+    let v = line[head.len()..]
+        .trim_end_matches(';')
+        .trim_end_matches('u');
+    match v.strip_prefix("0x") {
+        Some(hex) => u32::from_str_radix(hex, 16).unwrap(),
+        None => v.parse().unwrap(),
+    }
+}
+
 /// The source the tracer uses: from `TERMTRACE_SHADER_DIR` when it is set and has the file,
 /// else compiled in.
 fn current_source(name: &str) -> Option<Cow<'static, str>> {
