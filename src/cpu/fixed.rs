@@ -42,9 +42,11 @@ impl Fixed {
     pub fn add(&mut self, v: [f32; 3]) {
         for (acc, x) in self.channels.iter_mut().zip(v) {
             let c = x.clamp(0.0, FIXED_MAX);
-            let whole = c.floor();
-            let frac = ((c - whole) * 4294967296.0) as u32 as u128;
-            *acc = (*acc + ((whole as u32 as u128) << 32 | frac)) & MASK_96;
+            // Truncation is the floor of a non-negative number (`floor` is a libm call
+            // below SSE4.1), and the whole part converts back to f32 exactly.
+            let whole = c as u32;
+            let frac = ((c - whole as f32) * 4294967296.0) as u32 as u128;
+            *acc = (*acc + ((whole as u128) << 32 | frac)) & MASK_96;
         }
         self.samples = self.samples.wrapping_add(1);
     }

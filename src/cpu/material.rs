@@ -62,6 +62,7 @@ pub fn scatter_dielectric(m: &Material, d: Vec3A, n_out: Vec3A, rng: &mut Rng) -
 
 /// Lambertian, smoothness blend, fuzz and the specular-probability lobe of the lecture; the
 /// caller picks the lobe (`is_spec`) so that light sampling can come between.
+#[inline(always)]
 pub fn scatter_surface(
     m: &Material,
     d: Vec3A,

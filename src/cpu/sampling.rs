@@ -6,7 +6,7 @@ use glam::{Vec2, Vec3A};
 pub const PI: f32 = std::f32::consts::PI;
 
 /// Uniform on the unit sphere (Archimedes: z uniform in [-1, 1], azimuth uniform).
-#[inline]
+#[inline(always)]
 pub fn random_unit_vector(rng: &mut Rng) -> Vec3A {
     let (u, v) = rng.rand2();
     let z = 1.0 - 2.0 * u;
