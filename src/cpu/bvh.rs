@@ -6,7 +6,8 @@
 //! segment, for about two primitive tests each.
 
 use super::intersect::{Ray, safe_inverse};
-use crate::bvh::wide::{EMPTY_SLOT, STACK};
+use crate::bvh::wide::EMPTY_SLOT;
+pub use crate::bvh::wide::STACK;
 use crate::gpu::layout::GpuBvhNode4;
 use glam::Vec4;
 
@@ -16,16 +17,16 @@ use glam::Vec4;
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub struct Node4 {
-    min_x: Vec4,
-    min_y: Vec4,
-    min_z: Vec4,
-    max_x: Vec4,
-    max_y: Vec4,
-    max_z: Vec4,
-    child: [u32; 4],
-    count: [u16; 4],
-    valid: u8,
-    leaves: u8,
+    pub(super) min_x: Vec4,
+    pub(super) min_y: Vec4,
+    pub(super) min_z: Vec4,
+    pub(super) max_x: Vec4,
+    pub(super) max_y: Vec4,
+    pub(super) max_z: Vec4,
+    pub(super) child: [u32; 4],
+    pub(super) count: [u16; 4],
+    pub(super) valid: u8,
+    pub(super) leaves: u8,
 }
 
 #[derive(Default)]
@@ -60,7 +61,7 @@ pub struct Entry {
 
 /// The slots whose bits are set in `mask`, lowest first.
 #[inline(always)]
-fn slots(mut mask: u32) -> impl Iterator<Item = usize> {
+pub(super) fn slots(mut mask: u32) -> impl Iterator<Item = usize> {
     std::iter::from_fn(move || {
         (mask != 0).then(|| {
             let slot = mask.trailing_zeros() as usize;

@@ -12,6 +12,8 @@ pub mod bvh;
 pub mod fixed;
 pub mod intersect;
 pub mod material;
+#[cfg(all(test, target_arch = "x86_64"))]
+mod packet;
 pub mod rng;
 pub mod sampling;
 pub mod scene;

@@ -26,7 +26,7 @@ pub const SPHERES: u32 = 1;
 pub const ANY: u32 = 15;
 
 const INDEX: u32 = 0x3fff_ffff;
-const T_FAR: f32 = 3.0e38;
+pub(super) const T_FAR: f32 = 3.0e38;
 const RR_START: u32 = 3;
 const RR_MAX_SURVIVAL: f32 = 0.95;
 const LOCAL_SELECTION_MAX: u32 = 32;
@@ -41,7 +41,7 @@ struct Hit {
 
 /// The distance to primitive `r` if nearer than t_max, else NO_HIT.
 #[inline(always)]
-fn hit_primitive<const P: u32>(s: &CpuScene, r: u32, ray: &Ray, t_max: f32) -> f32 {
+pub(super) fn hit_primitive<const P: u32>(s: &CpuScene, r: u32, ray: &Ray, t_max: f32) -> f32 {
     let i = (r & INDEX) as usize;
     if P == SPHERES {
         return hit_sphere(&s.spheres[i], ray, t_max);
@@ -365,6 +365,12 @@ impl<'a> Tracer<'a> {
         let mut bounce = 0;
         while bounce <= u.max_bounces {
             segments += 1;
+            #[cfg(test)]
+            RECORD.with(|r| {
+                if let Some(v) = r.borrow_mut().as_mut() {
+                    v.push((bounce, ray));
+                }
+            });
             let Some(hit) = self.intersect::<P>(&ray) else {
                 radiance += throughput * self.sky(ray.dir);
                 break;
@@ -434,4 +440,12 @@ impl<'a> Tracer<'a> {
         }
         (radiance, segments)
     }
+}
+
+#[cfg(test)]
+thread_local! {
+    /// Tests only: where set, every segment's (bounce, ray) is recorded (the packet
+    /// experiment replays them).
+    pub(super) static RECORD: std::cell::RefCell<Option<Vec<(u32, Ray)>>> =
+        const { std::cell::RefCell::new(None) };
 }
