@@ -168,7 +168,11 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         if a.no_bvh {
             "no BVH: every primitive tested".to_string()
         } else {
-            format!("BVH of {nodes} nodes built in {:.0} ms", build * 1e3)
+            format!(
+                "BVH of {nodes} node{} built in {:.0} ms",
+                if nodes == 1 { "" } else { "s" },
+                build * 1e3
+            )
         }
     );
     println!(
@@ -199,6 +203,8 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
             paths as f64 / gpu_seconds,
             segments as f64 / gpu_seconds
         );
+    } else if matches!(r.backend(), Backend::Cpu) {
+        println!("gpu time     none (the native CPU tracer: the wall time above is its time)");
     } else {
         println!("gpu time     not measured (no timestamp queries on this adapter)");
     }
