@@ -228,6 +228,9 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
             special * 1e9,
             generic * 1e9
         ),
+        None if !a.generic && a.with.is_none() && matches!(r.backend(), Backend::Cpu) => {
+            println!("pipeline     specialized (the CPU tracer does not time the generic one)")
+        }
         None if !a.generic && a.with.is_none() => {
             println!("pipeline     specialized (the same as the generic one, or not yet timed)")
         }

@@ -12,7 +12,7 @@ pub mod bvh;
 pub mod fixed;
 pub mod intersect;
 pub mod material;
-#[cfg(all(test, target_arch = "x86_64"))]
+#[cfg(target_arch = "x86_64")]
 mod packet;
 pub mod rng;
 pub mod sampling;
@@ -25,10 +25,11 @@ use crate::gpu::resolve::Resolved;
 use crate::gpu::{Features, FrameSettings};
 use crate::scene::Scene;
 use fixed::Fixed;
+use intersect::Ray;
 use rayon::prelude::*;
 use rng::Rng;
 use scene::CpuScene;
-use trace::{ANY, SPHERES, Tracer};
+use trace::{ANY, LANES, SPHERES, Tracer};
 
 /// The name `--adapter` and `termtrace adapters` know the CPU tracer by.
 pub const ADAPTER_NAME: &str = "cpu-native";
@@ -146,29 +147,52 @@ impl CpuEngine {
             .map(|(y, (even, odd))| {
                 let mut t = Tracer::new(scene, f);
                 let mut c = Counters::default();
-                for x in 0..width {
-                    let pixel = y as u32 * width + x;
-                    let w = x as usize * ACCUM_WORDS..(x as usize + 1) * ACCUM_WORDS;
-                    let (mut e, mut o) = if d.accumulate != 0 {
-                        (Fixed::load(&even[w.clone()]), Fixed::load(&odd[w.clone()]))
-                    } else {
-                        Default::default()
+                let y = y as u32;
+                // Eight neighbouring pixels at a time: their camera rays are walked together
+                // where the scene allows (`Tracer::camera_hits`), each path then alone.
+                for x0 in (0..width).step_by(LANES) {
+                    let n = (width - x0).min(LANES as u32) as usize;
+                    let words = |x: usize| {
+                        let p = x0 as usize + x;
+                        p * ACCUM_WORDS..(p + 1) * ACCUM_WORDS
                     };
+                    let mut sums: [(Fixed, Fixed); LANES] = Default::default();
+                    if d.accumulate != 0 {
+                        for (x, s) in sums.iter_mut().enumerate().take(n) {
+                            *s = (Fixed::load(&even[words(x)]), Fixed::load(&odd[words(x)]));
+                        }
+                    }
                     for i in 0..d.sample_count {
                         let sample = d.sample_base + i;
-                        let mut rng = Rng::new(pixel, sample, scene.u.seed);
-                        let ray = t.camera_ray(x, y as u32, &mut rng);
-                        let (radiance, segments) = t.trace_path::<P, NEE>(ray, &mut rng);
-                        c.segments += segments as u64;
-                        if !radiance.is_finite() {
-                            c.invalid += 1;
-                            continue;
+                        let pixel = |x: usize| y * width + x0 + x as u32;
+                        let mut rngs: [Rng; LANES] =
+                            std::array::from_fn(|x| Rng::new(pixel(x), sample, scene.u.seed));
+                        let rays: [Option<Ray>; LANES] = std::array::from_fn(|x| {
+                            (x < n).then(|| t.camera_ray(x0 + x as u32, y, &mut rngs[x]))
+                        });
+                        let first = t.camera_hits::<P>(&rays);
+                        for x in 0..n {
+                            let ray = rays[x].expect("a ray for every pixel of the group");
+                            let known = first.map(|h| h[x]);
+                            let (radiance, segments) =
+                                t.trace_path::<P, NEE>(ray, known, &mut rngs[x]);
+                            c.segments += segments as u64;
+                            if !radiance.is_finite() {
+                                c.invalid += 1;
+                                continue;
+                            }
+                            let half = if sample & 1 == 0 {
+                                &mut sums[x].0
+                            } else {
+                                &mut sums[x].1
+                            };
+                            half.add(radiance.to_array());
                         }
-                        let half = if sample & 1 == 0 { &mut e } else { &mut o };
-                        half.add(radiance.to_array());
                     }
-                    e.store(&mut even[w.clone()]);
-                    o.store(&mut odd[w]);
+                    for (x, (e, o)) in sums.iter().enumerate().take(n) {
+                        e.store(&mut even[words(x)]);
+                        o.store(&mut odd[words(x)]);
+                    }
                 }
                 c.visits = t.tally.visits;
                 c.tests = t.tally.tests;

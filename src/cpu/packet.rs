@@ -1,23 +1,24 @@
-//! Eight rays walked through the BVH together in AVX lanes: an experiment kept with its
-//! measurement (BENCHMARKS.md, "Packets"), test-only until the tracer traces paths in lanes.
+//! Eight rays walked through the BVH together in AVX lanes: the camera rays of eight
+//! neighbouring pixels, which enter the same nodes, so that one node visit serves them all
+//! (2.6× single rays on `weekend`'s camera rays; BENCHMARKS.md, "Packets"). Spheres only; the
+//! hits are those of single rays bit for bit (tested), so the images do not change.
 
 use super::bvh::{Bvh4, STACK, Tally, slots};
 use super::intersect::{Ray, safe_inverse};
 use super::scene::Sphere;
+use super::trace::{INDEX, LANES};
 use std::arch::x86_64::*;
 
-pub const LANES: usize = 8;
-
 /// Up to eight rays, structure of arrays; `active` the lanes that hold one.
-pub struct Packet {
-    pub o: [__m256; 3],
-    pub d: [__m256; 3],
-    pub inv: [__m256; 3],
-    pub active: u32,
+struct Packet {
+    o: [__m256; 3],
+    d: [__m256; 3],
+    inv: [__m256; 3],
+    active: u32,
 }
 
 impl Packet {
-    pub fn new(rays: &[Option<Ray>; LANES]) -> Packet {
+    fn new(rays: &[Option<Ray>; LANES]) -> Packet {
         let mut a = [[0.0f32; LANES]; 9];
         let mut active = 0;
         for (l, r) in rays.iter().enumerate() {
@@ -47,12 +48,53 @@ impl Packet {
 }
 
 /// Entries of the packet walk's stack: node, lanes, nearest entry distance of those lanes.
-pub type PacketStack = [(u32, u32, f32); STACK];
+type PacketStack = [(u32, u32, f32); STACK];
 
-/// The nearest sphere of every active lane: `t_best` and `hit` per lane. The slab test of
-/// one child for eight rays is one AVX operation per term. Callers check for AVX.
+/// Walks packets of camera rays where the CPU has AVX (decided once).
+pub struct Packets {
+    stack: Box<PacketStack>,
+}
+
+impl Packets {
+    /// None where the CPU lacks AVX.
+    pub fn new() -> Option<Packets> {
+        std::arch::is_x86_feature_detected!("avx").then(|| Packets {
+            stack: Box::new([(0, 0, 0.0); STACK]),
+        })
+    }
+
+    /// Every ray's nearest sphere before `t_far`: (t, BVH reference), or None. A node visit
+    /// counts once in `tally` however many rays it serves.
+    pub fn closest(
+        &mut self,
+        bvh: &Bvh4,
+        spheres: &[Sphere],
+        rays: &[Option<Ray>; LANES],
+        t_far: f32,
+        tally: &mut Tally,
+    ) -> [Option<(f32, u32)>; LANES] {
+        let p = Packet::new(rays);
+        let mut t = [0.0f32; LANES];
+        let mut hit = [u32::MAX; LANES];
+        // SAFETY: `Packets` exists only where the CPU has AVX (`new`); the store writes eight
+        // floats into an array of eight.
+        unsafe {
+            let mut tb = _mm256_set1_ps(t_far);
+            closest8_spheres(bvh, spheres, &p, &mut tb, &mut hit, tally, &mut self.stack);
+            _mm256_storeu_ps(t.as_mut_ptr(), tb);
+        }
+        std::array::from_fn(|l| (hit[l] != u32::MAX).then_some((t[l], hit[l])))
+    }
+}
+
+/// The nearest sphere of every active lane: `t_best` and `hit` per lane. A packet walk (Wald,
+/// Slusallek, Benthin & Wagner, "Interactive Rendering with Coherent Ray Tracing", 2001): a
+/// node is visited once for every lane whose ray enters it, the slab test of one child for
+/// the eight rays one AVX operation per term, the children taken nearest first by the
+/// nearest entry among their lanes (as `Bvh4::closest` orders them for one ray). Callers
+/// check for AVX.
 #[target_feature(enable = "avx")]
-pub fn closest8_spheres(
+fn closest8_spheres(
     bvh: &Bvh4,
     spheres: &[Sphere],
     p: &Packet,
@@ -105,14 +147,7 @@ pub fn closest8_spheres(
                 let first = n.child[s] as usize;
                 tally.tests += n.count[s] as u64;
                 for &r in &bvh.refs[first..first + n.count[s] as usize] {
-                    hit_sphere8(
-                        &spheres[(r & 0x3fff_ffff) as usize],
-                        p,
-                        hitm[s],
-                        r,
-                        t_best,
-                        hit,
-                    );
+                    hit_sphere8(&spheres[(r & INDEX) as usize], p, hitm[s], r, t_best, hit);
                 }
             }
         }
@@ -240,16 +275,22 @@ mod tests {
     use crate::gpu::{Features, FrameSettings};
     use std::time::Instant;
 
-    /// The rays `scene` traces at 160×90, 8 samples per pixel, grouped as the packets a
-    /// tracer of eight paths in lanes would walk: a pixel's eight samples, bounce by bounce.
-    fn packets_of(name: &str) -> (CpuScene, Vec<Ray>, Vec<[Option<Ray>; LANES]>) {
+    /// The rays `scene` traces at 160×90 and `spp` samples per pixel (only the camera rays
+    /// if `camera`), and the packets of eight paths walked together would make of them: eight
+    /// paths in a row (a pixel's eight samples at 8 spp, eight neighbouring pixels at 1),
+    /// bounce by bounce.
+    fn packets_of(
+        name: &str,
+        spp: u32,
+        camera: bool,
+    ) -> (CpuScene, Vec<Ray>, Vec<[Option<Ray>; LANES]>) {
         let scene = crate::scene::Scene::load(name).unwrap();
         let (w, h) = (160, 90);
         let settings = FrameSettings::new(w, h, scene.render.max_bounces, 1);
         let mut engine = CpuEngine::new(&scene, &settings);
         let d = DispatchUniforms {
             sample_base: 0,
-            sample_count: LANES as u32,
+            sample_count: spp,
             row_offset: 0,
             row_count: h,
             accumulate: 0,
@@ -276,33 +317,23 @@ mod tests {
         }
         let mut packets = Vec::new();
         for group in paths.chunks(LANES) {
-            let depth = group.iter().map(Vec::len).max().unwrap();
+            let depth = if camera {
+                1
+            } else {
+                group.iter().map(Vec::len).max().unwrap()
+            };
             for k in 0..depth {
                 packets.push(std::array::from_fn(|l| {
                     group.get(l).and_then(|p| p.get(k)).copied()
                 }));
             }
         }
-        let rays = recorded.into_iter().map(|(_, r)| r).collect();
+        let rays = recorded
+            .into_iter()
+            .filter(|(bounce, _)| !camera || *bounce == 0)
+            .map(|(_, r)| r)
+            .collect();
         (CpuScene::new(&scene, &settings), rays, packets)
-    }
-
-    /// Walks one packet: per lane, (nearest t, reference).
-    fn walk(
-        s: &CpuScene,
-        p: &Packet,
-        tally: &mut Tally,
-        stack: &mut PacketStack,
-    ) -> [(f32, u32); LANES] {
-        let mut t = [0.0f32; LANES];
-        let mut hit = [u32::MAX; LANES];
-        // SAFETY: the callers check for AVX.
-        unsafe {
-            let mut tb = _mm256_set1_ps(T_FAR);
-            closest8_spheres(&s.bvh, &s.spheres, p, &mut tb, &mut hit, tally, stack);
-            _mm256_storeu_ps(t.as_mut_ptr(), tb);
-        }
-        std::array::from_fn(|l| (t[l], hit[l]))
     }
 
     #[test]
@@ -311,36 +342,38 @@ mod tests {
             eprintln!("no AVX: nothing to compare");
             return;
         }
-        let (s, _, packets) = packets_of("weekend");
+        // Both groupings: a pixel's eight samples, and eight neighbouring pixels.
+        let (s, _, mut packets) = packets_of("weekend", LANES as u32, false);
+        packets.extend(packets_of("weekend", 1, false).2);
         let (mut tally, mut stack) = (Tally::default(), Stack::default());
-        let mut pstack = Box::new([(0, 0, 0.0); STACK]);
+        let mut walker = Packets::new().unwrap();
         let mut hits = 0;
         for rays in packets.iter().step_by(7) {
-            let got = walk(&s, &Packet::new(rays), &mut tally, &mut pstack);
+            let got = walker.closest(&s.bvh, &s.spheres, rays, T_FAR, &mut tally);
             for (ray, got) in rays.iter().zip(got) {
                 let Some(ray) = ray else { continue };
-                let want = s
-                    .bvh
-                    .closest(ray, T_FAR, &mut tally, &mut stack, |r, t| {
-                        hit_primitive::<SPHERES>(&s, r, ray, t)
-                    })
-                    .map_or((T_FAR, u32::MAX), |(t, r)| (t, r));
-                assert_eq!((want.0.to_bits(), want.1), (got.0.to_bits(), got.1));
-                hits += (want.1 != u32::MAX) as u32;
+                let want = s.bvh.closest(ray, T_FAR, &mut tally, &mut stack, |r, t| {
+                    hit_primitive::<SPHERES>(&s, r, ray, t)
+                });
+                let bits = |h: Option<(f32, u32)>| h.map(|(t, r)| (t.to_bits(), r));
+                assert_eq!(bits(want), bits(got));
+                hits += want.is_some() as u32;
             }
         }
         assert!(hits > 1000, "only {hits} hits compared");
     }
 
     /// The measurement behind BENCHMARKS.md "Packets": `cargo test --release --lib
-    /// packet_walk_speed -- --ignored --nocapture` (PKT_SCENE names another sphere scene).
+    /// packet_walk_speed -- --ignored --nocapture`. PKT_SCENE names another sphere scene,
+    /// PKT_SPP=1 makes packets of eight neighbouring pixels instead of a pixel's eight
+    /// samples, PKT_CAMERA=1 keeps only the camera rays.
     #[test]
     #[ignore]
     fn packet_walk_speed() {
-        assert!(std::arch::is_x86_feature_detected!("avx"));
         let name = std::env::var("PKT_SCENE").unwrap_or("weekend".into());
-        let (s, rays, packets) = packets_of(&name);
-        let built: Vec<Packet> = packets.iter().map(Packet::new).collect();
+        let spp = std::env::var("PKT_SPP").map_or(LANES as u32, |v| v.parse().unwrap());
+        let camera = std::env::var("PKT_CAMERA").is_ok();
+        let (s, rays, packets) = packets_of(&name, spp, camera);
         let (mut tally, mut stack) = (Tally::default(), Stack::default());
         let runs = 5;
         let start = Instant::now();
@@ -354,16 +387,16 @@ mod tests {
         let single = start.elapsed().as_secs_f64() / runs as f64;
         let single_visits = tally.visits as f64 / (runs * rays.len()) as f64;
         let mut tally = Tally::default();
-        let mut pstack = Box::new([(0, 0, 0.0); STACK]);
+        let mut walker = Packets::new().expect("AVX");
         let start = Instant::now();
         for _ in 0..runs {
-            for p in &built {
-                std::hint::black_box(walk(&s, p, &mut tally, &mut pstack));
+            for p in &packets {
+                std::hint::black_box(walker.closest(&s.bvh, &s.spheres, p, T_FAR, &mut tally));
             }
         }
         let packed = start.elapsed().as_secs_f64() / runs as f64;
-        let n = (runs * built.len()) as f64;
-        let lanes: u32 = built.iter().map(|p| p.active.count_ones()).sum();
+        let n = (runs * packets.len()) as f64;
+        let lanes = packets.iter().flatten().filter(|r| r.is_some()).count();
         eprintln!(
             "{name}: {} rays; single rays {:.1} ns/ray, {single_visits:.2} nodes/ray; \
              packets {:.1} ns/ray, {:.2} nodes and {:.2} sphere tests per packet, {:.2} rays per packet",
@@ -372,7 +405,7 @@ mod tests {
             packed * 1e9 / rays.len() as f64,
             tally.visits as f64 / n,
             tally.tests as f64 / n,
-            lanes as f64 / built.len() as f64,
+            lanes as f64 / packets.len() as f64,
         );
     }
 }

@@ -13,6 +13,8 @@
 use super::bvh::{Stack, Tally};
 use super::intersect::*;
 use super::material::{Scatter, scatter_dielectric, scatter_surface};
+#[cfg(target_arch = "x86_64")]
+use super::packet::Packets;
 use super::rng::Rng;
 use super::sampling::{PI, basis, random_in_disk, sin_cos_turns};
 use super::scene::{CpuScene, Sphere};
@@ -25,7 +27,11 @@ pub const SPHERES: u32 = 1;
 /// `P`: any primitive kind.
 pub const ANY: u32 = 15;
 
-const INDEX: u32 = 0x3fff_ffff;
+/// Camera rays walked together (`camera_hits`).
+pub const LANES: usize = 8;
+
+/// A BVH reference's primitive index (its kind in the top two bits).
+pub(super) const INDEX: u32 = 0x3fff_ffff;
 pub(super) const T_FAR: f32 = 3.0e38;
 const RR_START: u32 = 3;
 const RR_MAX_SURVIVAL: f32 = 0.95;
@@ -74,6 +80,9 @@ pub struct Tracer<'a> {
     f: Features,
     pub tally: Tally,
     stack: Stack,
+    /// The packet walk of camera rays, where it applies (see `camera_hits`).
+    #[cfg(target_arch = "x86_64")]
+    packets: Option<Packets>,
 }
 
 impl<'a> Tracer<'a> {
@@ -83,7 +92,27 @@ impl<'a> Tracer<'a> {
             f,
             tally: Tally::default(),
             stack: Stack::default(),
+            #[cfg(target_arch = "x86_64")]
+            packets: Packets::new(),
         }
+    }
+
+    /// The nearest hits of up to eight camera rays walked as one packet (spheres-only scenes
+    /// on a CPU with AVX), or None where packets do not apply and each ray walks alone.
+    #[inline(always)]
+    pub fn camera_hits<const P: u32>(
+        &mut self,
+        rays: &[Option<Ray>; LANES],
+    ) -> Option<[Option<(f32, u32)>; LANES]> {
+        #[cfg(target_arch = "x86_64")]
+        if P == SPHERES && self.f.bvh {
+            let s = self.s;
+            if let Some(p) = self.packets.as_mut() {
+                return Some(p.closest(&s.bvh, &s.spheres, rays, T_FAR, &mut self.tally));
+            }
+        }
+        let _ = rays;
+        None
     }
 
     /// Every primitive's reference, for the walk without a BVH.
@@ -348,9 +377,13 @@ impl<'a> Tracer<'a> {
     /// One path: its radiance and the segments it traced. Inlined, as the tests of the
     /// primitives and the scattering are: 7 % more samples/s on `weekend` than calls.
     #[inline(always)]
+    ///
+    /// `first`: the camera ray's nearest hit where a packet walk has found it already (`Some`
+    /// of the (t, reference) or of None for a miss), else None.
     pub fn trace_path<const P: u32, const NEE: bool>(
         &mut self,
         primary: Ray,
+        mut first: Option<Option<(f32, u32)>>,
         rng: &mut Rng,
     ) -> (Vec3A, u32) {
         let u = self.s.u;
@@ -371,7 +404,11 @@ impl<'a> Tracer<'a> {
                     v.push((bounce, ray));
                 }
             });
-            let Some(hit) = self.intersect::<P>(&ray) else {
+            let found = match first.take() {
+                Some(known) => known.map(|(t, r)| Hit { t, r }),
+                None => self.intersect::<P>(&ray),
+            };
+            let Some(hit) = found else {
                 radiance += throughput * self.sky(ray.dir);
                 break;
             };

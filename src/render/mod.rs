@@ -259,11 +259,18 @@ impl Renderer {
     }
 
     /// Starts timing the specialized pipeline against the generic one, where they differ.
+    /// Not on the CPU tracer: there both are monomorphizations of one Rust function, with no
+    /// driver between the code and the machine to surprise, and the submissions the tuner
+    /// compares trace different rows, whose costs differ by more than its margin (weekend
+    /// 1280×720: 190 against 170 ns/path for the same code), so it chose at random; the
+    /// specialized CPU tracer is measured at least as fast as the generic one on every
+    /// shipped scene instead (BENCHMARKS.md).
     fn retune(&mut self) {
         let generic = self.generic_features();
         self.tune = (!self.options.generic
             && !self.options.no_tune
             && self.options.extra.is_none()
+            && !matches!(self.engine, Engine::Cpu(_))
             && self.features != generic)
             .then(|| tune::Tune::new(self.features, generic));
     }
