@@ -18,6 +18,7 @@ struct Packet {
 }
 
 impl Packet {
+    #[target_feature(enable = "avx")]
     fn new(rays: &[Option<Ray>; LANES]) -> Packet {
         let mut a = [[0.0f32; LANES]; 9];
         let mut active = 0;
@@ -73,18 +74,29 @@ impl Packets {
         t_far: f32,
         tally: &mut Tally,
     ) -> [Option<(f32, u32)>; LANES] {
-        let p = Packet::new(rays);
-        let mut t = [0.0f32; LANES];
-        let mut hit = [u32::MAX; LANES];
-        // SAFETY: `Packets` exists only where the CPU has AVX (`new`); the store writes eight
-        // floats into an array of eight.
-        unsafe {
-            let mut tb = _mm256_set1_ps(t_far);
-            closest8_spheres(bvh, spheres, &p, &mut tb, &mut hit, tally, &mut self.stack);
-            _mm256_storeu_ps(t.as_mut_ptr(), tb);
-        }
-        std::array::from_fn(|l| (hit[l] != u32::MAX).then_some((t[l], hit[l])))
+        // SAFETY: `Packets` exists only where the CPU has AVX (`new`).
+        unsafe { walk(bvh, spheres, rays, t_far, tally, &mut self.stack) }
     }
+}
+
+/// `Packets::closest` in AVX code throughout (its intrinsics inlined, not called).
+#[target_feature(enable = "avx")]
+fn walk(
+    bvh: &Bvh4,
+    spheres: &[Sphere],
+    rays: &[Option<Ray>; LANES],
+    t_far: f32,
+    tally: &mut Tally,
+    stack: &mut PacketStack,
+) -> [Option<(f32, u32)>; LANES] {
+    let p = Packet::new(rays);
+    let mut t = [0.0f32; LANES];
+    let mut hit = [u32::MAX; LANES];
+    let mut tb = _mm256_set1_ps(t_far);
+    closest8_spheres(bvh, spheres, &p, &mut tb, &mut hit, tally, stack);
+    // SAFETY: eight floats stored into an array of eight.
+    unsafe { _mm256_storeu_ps(t.as_mut_ptr(), tb) };
+    std::array::from_fn(|l| (hit[l] != u32::MAX).then_some((t[l], hit[l])))
 }
 
 /// The nearest sphere of every active lane: `t_best` and `hit` per lane. A packet walk (Wald,
