@@ -71,6 +71,39 @@ pub(super) fn slots(mut mask: u32) -> impl Iterator<Item = usize> {
     })
 }
 
+/// Orders a node's children hit: the nearest so far stays in `next`, the others go onto the
+/// stack above `base` (this node's entries), sorted so that the nearest of them is on top.
+/// `t` gives an entry's distance.
+#[inline(always)]
+pub(super) fn nearest_next<E: Copy>(
+    next: &mut Option<E>,
+    e: E,
+    stack: &mut [E],
+    base: usize,
+    sp: &mut usize,
+    t: impl Fn(&E) -> f32,
+) {
+    let far = match *next {
+        Some(cur) if t(&cur) <= t(&e) => e,
+        Some(cur) => {
+            *next = Some(e);
+            cur
+        }
+        None => {
+            *next = Some(e);
+            return;
+        }
+    };
+    // Below the entries of this node nearer than it.
+    let mut j = *sp;
+    while j > base && t(&stack[j - 1]) < t(&far) {
+        stack[j] = stack[j - 1];
+        j -= 1;
+    }
+    stack[j] = far;
+    *sp += 1;
+}
+
 impl Node4 {
     fn of(n: &GpuBvhNode4) -> Node4 {
         let mask = |f: &dyn Fn(u32) -> bool| {
@@ -188,25 +221,7 @@ impl Bvh4 {
                     node: n.child[slot],
                     t: t[slot],
                 };
-                let far = match next {
-                    Some(cur) if cur.t <= e.t => e,
-                    Some(cur) => {
-                        next = Some(e);
-                        cur
-                    }
-                    None => {
-                        next = Some(e);
-                        continue;
-                    }
-                };
-                // Below the entries of this node nearer than it.
-                let mut j = sp;
-                while j > base && stack[j - 1].t < far.t {
-                    stack[j] = stack[j - 1];
-                    j -= 1;
-                }
-                stack[j] = far;
-                sp += 1;
+                nearest_next(&mut next, e, stack, base, &mut sp, |e| e.t);
             }
             if let Some(e) = next {
                 node = e.node as usize;

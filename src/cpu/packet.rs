@@ -3,7 +3,7 @@
 //! (2.6× single rays on `weekend`'s camera rays; BENCHMARKS.md, "Packets"). Spheres only; the
 //! hits are those of single rays bit for bit (tested), so the images do not change.
 
-use super::bvh::{Bvh4, STACK, Tally, slots};
+use super::bvh::{Bvh4, STACK, Tally, nearest_next, slots};
 use super::intersect::{Ray, safe_inverse};
 use super::scene::Sphere;
 use super::trace::{INDEX, LANES};
@@ -170,24 +170,7 @@ fn closest8_spheres(
                 continue;
             }
             let e = (n.child[s], hitm[s], near_min[s]);
-            let far = match next {
-                Some(cur) if cur.2 <= e.2 => e,
-                Some(cur) => {
-                    next = Some(e);
-                    cur
-                }
-                None => {
-                    next = Some(e);
-                    continue;
-                }
-            };
-            let mut j = sp;
-            while j > base && stack[j - 1].2 < far.2 {
-                stack[j] = stack[j - 1];
-                j -= 1;
-            }
-            stack[j] = far;
-            sp += 1;
+            nearest_next(&mut next, e, &mut stack[..], base, &mut sp, |e| e.2);
         }
         if let Some(e) = next {
             (node, mask) = (e.0 as usize, e.1);
