@@ -195,6 +195,7 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         "segments     {:.2} per path",
         segments as f64 / paths.max(1) as f64
     );
+    let on_cpu = matches!(r.backend(), Backend::Cpu);
     if r.gpu_timed() && gpu_seconds > 0.0 {
         println!(
             "gpu time     {:.1} s of passes ({:.0} % of wall): {:.4e} samples/s, {:.4e} segments/s",
@@ -203,7 +204,7 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
             paths as f64 / gpu_seconds,
             segments as f64 / gpu_seconds
         );
-    } else if matches!(r.backend(), Backend::Cpu) {
+    } else if on_cpu {
         println!("gpu time     none (the native CPU tracer: the wall time above is its time)");
     } else {
         println!("gpu time     not measured (no timestamp queries on this adapter)");
@@ -228,7 +229,7 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
             special * 1e9,
             generic * 1e9
         ),
-        None if !a.generic && a.with.is_none() && matches!(r.backend(), Backend::Cpu) => {
+        None if !a.generic && a.with.is_none() && on_cpu => {
             println!("pipeline     specialized (the CPU tracer does not time the generic one)")
         }
         None if !a.generic && a.with.is_none() => {

@@ -6,8 +6,7 @@
 //! segment, for about two primitive tests each.
 
 use super::intersect::{Ray, safe_inverse};
-use crate::bvh::wide::EMPTY_SLOT;
-pub use crate::bvh::wide::STACK;
+use crate::bvh::wide::{EMPTY_SLOT, STACK};
 use crate::gpu::layout::GpuBvhNode4;
 use glam::Vec4;
 

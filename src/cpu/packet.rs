@@ -3,10 +3,11 @@
 //! (2.6× single rays on `weekend`'s camera rays; BENCHMARKS.md, "Packets"). Spheres only; the
 //! hits are those of single rays bit for bit (tested), so the images do not change.
 
-use super::bvh::{Bvh4, STACK, Tally, nearest_next, slots};
+use super::bvh::{Bvh4, Tally, nearest_next, slots};
 use super::intersect::{Ray, safe_inverse};
 use super::scene::Sphere;
 use super::trace::{INDEX, LANES};
+use crate::bvh::wide::STACK;
 use std::arch::x86_64::*;
 
 /// Up to eight rays, structure of arrays; `active` the lanes that hold one.
