@@ -27,7 +27,9 @@ const SPLIT_LEVELS: usize = 8;
 /// Pending entries a walk may need: each visit pushes at most three more than it takes, over
 /// at most `super::MAX_DEPTH + SPLIT_LEVELS` levels (shaders/trace.wgsl: STACK_SIZE, checked
 /// by a test).
-pub const STACK: usize = 3 * (super::MAX_DEPTH + SPLIT_LEVELS) + 4;
+pub const STACK: usize = 3 * LEVELS + 4;
+/// The most levels a four-wide tree has.
+pub const LEVELS: usize = super::MAX_DEPTH + SPLIT_LEVELS;
 
 /// A node of the binary tree with its bounds rounded outward to f32.
 #[derive(Clone, Copy, Debug)]

@@ -2,13 +2,16 @@
 //! (rayon), for machines without a GPU, where it replaces Mesa's software adapters.
 //!
 //! It reads the scene the GPU reads (`gpu::scene_buffers`: the same primitives, lights and
-//! BVH, the latter collapsed to four-wide nodes in `cpu::bvh`), traces the same random
+//! BVH, the latter collapsed to four-wide nodes in `cpu::bvh`, and to eight-wide ones in
+//! `cpu::bvh8` for single rays on a CPU with AVX), traces the same random
 //! streams, and keeps the same exact fixed-point sums of even and odd samples in the GPU's
 //! word layout (`cpu::fixed`), so that the renderer's rounds, the snapshot, the noise
 //! estimate, `converge`, `--target-error` and the preview work unchanged on it. Its modules
 //! mirror the WGSL files: `rng`, `fixed`, `sampling`, `intersect`, `material`, `trace`.
 
 pub mod bvh;
+#[cfg(target_arch = "x86_64")]
+pub mod bvh8;
 pub mod fixed;
 pub mod intersect;
 pub mod material;

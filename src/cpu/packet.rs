@@ -357,7 +357,7 @@ mod tests {
         assert!(hits > 1000, "only {hits} hits compared");
     }
 
-    /// The measurement behind BENCHMARKS.md "Packets": `cargo test --release --lib
+    /// The measurement behind BENCHMARKS.md "Packets" and "Eight-wide nodes": `cargo test --release --lib
     /// packet_walk_speed -- --ignored --nocapture`. PKT_SCENE names another sphere scene,
     /// PKT_SPP the samples per pixel (default 8), PKT_CAMERA=1 keeps only the camera rays.
     #[test]
@@ -378,6 +378,29 @@ mod tests {
             }
         }
         let single = start.elapsed().as_secs_f64() / runs as f64;
+        // The same rays alone through the eight-wide nodes (`cpu::bvh8`).
+        assert!(std::arch::is_x86_feature_detected!("avx"), "no AVX");
+        let b8 = crate::cpu::bvh8::Bvh8::new(&s.bvh);
+        let mut stack8 = crate::cpu::bvh8::Stack8::default();
+        let mut tally8 = Tally::default();
+        let start = Instant::now();
+        for _ in 0..runs {
+            for ray in &rays {
+                // SAFETY: AVX is present (asserted above).
+                std::hint::black_box(unsafe {
+                    b8.closest(&s.bvh.refs, ray, T_FAR, &mut tally8, &mut stack8, |r, t| {
+                        hit_primitive::<SPHERES>(&s, r, ray, t)
+                    })
+                });
+            }
+        }
+        let wide8 = start.elapsed().as_secs_f64() / runs as f64;
+        eprintln!(
+            "{name}: eight-wide nodes ({} of them) {:.1} ns/ray, {:.2} nodes/ray",
+            b8.node_count(),
+            wide8 * 1e9 / rays.len() as f64,
+            tally8.visits as f64 / (runs * rays.len()) as f64
+        );
         let single_visits = tally.visits as f64 / (runs * rays.len()) as f64;
         let mut tally = Tally::default();
         let mut walker = Packets::new().expect("AVX");

@@ -1,8 +1,11 @@
 //! The scene as the CPU tracer reads it: the very arrays the GPU gets
 //! (`gpu::scene_buffers::Primitives`, `scene_uniforms`, the same BVH), converted to SIMD
-//! vectors (`glam::Vec3A`), with the BVH collapsed to four children per node (`cpu::bvh`).
+//! vectors (`glam::Vec3A`), with the BVH collapsed to four children per node (`cpu::bvh`),
+//! and where the CPU has AVX to eight (`cpu::bvh8`).
 
 use super::bvh::Bvh4;
+#[cfg(target_arch = "x86_64")]
+use super::bvh8::Bvh8;
 use crate::gpu::FrameSettings;
 use crate::gpu::layout::{GpuLight, GpuMaterial, SceneUniforms};
 use crate::gpu::scene_buffers::{Primitives, geometry_hash, gpu_bvh, scene_uniforms};
@@ -131,6 +134,9 @@ pub struct CpuScene {
     pub triangles: Vec<Triangle>,
     pub lights: Vec<GpuLight>,
     pub bvh: Bvh4,
+    /// The BVH collapsed to eight-wide nodes, for the single-ray walk on a CPU with AVX.
+    #[cfg(target_arch = "x86_64")]
+    pub bvh8: Option<Bvh8>,
     /// Nodes of the BVH, and the seconds its build took.
     pub node_count: usize,
     pub build_seconds: f64,
@@ -148,6 +154,8 @@ impl CpuScene {
         let t = std::time::Instant::now();
         let (nodes, refs) = gpu_bvh(&p);
         let bvh = Bvh4::new(&nodes, refs);
+        #[cfg(target_arch = "x86_64")]
+        let bvh8 = std::arch::is_x86_feature_detected!("avx").then(|| Bvh8::new(&bvh));
         let build_seconds = t.elapsed().as_secs_f64();
         let mut c = CpuScene {
             u: Uniforms::of(&scene_uniforms(scene, s, origin)),
@@ -158,6 +166,8 @@ impl CpuScene {
             triangles: Vec::new(),
             lights: Vec::new(),
             bvh,
+            #[cfg(target_arch = "x86_64")]
+            bvh8,
             node_count: nodes.len(),
             build_seconds,
             origin,

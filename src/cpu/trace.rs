@@ -11,6 +11,8 @@
 //! sun) are runtime flags, a predicted branch each (measured in BENCHMARKS.md).
 
 use super::bvh::{Stack, Tally};
+#[cfg(target_arch = "x86_64")]
+use super::bvh8::Stack8;
 use super::intersect::*;
 use super::material::{Scatter, scatter_dielectric, scatter_surface};
 #[cfg(target_arch = "x86_64")]
@@ -80,6 +82,8 @@ pub struct Tracer<'a> {
     f: Features,
     pub tally: Tally,
     stack: Stack,
+    #[cfg(target_arch = "x86_64")]
+    stack8: Stack8,
     /// The packet walk of camera rays, where it applies (see `camera_hits`).
     #[cfg(target_arch = "x86_64")]
     packets: Option<Packets>,
@@ -92,6 +96,8 @@ impl<'a> Tracer<'a> {
             f,
             tally: Tally::default(),
             stack: Stack::default(),
+            #[cfg(target_arch = "x86_64")]
+            stack8: Stack8::default(),
             #[cfg(target_arch = "x86_64")]
             packets: Packets::new(),
         }
@@ -139,6 +145,22 @@ impl<'a> Tracer<'a> {
                 }
             }
             return best;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if let Some(b8) = &s.bvh8 {
+            // SAFETY: `bvh8` exists only where the CPU has AVX.
+            return unsafe {
+                b8.closest(
+                    &s.bvh.refs,
+                    ray,
+                    T_FAR,
+                    &mut self.tally,
+                    &mut self.stack8,
+                    #[inline(always)]
+                    |r, t| hit_primitive::<P>(s, r, ray, t),
+                )
+            }
+            .map(|(t, r)| Hit { t, r });
         }
         s.bvh
             .closest(

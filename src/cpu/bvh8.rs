@@ -1,0 +1,304 @@
+//! Eight-wide BVH nodes for the single-ray walk on CPUs with AVX: the four-wide tree
+//! (`cpu::bvh`) collapsed once more, each node opening its children with the largest surface
+//! area until eight slots are full (as `bvh::wide` collapses the binary tree), so that one
+//! node's eight slab tests are one AVX operation per term and a walk visits fewer nodes
+//! (Wald, Benthin & Boulos, "Getting Rid of Packets", RT 2008; Embree's BVH8). The nearest
+//! hit is the four-wide walk's bit for bit (the same primitive tests; tested).
+
+use super::bvh::{Bvh4, Node4, Tally, nearest_next, slots};
+use super::intersect::{Ray, safe_inverse};
+use std::arch::x86_64::*;
+
+/// Slots of a node.
+const WIDE: usize = 8;
+/// Pending entries a walk may need: each visit pushes at most seven more than it takes,
+/// over at most as many levels as the four-wide tree has.
+const STACK: usize = (WIDE - 1) * crate::bvh::wide::LEVELS + WIDE;
+
+/// Eight children: their bounds by axis, and for each either an inner node or a leaf, as in
+/// `Node4`. 256 bytes.
+#[derive(Clone, Copy)]
+#[repr(C, align(64))]
+struct Node8 {
+    min: [__m256; 3],
+    max: [__m256; 3],
+    child: [u32; WIDE],
+    count: [u16; WIDE],
+    valid: u8,
+    leaves: u8,
+}
+
+/// The eight-wide tree; leaf slots index the four-wide tree's references.
+pub struct Bvh8 {
+    nodes: Vec<Node8>,
+}
+
+#[derive(Clone, Copy, Default)]
+struct Entry {
+    node: u32,
+    t: f32,
+}
+
+/// The walk's stack, reused from walk to walk.
+pub struct Stack8(Box<[Entry; STACK]>);
+
+impl Default for Stack8 {
+    fn default() -> Stack8 {
+        Stack8(Box::new([Entry::default(); STACK]))
+    }
+}
+
+/// A child being placed in a node: bounds, and a four-wide node to open or a leaf.
+#[derive(Clone, Copy)]
+struct Kid {
+    min: [f32; 3],
+    max: [f32; 3],
+    inner: Option<u32>,
+    first: u32,
+    count: u16,
+}
+
+fn kids_of(n: &Node4) -> impl Iterator<Item = Kid> + '_ {
+    let (lo, hi) = (
+        [n.min_x, n.min_y, n.min_z].map(|v| v.to_array()),
+        [n.max_x, n.max_y, n.max_z].map(|v| v.to_array()),
+    );
+    slots(n.valid as u32).map(move |s| Kid {
+        min: [lo[0][s], lo[1][s], lo[2][s]],
+        max: [hi[0][s], hi[1][s], hi[2][s]],
+        inner: (n.leaves >> s & 1 == 0).then_some(n.child[s]),
+        first: n.child[s],
+        count: n.count[s],
+    })
+}
+
+fn area(k: &Kid) -> f32 {
+    let d = [0, 1, 2].map(|c| (k.max[c] - k.min[c]).max(0.0));
+    d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+}
+
+impl Bvh8 {
+    /// `b4` collapsed to eight-wide nodes, the root first.
+    pub fn new(b4: &Bvh4) -> Bvh8 {
+        let mut b = Bvh8 { nodes: Vec::new() };
+        if !b4.nodes.is_empty() {
+            b.node(b4, 0);
+        }
+        b
+    }
+
+    fn node(&mut self, b4: &Bvh4, i: usize) -> u32 {
+        let mut kids: Vec<Kid> = kids_of(&b4.nodes[i]).collect();
+        // Open the largest inner child while its children fit.
+        loop {
+            let open = kids
+                .iter()
+                .enumerate()
+                .filter_map(|(j, k)| {
+                    let n = &b4.nodes[k.inner? as usize];
+                    (kids.len() - 1 + n.valid.count_ones() as usize <= WIDE).then_some(j)
+                })
+                .max_by(|&a, &b| area(&kids[a]).total_cmp(&area(&kids[b])));
+            let Some(j) = open else { break };
+            let k = kids.swap_remove(j);
+            kids.extend(kids_of(
+                &b4.nodes[k.inner.expect("an inner child") as usize],
+            ));
+        }
+        let at = self.nodes.len();
+        // SAFETY: all-zero bits are valid for every field.
+        self.nodes.push(unsafe { std::mem::zeroed() });
+        let mut lo = [[f32::INFINITY; WIDE]; 3];
+        let mut hi = [[f32::NEG_INFINITY; WIDE]; 3];
+        let (mut child, mut count) = ([0u32; WIDE], [0u16; WIDE]);
+        let (mut valid, mut leaves) = (0u8, 0u8);
+        for (s, k) in kids.iter().enumerate() {
+            for c in 0..3 {
+                lo[c][s] = k.min[c];
+                hi[c][s] = k.max[c];
+            }
+            valid |= 1 << s;
+            match k.inner {
+                Some(inner) => child[s] = self.node(b4, inner as usize),
+                None => {
+                    (child[s], count[s]) = (k.first, k.count);
+                    leaves |= 1 << s;
+                }
+            }
+        }
+        // SAFETY: unaligned loads of eight floats.
+        let load = |a: &[f32; WIDE]| unsafe { _mm256_loadu_ps(a.as_ptr()) };
+        self.nodes[at] = Node8 {
+            min: lo.each_ref().map(load),
+            max: hi.each_ref().map(load),
+            child,
+            count,
+            valid,
+            leaves,
+        };
+        at as u32
+    }
+
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// `Bvh4::closest` over the eight-wide nodes (`refs` the four-wide tree's references).
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[target_feature(enable = "avx")]
+    pub unsafe fn closest(
+        &self,
+        refs: &[u32],
+        ray: &Ray,
+        t_max: f32,
+        tally: &mut Tally,
+        stack: &mut Stack8,
+        mut test: impl FnMut(u32, f32) -> f32,
+    ) -> Option<(f32, u32)> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let inv = safe_inverse(ray.dir);
+        let o = [ray.origin.x, ray.origin.y, ray.origin.z].map(|x| _mm256_set1_ps(x));
+        let inv = [inv.x, inv.y, inv.z].map(|x| _mm256_set1_ps(x));
+        let zero = _mm256_setzero_ps();
+        let mut best: Option<(f32, u32)> = None;
+        let mut t_best = t_max;
+        let stack = &mut *stack.0;
+        let mut sp = 0usize;
+        let mut node = 0usize;
+        loop {
+            let n = &self.nodes[node];
+            tally.visits += 1;
+            let slab = |k: usize| {
+                let t0 = _mm256_mul_ps(_mm256_sub_ps(n.min[k], o[k]), inv[k]);
+                let t1 = _mm256_mul_ps(_mm256_sub_ps(n.max[k], o[k]), inv[k]);
+                (_mm256_min_ps(t0, t1), _mm256_max_ps(t0, t1))
+            };
+            let ((nx, fx), (ny, fy), (nz, fz)) = (slab(0), slab(1), slab(2));
+            let near = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, zero));
+            let far = _mm256_min_ps(
+                _mm256_min_ps(fx, fy),
+                _mm256_min_ps(fz, _mm256_set1_ps(t_best)),
+            );
+            let mask =
+                _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32 & n.valid as u32;
+            let mut t = [0.0f32; WIDE];
+            // SAFETY: eight floats.
+            unsafe { _mm256_storeu_ps(t.as_mut_ptr(), near) };
+            for slot in slots(mask & n.leaves as u32) {
+                let first = n.child[slot] as usize;
+                let count = n.count[slot] as usize;
+                tally.tests += count as u64;
+                for &r in &refs[first..first + count] {
+                    let th = test(r, t_best);
+                    if th > 0.0 {
+                        t_best = th;
+                        best = Some((th, r));
+                    }
+                }
+            }
+            let mut next: Option<Entry> = None;
+            let base = sp;
+            for slot in slots(mask & !(n.leaves as u32)) {
+                if t[slot] >= t_best {
+                    continue;
+                }
+                let e = Entry {
+                    node: n.child[slot],
+                    t: t[slot],
+                };
+                nearest_next(&mut next, e, stack, base, &mut sp, |e| e.t);
+            }
+            if let Some(e) = next {
+                node = e.node as usize;
+                continue;
+            }
+            loop {
+                if sp == 0 {
+                    return best;
+                }
+                sp -= 1;
+                let e = stack[sp];
+                if e.t < t_best {
+                    node = e.node as usize;
+                    break;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cpu::CpuEngine;
+    use crate::cpu::bvh::Stack;
+    use crate::cpu::trace::{ANY, RECORD, T_FAR, hit_primitive};
+    use crate::gpu::layout::DispatchUniforms;
+    use crate::gpu::{Features, FrameSettings};
+
+    /// Every segment `name` traces at 64×36, one sample per pixel.
+    fn rays_of(name: &str) -> (crate::cpu::scene::CpuScene, Vec<Ray>) {
+        let scene = crate::scene::Scene::load(name).unwrap();
+        let (w, h) = (64, 36);
+        let settings = FrameSettings::new(w, h, scene.render.max_bounces, 1);
+        let mut engine = CpuEngine::new(&scene, &settings);
+        let d = DispatchUniforms {
+            sample_base: 0,
+            sample_count: 1,
+            row_offset: 0,
+            row_count: h,
+            accumulate: 0,
+            lanes: 1,
+            row_stride: 1,
+            _pad: 0,
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let recorded = pool.install(|| {
+            RECORD.with(|r| *r.borrow_mut() = Some(Vec::new()));
+            engine.run(&d, Features::of(&scene));
+            RECORD.with(|r| r.borrow_mut().take().unwrap())
+        });
+        let rays = recorded.into_iter().map(|(_, r)| r).collect();
+        (crate::cpu::scene::CpuScene::new(&scene, &settings), rays)
+    }
+
+    #[test]
+    fn the_eight_wide_walk_finds_what_the_four_wide_one_finds_bit_for_bit() {
+        if !std::arch::is_x86_feature_detected!("avx") {
+            eprintln!("no AVX: nothing to compare");
+            return;
+        }
+        // Spheres; triangles; quads, boxes and a light.
+        for name in ["weekend", "mesh", "cornell"] {
+            let (s, rays) = rays_of(name);
+            let b8 = Bvh8::new(&s.bvh);
+            let n4 = s.bvh.nodes.len();
+            eprintln!(
+                "{name}: {n4} four-wide nodes, {} eight-wide",
+                b8.node_count()
+            );
+            assert!(b8.node_count() < n4 || n4 == 1, "{name}: nothing collapsed");
+            let (mut tally, mut stack, mut stack8) =
+                (Tally::default(), Stack::default(), Stack8::default());
+            let mut hits = 0;
+            for ray in &rays {
+                let test = |r, t| hit_primitive::<ANY>(&s, r, ray, t);
+                let want = s.bvh.closest(ray, T_FAR, &mut tally, &mut stack, test);
+                // SAFETY: AVX is present (checked above).
+                let got =
+                    unsafe { b8.closest(&s.bvh.refs, ray, T_FAR, &mut tally, &mut stack8, test) };
+                let bits = |h: Option<(f32, u32)>| h.map(|(t, r)| (t.to_bits(), r));
+                assert_eq!(bits(want), bits(got), "{name}: {ray:?}");
+                hits += want.is_some() as u32;
+            }
+            assert!(hits > 1000, "{name}: only {hits} hits compared");
+        }
+    }
+}
