@@ -34,6 +34,9 @@ use rng::Rng;
 use scene::CpuScene;
 use trace::{ANY, LANES, SPHERES, Tracer};
 
+// A pixel group's samplers are made together.
+const _: () = assert!(LANES == rng::GROUP);
+
 /// The name `--adapter` and `termtrace adapters` know the CPU tracer by.
 pub const ADAPTER_NAME: &str = "cpu-native";
 
@@ -169,7 +172,7 @@ impl CpuEngine {
                         let sample = d.sample_base + i;
                         let pixel = |x: usize| y * width + x0 + x as u32;
                         let mut rngs: [Rng; LANES] =
-                            std::array::from_fn(|x| Rng::new(pixel(x), sample, scene.u.seed));
+                            Rng::group(&std::array::from_fn(pixel), sample, scene.u.seed);
                         let rays: [Option<Ray>; LANES] = std::array::from_fn(|x| {
                             (x < n).then(|| t.camera_ray(x0 + x as u32, y, &mut rngs[x]))
                         });
