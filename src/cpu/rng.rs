@@ -122,6 +122,11 @@ pub struct Rng {
     points: [[f32; 2]; SLOTS],
     /// Draws taken so far (counting stops past the Sobol ones).
     taken: u32,
+    /// Sobol points made ahead (the rest are made when drawn, from `root` and `index`).
+    ahead: u32,
+    /// `root` and `sample_index` of the sample.
+    root: u32,
+    index: u32,
     /// The PCG stream's state, for the draws after `QMC_SLOTS`.
     state: u32,
 }
@@ -156,7 +161,8 @@ fn slot_point(root: u32, index: u32, slot: u32) -> [f32; 2] {
 
 /// `Rng::group`'s work, lane by lane in loops the compiler vectorizes.
 #[inline(always)]
-fn group_lanes(pixels: &[u32; GROUP], sample: u32, seed: u32) -> [Rng; GROUP] {
+fn group_lanes(pixels: &[u32; GROUP], sample: u32, seed: u32, ahead: usize) -> [Rng; GROUP] {
+    let ahead = ahead.min(SLOTS);
     let index = sample_index(sample);
     let pi = pcg_hash(index);
     let mut roots = [0u32; GROUP];
@@ -166,12 +172,16 @@ fn group_lanes(pixels: &[u32; GROUP], sample: u32, seed: u32) -> [Rng; GROUP] {
     let mut out = [Rng {
         points: [[0.0; 2]; SLOTS],
         taken: 0,
+        ahead: ahead as u32,
+        root: 0,
+        index,
         state: 0,
     }; GROUP];
     for (o, &r) in out.iter_mut().zip(&roots) {
         o.state = pcg_hash(r ^ pi);
+        o.root = r;
     }
-    for slot in 0..SLOTS {
+    for slot in 0..ahead {
         let mut p = [[0.0f32; 2]; GROUP];
         for (p, &r) in p.iter_mut().zip(&roots) {
             *p = slot_point(r, index, slot as u32);
@@ -186,8 +196,8 @@ fn group_lanes(pixels: &[u32; GROUP], sample: u32, seed: u32) -> [Rng; GROUP] {
 /// `group_lanes` compiled for AVX2 (eight lanes of 32-bit multiplies and shifts).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn group_avx2(pixels: &[u32; GROUP], sample: u32, seed: u32) -> [Rng; GROUP] {
-    group_lanes(pixels, sample, seed)
+fn group_avx2(pixels: &[u32; GROUP], sample: u32, seed: u32, ahead: usize) -> [Rng; GROUP] {
+    group_lanes(pixels, sample, seed, ahead)
 }
 
 impl Rng {
@@ -196,19 +206,24 @@ impl Rng {
         Rng {
             points: std::array::from_fn(|slot| slot_point(root, index, slot as u32)),
             taken: 0,
+            ahead: QMC_SLOTS,
+            root,
+            index,
             state: pcg_hash(root ^ pcg_hash(index)),
         }
     }
 
-    /// The samplers of sample `sample` of eight pixels, as `new` makes them.
+    /// The samplers of sample `sample` of eight pixels, as `new` makes them, with the
+    /// points of the first `ahead` Sobol draws made at once (those nearly every path takes;
+    /// a point made and not drawn is wasted work), the others when drawn.
     #[inline]
-    pub fn group(pixels: &[u32; GROUP], sample: u32, seed: u32) -> [Rng; GROUP] {
+    pub fn group(pixels: &[u32; GROUP], sample: u32, seed: u32, ahead: usize) -> [Rng; GROUP] {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2.
-            return unsafe { group_avx2(pixels, sample, seed) };
+            return unsafe { group_avx2(pixels, sample, seed, ahead) };
         }
-        group_lanes(pixels, sample, seed)
+        group_lanes(pixels, sample, seed, ahead)
     }
 
     /// The next Sobol draw's point, or None once the draws come from the PCG stream.
@@ -219,6 +234,9 @@ impl Rng {
             return None;
         }
         self.taken += 1;
+        if k >= self.ahead as usize {
+            return Some(slot_point(self.root, self.index, k as u32));
+        }
         Some(self.points[k])
     }
 
@@ -338,7 +356,6 @@ mod tests {
             (u32::MAX, 9),
         ] {
             let pixels: [u32; GROUP] = std::array::from_fn(|l| 1000 * l as u32 + sample % 13);
-            let mut group = Rng::group(&pixels, sample, seed);
             for (l, &p) in pixels.iter().enumerate() {
                 let want = drawn_one_by_one(p, sample, seed, &pattern);
                 assert_eq!(
@@ -346,12 +363,15 @@ mod tests {
                     want,
                     "new: {p} {sample}"
                 );
-                assert_eq!(draws(&mut group[l]), want, "group: {p} {sample}");
-                assert_eq!(
-                    draws(&mut group_lanes(&pixels, sample, seed)[l]),
-                    want,
-                    "portable lanes: {p} {sample}"
-                );
+                for ahead in [0, 4, SLOTS, SLOTS + 1] {
+                    let mut group = Rng::group(&pixels, sample, seed, ahead);
+                    assert_eq!(draws(&mut group[l]), want, "group: {p} {sample} {ahead}");
+                    assert_eq!(
+                        draws(&mut group_lanes(&pixels, sample, seed, ahead)[l]),
+                        want,
+                        "portable lanes: {p} {sample} {ahead}"
+                    );
+                }
             }
         }
     }
