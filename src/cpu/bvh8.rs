@@ -302,3 +302,53 @@ mod tests {
         }
     }
 }
+
+/// The estimate behind BENCHMARKS.md "Paths in SIMD lanes, walked each on its own": the
+/// loads of one step of sixteen rays each at its own binary node (its two children's boxes:
+/// twelve AVX-512 gathers), in a chain where the next nodes depend on what was loaded.
+/// `cargo test --release --lib gather_step_cost -- --ignored --nocapture`.
+#[cfg(test)]
+mod gather_estimate {
+    use std::arch::x86_64::*;
+    use std::time::Instant;
+
+    #[target_feature(enable = "avx512f")]
+    fn steps(nodes: &[f32], steps: usize) -> f32 {
+        let last = (nodes.len() / 16 - 1) as i32;
+        let mut node = _mm512_setr_epi32(
+            0, 37, 74, 111, 148, 185, 222, 259, 296, 333, 370, 407, 444, 481, 6, 43,
+        );
+        let mut acc = _mm512_setzero_ps();
+        for _ in 0..steps {
+            for k in 0..12 {
+                let at = _mm512_add_epi32(_mm512_slli_epi32::<4>(node), _mm512_set1_epi32(k));
+                // SAFETY: every index is below nodes.len() (masked to `last` nodes of 16).
+                acc = _mm512_add_ps(acc, unsafe { _mm512_i32gather_ps::<4>(at, nodes.as_ptr()) });
+            }
+            let next = _mm512_add_epi32(node, _mm512_cvttps_epi32(acc));
+            node = _mm512_and_si512(
+                _mm512_add_epi32(next, _mm512_set1_epi32(7)),
+                _mm512_set1_epi32(last),
+            );
+        }
+        _mm512_reduce_add_ps(acc)
+    }
+
+    #[test]
+    #[ignore]
+    fn gather_step_cost() {
+        assert!(std::arch::is_x86_feature_detected!("avx512f"), "no AVX-512");
+        // 512 nodes of 64 bytes (weekend's binary tree is about that size), all zero so that
+        // the chain stays in range.
+        let nodes = vec![0.0f32; 512 * 16];
+        let n = 2_000_000;
+        let start = Instant::now();
+        // SAFETY: AVX-512F is present (asserted above).
+        let sum = unsafe { steps(&nodes, n) };
+        let ns = start.elapsed().as_secs_f64() * 1e9 / n as f64;
+        eprintln!(
+            "{ns:.1} ns per step of 16 rays, {:.2} ns per ray ({sum})",
+            ns / 16.0
+        );
+    }
+}
