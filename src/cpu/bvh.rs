@@ -58,6 +58,82 @@ pub struct Entry {
     t: f32,
 }
 
+/// A closest-hit walk between node visits (the four- and the eight-wide walk share it): the
+/// best hit so far and the children waiting on the stack.
+pub(super) struct Walk<'s> {
+    pub best: Option<(f32, u32)>,
+    pub t_best: f32,
+    stack: &'s mut [Entry],
+    sp: usize,
+}
+
+impl<'s> Walk<'s> {
+    #[inline(always)]
+    pub fn new(stack: &'s mut [Entry], t_max: f32) -> Walk<'s> {
+        Walk {
+            best: None,
+            t_best: t_max,
+            stack,
+            sp: 0,
+        }
+    }
+
+    /// A node's children after their slab tests (`mask`: those entered; `near`: their entry
+    /// distances; `child`, `count`, `leaves` as in `Node4`). Leaves hit are tested at once (a
+    /// few primitives, which shorten the ray for what follows); the nearest inner child hit
+    /// is the node to visit next and the others are pushed, nearest on top; with none, the
+    /// nearest pending child still nearer than the best hit is. None: the walk is over.
+    /// `test` gives a primitive's distance if nearer than its bound, else a value ≤ 0.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn visit(
+        &mut self,
+        mask: u32,
+        leaves: u32,
+        near: &[f32],
+        child: &[u32],
+        count: &[u16],
+        refs: &[u32],
+        tally: &mut Tally,
+        test: &mut impl FnMut(u32, f32) -> f32,
+    ) -> Option<usize> {
+        for slot in slots(mask & leaves) {
+            let first = child[slot] as usize;
+            tally.tests += count[slot] as u64;
+            for &r in &refs[first..first + count[slot] as usize] {
+                let th = test(r, self.t_best);
+                if th > 0.0 {
+                    self.t_best = th;
+                    self.best = Some((th, r));
+                }
+            }
+        }
+        let mut next: Option<Entry> = None;
+        let base = self.sp;
+        for slot in slots(mask & !leaves) {
+            if near[slot] >= self.t_best {
+                continue;
+            }
+            let e = Entry {
+                node: child[slot],
+                t: near[slot],
+            };
+            nearest_next(&mut next, e, self.stack, base, &mut self.sp, |e| e.t);
+        }
+        if let Some(e) = next {
+            return Some(e.node as usize);
+        }
+        while self.sp > 0 {
+            self.sp -= 1;
+            let e = self.stack[self.sp];
+            if e.t < self.t_best {
+                return Some(e.node as usize);
+            }
+        }
+        None
+    }
+}
+
 /// The slots whose bits are set in `mask`, lowest first.
 #[inline(always)]
 pub(super) fn slots(mut mask: u32) -> impl Iterator<Item = usize> {
@@ -173,10 +249,7 @@ impl Bvh4 {
     }
 
     /// The nearest hit before `t_max`: (t, reference). `test` gives a primitive's distance
-    /// if nearer than its bound, else a value ≤ 0. Leaves hit are tested at once (a few
-    /// primitives, which shorten the ray for what follows); the nearest inner child hit is
-    /// entered next and the others pushed, nearest on top, and skipped when popped once a
-    /// nearer hit is known.
+    /// if nearer than its bound, else a value ≤ 0 (the order of the walk: `Walk::visit`).
     #[inline(always)]
     pub fn closest(
         &self,
@@ -190,52 +263,18 @@ impl Bvh4 {
             return None;
         }
         let (o, inv) = Self::ray_terms(ray);
-        let mut best: Option<(f32, u32)> = None;
-        let mut t_best = t_max;
-        let stack = &mut *stack.0;
-        let mut sp = 0usize;
+        let mut w = Walk::new(&mut *stack.0, t_max);
         let mut node = 0usize;
         loop {
             let n = &self.nodes[node];
             tally.visits += 1;
-            let (mask, t) = Self::slabs(n, &o, &inv, t_best);
-            for slot in slots(mask & n.leaves as u32) {
-                for &r in self.leaf(n, slot, tally) {
-                    let th = test(r, t_best);
-                    if th > 0.0 {
-                        t_best = th;
-                        best = Some((th, r));
-                    }
-                }
-            }
-            // The nearest inner child hit (still nearer than the best hit) comes next; the
-            // others wait on the stack, the nearest of them on top.
-            let mut next: Option<Entry> = None;
-            let base = sp;
-            for slot in slots(mask & !(n.leaves as u32)) {
-                if t[slot] >= t_best {
-                    continue;
-                }
-                let e = Entry {
-                    node: n.child[slot],
-                    t: t[slot],
-                };
-                nearest_next(&mut next, e, stack, base, &mut sp, |e| e.t);
-            }
-            if let Some(e) = next {
-                node = e.node as usize;
-                continue;
-            }
-            loop {
-                if sp == 0 {
-                    return best;
-                }
-                sp -= 1;
-                let e = stack[sp];
-                if e.t < t_best {
-                    node = e.node as usize;
-                    break;
-                }
+            let (mask, t) = Self::slabs(n, &o, &inv, w.t_best);
+            let leaves = n.leaves as u32;
+            match w.visit(
+                mask, leaves, &t, &n.child, &n.count, &self.refs, tally, &mut test,
+            ) {
+                Some(next) => node = next,
+                None => return w.best,
             }
         }
     }

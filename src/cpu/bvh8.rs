@@ -5,7 +5,7 @@
 //! (Wald, Benthin & Boulos, "Getting Rid of Packets", RT 2008; Embree's BVH8). The nearest
 //! hit is the four-wide walk's bit for bit (the same primitive tests; tested).
 
-use super::bvh::{Bvh4, Node4, Tally, nearest_next, slots};
+use super::bvh::{Bvh4, Entry, Node4, Tally, Walk, slots};
 use super::intersect::{Ray, safe_inverse};
 use std::arch::x86_64::*;
 
@@ -31,12 +31,6 @@ struct Node8 {
 /// The eight-wide tree; leaf slots index the four-wide tree's references.
 pub struct Bvh8 {
     nodes: Vec<Node8>,
-}
-
-#[derive(Clone, Copy, Default)]
-struct Entry {
-    node: u32,
-    t: f32,
 }
 
 /// The walk's stack, reused from walk to walk.
@@ -164,10 +158,7 @@ impl Bvh8 {
         let o = [ray.origin.x, ray.origin.y, ray.origin.z].map(|x| _mm256_set1_ps(x));
         let inv = [inv.x, inv.y, inv.z].map(|x| _mm256_set1_ps(x));
         let zero = _mm256_setzero_ps();
-        let mut best: Option<(f32, u32)> = None;
-        let mut t_best = t_max;
-        let stack = &mut *stack.0;
-        let mut sp = 0usize;
+        let mut w = Walk::new(&mut *stack.0, t_max);
         let mut node = 0usize;
         loop {
             let n = &self.nodes[node];
@@ -181,51 +172,17 @@ impl Bvh8 {
             let near = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, zero));
             let far = _mm256_min_ps(
                 _mm256_min_ps(fx, fy),
-                _mm256_min_ps(fz, _mm256_set1_ps(t_best)),
+                _mm256_min_ps(fz, _mm256_set1_ps(w.t_best)),
             );
             let mask =
                 _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32 & n.valid as u32;
             let mut t = [0.0f32; WIDE];
             // SAFETY: eight floats.
             unsafe { _mm256_storeu_ps(t.as_mut_ptr(), near) };
-            for slot in slots(mask & n.leaves as u32) {
-                let first = n.child[slot] as usize;
-                let count = n.count[slot] as usize;
-                tally.tests += count as u64;
-                for &r in &refs[first..first + count] {
-                    let th = test(r, t_best);
-                    if th > 0.0 {
-                        t_best = th;
-                        best = Some((th, r));
-                    }
-                }
-            }
-            let mut next: Option<Entry> = None;
-            let base = sp;
-            for slot in slots(mask & !(n.leaves as u32)) {
-                if t[slot] >= t_best {
-                    continue;
-                }
-                let e = Entry {
-                    node: n.child[slot],
-                    t: t[slot],
-                };
-                nearest_next(&mut next, e, stack, base, &mut sp, |e| e.t);
-            }
-            if let Some(e) = next {
-                node = e.node as usize;
-                continue;
-            }
-            loop {
-                if sp == 0 {
-                    return best;
-                }
-                sp -= 1;
-                let e = stack[sp];
-                if e.t < t_best {
-                    node = e.node as usize;
-                    break;
-                }
+            let leaves = n.leaves as u32;
+            match w.visit(mask, leaves, &t, &n.child, &n.count, refs, tally, &mut test) {
+                Some(next) => node = next,
+                None => return w.best,
             }
         }
     }
@@ -234,40 +191,8 @@ impl Bvh8 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cpu::CpuEngine;
     use crate::cpu::bvh::Stack;
-    use crate::cpu::trace::{ANY, RECORD, T_FAR, hit_primitive};
-    use crate::gpu::layout::DispatchUniforms;
-    use crate::gpu::{Features, FrameSettings};
-
-    /// Every segment `name` traces at 64×36, one sample per pixel.
-    fn rays_of(name: &str) -> (crate::cpu::scene::CpuScene, Vec<Ray>) {
-        let scene = crate::scene::Scene::load(name).unwrap();
-        let (w, h) = (64, 36);
-        let settings = FrameSettings::new(w, h, scene.render.max_bounces, 1);
-        let mut engine = CpuEngine::new(&scene, &settings);
-        let d = DispatchUniforms {
-            sample_base: 0,
-            sample_count: 1,
-            row_offset: 0,
-            row_count: h,
-            accumulate: 0,
-            lanes: 1,
-            row_stride: 1,
-            _pad: 0,
-        };
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
-        let recorded = pool.install(|| {
-            RECORD.with(|r| *r.borrow_mut() = Some(Vec::new()));
-            engine.run(&d, Features::of(&scene));
-            RECORD.with(|r| r.borrow_mut().take().unwrap())
-        });
-        let rays = recorded.into_iter().map(|(_, r)| r).collect();
-        (crate::cpu::scene::CpuScene::new(&scene, &settings), rays)
-    }
+    use crate::cpu::trace::{ANY, T_FAR, hit_primitive, recorded};
 
     #[test]
     fn the_eight_wide_walk_finds_what_the_four_wide_one_finds_bit_for_bit() {
@@ -277,7 +202,8 @@ mod tests {
         }
         // Spheres; triangles; quads, boxes and a light.
         for name in ["weekend", "mesh", "cornell"] {
-            let (s, rays) = rays_of(name);
+            let (s, segments) = recorded(name, 64, 36, 1);
+            let rays: Vec<Ray> = segments.into_iter().map(|(_, r)| r).collect();
             let b8 = Bvh8::new(&s.bvh);
             let n4 = s.bvh.nodes.len();
             eprintln!(

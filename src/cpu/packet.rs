@@ -265,10 +265,8 @@ fn hit_sphere8(
 mod tests {
     use super::*;
     use crate::cpu::bvh::Stack;
-    use crate::cpu::trace::{RECORD, SPHERES, T_FAR, hit_primitive};
-    use crate::cpu::{CpuEngine, scene::CpuScene};
-    use crate::gpu::layout::DispatchUniforms;
-    use crate::gpu::{Features, FrameSettings};
+    use crate::cpu::scene::CpuScene;
+    use crate::cpu::trace::{SPHERES, T_FAR, hit_primitive, recorded};
     use std::time::Instant;
 
     /// The rays `scene` traces at 160×90 and `spp` samples per pixel (only the camera rays
@@ -280,30 +278,7 @@ mod tests {
         spp: u32,
         camera: bool,
     ) -> (CpuScene, Vec<Ray>, Vec<[Option<Ray>; LANES]>) {
-        let scene = crate::scene::Scene::load(name).unwrap();
-        let (w, h) = (160, 90);
-        let settings = FrameSettings::new(w, h, scene.render.max_bounces, 1);
-        let mut engine = CpuEngine::new(&scene, &settings);
-        let d = DispatchUniforms {
-            sample_base: 0,
-            sample_count: spp,
-            row_offset: 0,
-            row_count: h,
-            accumulate: 0,
-            lanes: 1,
-            row_stride: 1,
-            _pad: 0,
-        };
-        // One thread, so that a path's segments are recorded in a row.
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
-        let recorded = pool.install(|| {
-            RECORD.with(|r| *r.borrow_mut() = Some(Vec::new()));
-            engine.run(&d, Features::of(&scene));
-            RECORD.with(|r| r.borrow_mut().take().unwrap())
-        });
+        let (s, recorded) = recorded(name, 160, 90, spp);
         let mut paths: Vec<Vec<Ray>> = Vec::new();
         for (bounce, ray) in &recorded {
             if *bounce == 0 {
@@ -329,7 +304,7 @@ mod tests {
             .filter(|(bounce, _)| !camera || *bounce == 0)
             .map(|(_, r)| r)
             .collect();
-        (CpuScene::new(&scene, &settings), rays, packets)
+        (s, rays, packets)
     }
 
     #[test]

@@ -508,3 +508,40 @@ thread_local! {
     pub(super) static RECORD: std::cell::RefCell<Option<Vec<(u32, Ray)>>> =
         const { std::cell::RefCell::new(None) };
 }
+
+/// Tests only: every segment (bounce, ray) that scene `name` traces at `w`×`h` and `spp`
+/// samples per pixel, in the row loop's order (one thread), and the scene as traced.
+#[cfg(test)]
+pub(super) fn recorded(
+    name: &str,
+    w: u32,
+    h: u32,
+    spp: u32,
+) -> (CpuScene, Vec<(u32, super::intersect::Ray)>) {
+    use crate::gpu::FrameSettings;
+    use crate::gpu::layout::DispatchUniforms;
+    let scene = crate::scene::Scene::load(name).unwrap();
+    let settings = FrameSettings::new(w, h, scene.render.max_bounces, 1);
+    let mut engine = super::CpuEngine::new(&scene, &settings);
+    let d = DispatchUniforms {
+        sample_base: 0,
+        sample_count: spp,
+        row_offset: 0,
+        row_count: h,
+        accumulate: 0,
+        lanes: 1,
+        row_stride: 1,
+        _pad: 0,
+    };
+    // One thread, so that a path's segments are recorded in a row.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let segments = pool.install(|| {
+        RECORD.with(|r| *r.borrow_mut() = Some(Vec::new()));
+        engine.run(&d, Features::of(&scene));
+        RECORD.with(|r| r.borrow_mut().take().unwrap())
+    });
+    (CpuScene::new(&scene, &settings), segments)
+}
