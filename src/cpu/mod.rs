@@ -56,6 +56,8 @@ struct Counters {
     segments: u64,
     visits: u64,
     tests: u64,
+    /// Paths by the number of Sobol draws they took (`Rng::taken`).
+    drawn: [u64; rng::QMC_SLOTS as usize + 1],
 }
 
 impl std::ops::Add for Counters {
@@ -66,6 +68,7 @@ impl std::ops::Add for Counters {
             segments: self.segments + o.segments,
             visits: self.visits + o.visits,
             tests: self.tests + o.tests,
+            drawn: std::array::from_fn(|k| self.drawn[k] + o.drawn[k]),
         }
     }
 }
@@ -77,8 +80,35 @@ pub struct CpuEngine {
     even: Vec<u32>,
     odd: Vec<u32>,
     counters: Counters,
+    /// Sobol points made ahead for the next submission's samplers (`ahead_for`).
+    ahead: usize,
     width: u32,
     height: u32,
+}
+
+/// The Sobol points worth making ahead (`Rng::group`): those that at least this share of
+/// the paths draw. A point made ahead costs every path a share of eight lanes' work, one
+/// made when drawn costs the paths that draw it a chain of hashes; with 0.25 `weekend`
+/// (4 ahead), `lamp` (3), `cornell` (10) and `showcase` (4) each run at their fastest of the
+/// counts tried (BENCHMARKS.md).
+const AHEAD_SHARE: f64 = 0.25;
+
+/// The number of leading Sobol draws that at least `AHEAD_SHARE` of the paths counted in
+/// `drawn` took (all of them before anything is counted).
+fn ahead_for(drawn: &[u64]) -> usize {
+    let total: u64 = drawn.iter().sum();
+    if total == 0 {
+        return drawn.len() - 1;
+    }
+    // Paths that took more than k draws, for k = 0, 1, ...
+    let mut beyond = total;
+    for (k, &n) in drawn.iter().enumerate() {
+        beyond -= n;
+        if (beyond as f64) < AHEAD_SHARE * total as f64 {
+            return k;
+        }
+    }
+    drawn.len() - 1
 }
 
 impl CpuEngine {
@@ -89,6 +119,7 @@ impl CpuEngine {
             even: vec![0; pixels * ACCUM_WORDS],
             odd: vec![0; pixels * ACCUM_WORDS],
             counters: Counters::default(),
+            ahead: rng::QMC_SLOTS as usize,
             width: s.width,
             height: s.height,
         }
@@ -130,6 +161,9 @@ impl CpuEngine {
             (false, false) => self.run_with::<ANY, false>(d, f),
         };
         self.counters = self.counters + c;
+        // Scenes differ in how many draws a path takes (lights, lobes, bounces); the draws
+        // are the same however many are made ahead, only the speed is not.
+        self.ahead = ahead_for(&c.drawn);
     }
 
     fn run_with<const P: u32, const NEE: bool>(
@@ -142,10 +176,7 @@ impl CpuEngine {
         let stride = d.row_stride.max(1);
         let rows = d.row_offset..(d.row_offset + d.row_count * stride).min(self.height);
         let scene = &self.scene;
-        // The Sobol draws nearly every path takes, made ahead for a group of pixels (see
-        // `Rng::group`): without light sampling the camera, the lens and two bounces' (more
-        // measured 1-4 % slower on `weekend`); with it a bounce takes two or three.
-        let ahead = if NEE { rng::QMC_SLOTS as usize } else { 4 };
+        let ahead = self.ahead;
         self.even
             .par_chunks_mut(row_words)
             .zip(self.odd.par_chunks_mut(row_words))
@@ -187,6 +218,7 @@ impl CpuEngine {
                             let (radiance, segments) =
                                 t.trace_path::<P, NEE>(ray, known, &mut rngs[x]);
                             c.segments += segments as u64;
+                            c.drawn[rngs[x].taken() as usize] += 1;
                             if !radiance.is_finite() {
                                 c.invalid += 1;
                                 continue;
@@ -285,5 +317,30 @@ impl CpuEngine {
             })
             .collect();
         Resolved::from_blocks(&blocks, out, f, self.counters.invalid)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn points_are_made_ahead_for_the_draws_a_quarter_of_the_paths_take() {
+        // Nothing counted yet: all of them.
+        assert_eq!(ahead_for(&[0; 11]), 10);
+        // weekend's counts: 2 draws 17 %, 3 46 %, 4 18 %, 5 10 %, ...: draws 0-3 are taken by
+        // at least 37 % of the paths, draw 4 by 19 %.
+        let weekend = [
+            0, 0, 90054, 245244, 94021, 52226, 22105, 13223, 7342, 4743, 11042,
+        ];
+        assert_eq!(ahead_for(&weekend), 4);
+        // Every path takes all ten.
+        let mut all = [0; 11];
+        all[10] = 5;
+        assert_eq!(ahead_for(&all), 10);
+        // Every path takes exactly one.
+        let mut one = [0; 11];
+        one[1] = 5;
+        assert_eq!(ahead_for(&one), 1);
     }
 }

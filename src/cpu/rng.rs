@@ -226,6 +226,12 @@ impl Rng {
         group_lanes(pixels, sample, seed, ahead)
     }
 
+    /// The Sobol draws taken so far (at most `QMC_SLOTS`).
+    #[inline(always)]
+    pub fn taken(&self) -> u32 {
+        self.taken
+    }
+
     /// The next Sobol draw's point, or None once the draws come from the PCG stream.
     #[inline(always)]
     fn next_point(&mut self) -> Option<[f32; 2]> {
