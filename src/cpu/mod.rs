@@ -3,10 +3,11 @@
 //!
 //! It reads the scene the GPU reads (`gpu::scene_buffers`: the same primitives, lights and
 //! BVH, the latter collapsed to four-wide nodes in `cpu::bvh`, and to eight-wide ones in
-//! `cpu::bvh8` for single rays on a CPU with AVX), traces the same random
-//! streams, and keeps the same exact fixed-point sums of even and odd samples in the GPU's
-//! word layout (`cpu::fixed`), so that the renderer's rounds, the snapshot, the noise
-//! estimate, `converge`, `--target-error` and the preview work unchanged on it. Its modules
+//! `cpu::bvh8` for single rays on a CPU with AVX), traces the same random streams (a group
+//! of eight pixels' samplers made at once: `rng::Rng::group`), and keeps the same exact
+//! fixed-point sums of even and odd samples in the GPU's word layout (`cpu::fixed`), so that
+//! the renderer's rounds, the snapshot, the noise estimate, `converge`, `--target-error` and
+//! the preview work unchanged on it. Its modules
 //! mirror the WGSL files: `rng`, `fixed`, `sampling`, `intersect`, `material`, `trace`.
 
 pub mod bvh;
