@@ -70,9 +70,14 @@ fn padded(b: &Aabb) -> ([f32; 3], [f32; 3]) {
     )
 }
 
-fn area(k: &Kid) -> f32 {
-    let d = [0, 1, 2].map(|c| (k.max[c] - k.min[c]).max(0.0));
+/// Half the surface area of the box (min, max), the measure both collapses open children by.
+pub fn half_area(min: &[f32; 3], max: &[f32; 3]) -> f32 {
+    let d = [0, 1, 2].map(|c| (max[c] - min[c]).max(0.0));
     d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+}
+
+fn area(k: &Kid) -> f32 {
+    half_area(&k.min, &k.max)
 }
 
 /// Collapses `bvh` into four-wide nodes, the root first. A child slot is an inner node

@@ -67,8 +67,7 @@ fn kids_of(n: &Node4) -> impl Iterator<Item = Kid> + '_ {
 }
 
 fn area(k: &Kid) -> f32 {
-    let d = [0, 1, 2].map(|c| (k.max[c] - k.min[c]).max(0.0));
-    d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+    crate::bvh::wide::half_area(&k.min, &k.max)
 }
 
 impl Bvh8 {

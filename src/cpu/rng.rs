@@ -111,11 +111,11 @@ pub const GROUP: usize = 8;
 
 /// The random numbers of one sample of one pixel.
 ///
-/// The Sobol points of all its `QMC_SLOTS` draws are made at once, when the sampler is:
-/// hashing them draw by draw put a chain of about twenty dependent multiplications in front
-/// of every bounce (16 % of the CPU tracer's time on `weekend`), while made at once for
-/// eight pixels (`group`) they are independent work for SIMD lanes, done before the path
-/// starts. rng.wgsl makes each when drawn; the numbers are the same.
+/// The Sobol points of its first `ahead` draws are made when the sampler is: hashing them
+/// draw by draw put a chain of about twenty dependent multiplications in front of every
+/// bounce (16 % of the CPU tracer's time on `weekend`), while made at once for eight pixels
+/// (`group`) they are independent work for SIMD lanes, done before the path starts. The
+/// others, and all of them in rng.wgsl, are made when drawn; the numbers are the same.
 #[derive(Clone, Copy)]
 pub struct Rng {
     /// The points of the Sobol draws, (first, second dimension); a 1D draw is the first.
@@ -127,7 +127,8 @@ pub struct Rng {
     /// `root` and `sample_index` of the sample.
     root: u32,
     index: u32,
-    /// The PCG stream's state, for the draws after `QMC_SLOTS`.
+    /// The PCG stream's state, for the draws after `QMC_SLOTS`. Seeded at once: seeding it
+    /// at its first draw put a test in every draw, which cost showcase 6 % on the H200.
     state: u32,
 }
 
