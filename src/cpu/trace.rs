@@ -511,7 +511,8 @@ thread_local! {
 
 /// Tests only: every segment (bounce, ray) that scene `name` traces at `w`×`h` and `spp`
 /// samples per pixel, in the row loop's order (one thread), and the scene as traced.
-#[cfg(test)]
+/// (Its users, the packet and eight-wide walks, exist on x86-64 only.)
+#[cfg(all(test, target_arch = "x86_64"))]
 pub(super) fn recorded(
     name: &str,
     w: u32,
