@@ -50,6 +50,14 @@ impl Fixed {
         }
         self.samples = self.samples.wrapping_add(1);
     }
+
+    /// Adds sums made apart (another range of the same pixel's samples), as exactly.
+    pub fn merge(&mut self, o: &Fixed) {
+        for (acc, v) in self.channels.iter_mut().zip(o.channels) {
+            *acc = (*acc + v) & MASK_96;
+        }
+        self.samples = self.samples.wrapping_add(o.samples);
+    }
 }
 
 #[cfg(test)]

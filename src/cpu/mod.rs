@@ -7,8 +7,10 @@
 //! of eight pixels' samplers made at once: `rng::Rng::group`), and keeps the same exact
 //! fixed-point sums of even and odd samples in the GPU's word layout (`cpu::fixed`), so that
 //! the renderer's rounds, the snapshot, the noise estimate, `converge`, `--target-error` and
-//! the preview work unchanged on it. Its modules
-//! mirror the WGSL files: `rng`, `fixed`, `sampling`, `intersect`, `material`, `trace`.
+//! the preview work unchanged on it. A submission's rows are its tasks, or, where they are
+//! too few to keep every thread busy (the preview's small images on a many-core machine),
+//! ranges of each row's samples (`parts_per_row`). Its modules mirror the WGSL files: `rng`,
+//! `fixed`, `sampling`, `intersect`, `material`, `trace`.
 
 pub mod bvh;
 #[cfg(target_arch = "x86_64")]
@@ -112,6 +114,69 @@ fn ahead_for(drawn: &[u64]) -> usize {
     drawn.len() - 1
 }
 
+/// A range of one row's samples traced apart: the row, its pixels' (even, odd) sums, and
+/// what was counted.
+type Part = (u32, Vec<(Fixed, Fixed)>, Counters);
+
+/// Into how many sample ranges each of `rows` rows is split, so that every one of `threads`
+/// threads has several tasks (load balance: rows differ in cost) when a submission has few
+/// rows, as the preview's small images on a many-core machine do.
+fn parts_per_row(rows: usize, samples: u32, threads: usize) -> u32 {
+    const TASKS_PER_THREAD: usize = 4;
+    let want = (threads * TASKS_PER_THREAD).div_ceil(rows.max(1));
+    want.clamp(1, samples.max(1) as usize) as u32
+}
+
+/// Traces samples `samples` of every pixel of row `y`, adding them to `sums` (a pixel's even
+/// and odd halves).
+fn trace_row<const P: u32, const NEE: bool>(
+    scene: &CpuScene,
+    f: Features,
+    ahead: usize,
+    y: u32,
+    samples: std::ops::Range<u32>,
+    sums: &mut [(Fixed, Fixed)],
+) -> Counters {
+    let width = sums.len() as u32;
+    let mut t = Tracer::new(scene, f);
+    let mut c = Counters::default();
+    // Eight neighbouring pixels at a time: their camera rays are walked together where the
+    // scene allows (`Tracer::camera_hits`), each path then alone.
+    for x0 in (0..width).step_by(LANES) {
+        let n = (width - x0).min(LANES as u32) as usize;
+        let sums = &mut sums[x0 as usize..x0 as usize + n];
+        for sample in samples.clone() {
+            let pixel = |x: usize| y * width + x0 + x as u32;
+            let mut rngs: [Rng; LANES] =
+                Rng::group(&std::array::from_fn(pixel), sample, scene.u.seed, ahead);
+            let rays: [Option<Ray>; LANES] = std::array::from_fn(|x| {
+                (x < n).then(|| t.camera_ray(x0 + x as u32, y, &mut rngs[x]))
+            });
+            let first = t.camera_hits::<P>(&rays);
+            for x in 0..n {
+                let ray = rays[x].expect("a ray for every pixel of the group");
+                let known = first.map(|h| h[x]);
+                let (radiance, segments) = t.trace_path::<P, NEE>(ray, known, &mut rngs[x]);
+                c.segments += segments as u64;
+                c.drawn[rngs[x].taken() as usize] += 1;
+                if !radiance.is_finite() {
+                    c.invalid += 1;
+                    continue;
+                }
+                let half = if sample & 1 == 0 {
+                    &mut sums[x].0
+                } else {
+                    &mut sums[x].1
+                };
+                half.add(radiance.to_array());
+            }
+        }
+    }
+    c.visits = t.tally.visits;
+    c.tests = t.tally.tests;
+    c
+}
+
 impl CpuEngine {
     pub fn new(scene: &Scene, s: &FrameSettings) -> CpuEngine {
         let pixels = s.width as usize * s.height as usize;
@@ -176,72 +241,84 @@ impl CpuEngine {
         let row_words = width as usize * ACCUM_WORDS;
         let stride = d.row_stride.max(1);
         let rows = d.row_offset..(d.row_offset + d.row_count * stride).min(self.height);
+        let in_submission = |y: u32| rows.contains(&y) && (y - d.row_offset).is_multiple_of(stride);
+        let parts = parts_per_row(
+            rows.clone().step_by(stride as usize).len(),
+            d.sample_count,
+            rayon::current_num_threads(),
+        );
         let scene = &self.scene;
         let ahead = self.ahead;
-        self.even
+        let trace = |y: u32, samples: std::ops::Range<u32>, sums: &mut [(Fixed, Fixed)]| {
+            trace_row::<P, NEE>(scene, f, ahead, y, samples, sums)
+        };
+        // The rows of this submission, with their words in each half.
+        let rows_words = self
+            .even
             .par_chunks_mut(row_words)
             .zip(self.odd.par_chunks_mut(row_words))
             .enumerate()
-            .filter(|(y, _)| {
-                let y = *y as u32;
-                rows.contains(&y) && (y - d.row_offset).is_multiple_of(stride)
-            })
-            .map(|(y, (even, odd))| {
-                let mut t = Tracer::new(scene, f);
-                let mut c = Counters::default();
-                let y = y as u32;
-                // Eight neighbouring pixels at a time: their camera rays are walked together
-                // where the scene allows (`Tracer::camera_hits`), each path then alone.
-                for x0 in (0..width).step_by(LANES) {
-                    let n = (width - x0).min(LANES as u32) as usize;
-                    let words = |x: usize| {
-                        let p = x0 as usize + x;
-                        p * ACCUM_WORDS..(p + 1) * ACCUM_WORDS
-                    };
-                    let mut sums: [(Fixed, Fixed); LANES] = Default::default();
+            .filter(|(y, _)| in_submission(*y as u32))
+            .map(|(y, halves)| (y as u32, halves));
+        let load = |words: (&mut [u32], &mut [u32])| -> Vec<(Fixed, Fixed)> {
+            (0..width as usize)
+                .map(|x| {
+                    let at = x * ACCUM_WORDS..(x + 1) * ACCUM_WORDS;
                     if d.accumulate != 0 {
-                        for (x, s) in sums.iter_mut().enumerate().take(n) {
-                            *s = (Fixed::load(&even[words(x)]), Fixed::load(&odd[words(x)]));
-                        }
+                        (Fixed::load(&words.0[at.clone()]), Fixed::load(&words.1[at]))
+                    } else {
+                        Default::default()
                     }
-                    for i in 0..d.sample_count {
-                        let sample = d.sample_base + i;
-                        let pixel = |x: usize| y * width + x0 + x as u32;
-                        let mut rngs: [Rng; LANES] =
-                            Rng::group(&std::array::from_fn(pixel), sample, scene.u.seed, ahead);
-                        let rays: [Option<Ray>; LANES] = std::array::from_fn(|x| {
-                            (x < n).then(|| t.camera_ray(x0 + x as u32, y, &mut rngs[x]))
-                        });
-                        let first = t.camera_hits::<P>(&rays);
-                        for x in 0..n {
-                            let ray = rays[x].expect("a ray for every pixel of the group");
-                            let known = first.map(|h| h[x]);
-                            let (radiance, segments) =
-                                t.trace_path::<P, NEE>(ray, known, &mut rngs[x]);
-                            c.segments += segments as u64;
-                            c.drawn[rngs[x].taken() as usize] += 1;
-                            if !radiance.is_finite() {
-                                c.invalid += 1;
-                                continue;
-                            }
-                            let half = if sample & 1 == 0 {
-                                &mut sums[x].0
-                            } else {
-                                &mut sums[x].1
-                            };
-                            half.add(radiance.to_array());
-                        }
-                    }
-                    for (x, (e, o)) in sums.iter().enumerate().take(n) {
-                        e.store(&mut even[words(x)]);
-                        o.store(&mut odd[words(x)]);
-                    }
-                }
-                c.visits = t.tally.visits;
-                c.tests = t.tally.tests;
-                c
+                })
+                .collect()
+        };
+        let store = |sums: &[(Fixed, Fixed)], words: (&mut [u32], &mut [u32])| {
+            for (x, (e, o)) in sums.iter().enumerate() {
+                let at = x * ACCUM_WORDS..(x + 1) * ACCUM_WORDS;
+                e.store(&mut words.0[at.clone()]);
+                o.store(&mut words.1[at]);
+            }
+        };
+        if parts == 1 {
+            // A task per row, its sums added to in place.
+            return rows_words
+                .map(|(y, (e, o))| {
+                    let mut sums = load((&mut *e, &mut *o));
+                    let c = trace(y, d.sample_base..d.sample_base + d.sample_count, &mut sums);
+                    store(&sums, (e, o));
+                    c
+                })
+                .reduce(Counters::default, |a, b| a + b);
+        }
+        // Fewer rows than the threads need: each row's samples split into `parts` ranges,
+        // traced into sums of their own, then added to the row's. The sums are exact integers,
+        // so the image is the same bit for bit however the samples are split.
+        let ys: Vec<u32> = rows.clone().step_by(stride as usize).collect();
+        let traced: Vec<Part> = (0..ys.len() * parts as usize)
+            .into_par_iter()
+            .map(|i| {
+                let (y, k) = (ys[i / parts as usize], (i % parts as usize) as u32);
+                let range = |k: u32| d.sample_base + d.sample_count * k / parts;
+                let mut sums = vec![(Fixed::default(), Fixed::default()); width as usize];
+                let c = trace(y, range(k)..range(k + 1), &mut sums);
+                (y, sums, c)
             })
-            .reduce(Counters::default, |a, b| a + b)
+            .collect();
+        let counters = traced.iter().fold(Counters::default(), |a, t| a + t.2);
+        let by_row: Vec<&[Part]> = traced.chunks(parts as usize).collect();
+        rows_words.for_each(|(y, (e, o))| {
+            let part = by_row[((y - d.row_offset) / stride) as usize];
+            debug_assert!(part.iter().all(|t| t.0 == y));
+            let mut sums = load((&mut *e, &mut *o));
+            for (_, p, _) in part {
+                for (s, q) in sums.iter_mut().zip(p) {
+                    s.0.merge(&q.0);
+                    s.1.merge(&q.1);
+                }
+            }
+            store(&sums, (e, o));
+        });
+        counters
     }
 
     /// The sums on the host, as the GPU's readback gives them.
@@ -324,6 +401,43 @@ impl CpuEngine {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rows_split_into_sample_ranges_sum_to_the_same_words() {
+        let scene = Scene::load("showcase").unwrap();
+        let settings = FrameSettings::new(20, 6, scene.render.max_bounces, 1);
+        let f = Features::of(&scene);
+        let dispatch = |sample_base, sample_count, accumulate| DispatchUniforms {
+            sample_base,
+            sample_count,
+            row_offset: 0,
+            row_count: 6,
+            accumulate,
+            lanes: 1,
+            row_stride: 1,
+            _pad: 0,
+        };
+        // Three samples, then nine more added to them, on `threads` threads.
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut e = CpuEngine::new(&scene, &settings);
+            pool.install(|| {
+                e.run(&dispatch(0, 3, 0), f);
+                e.run(&dispatch(3, 9, 1), f);
+            });
+            (e.even, e.odd, e.counters.segments, e.counters.drawn)
+        };
+        // One thread: a task per row; sixteen: each row's samples in three and in nine parts.
+        assert_eq!(parts_per_row(6, 9, 1), 1);
+        assert_eq!(parts_per_row(6, 3, 16), 3);
+        assert_eq!(parts_per_row(6, 9, 16), 9);
+        let (one, many) = (run(1), run(16));
+        assert!(one.2 > 0);
+        assert!(one == many, "the split rows' sums differ");
+    }
 
     #[test]
     fn points_are_made_ahead_for_the_draws_a_quarter_of_the_paths_take() {
