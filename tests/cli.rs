@@ -243,6 +243,19 @@ fn adapters_lists_at_least_one_and_the_cpu_tracer() {
 }
 
 #[test]
+fn threads_size_the_cpu_tracer_and_zero_is_refused() {
+    let (code, out, err) = run(termtrace().args(["--threads", "3", "adapters"]));
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("CPU tracer (3 threads,"), "{out}");
+    let (code, out, err) = run(termtrace().arg("adapters").env("TERMTRACE_THREADS", "1"));
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("CPU tracer (1 thread,"), "{out}");
+    let (code, _, err) = run(termtrace().args(["render", "basic", "--threads", "0"]));
+    assert_eq!(code, 2);
+    assert!(err.contains("--threads"), "{err}");
+}
+
+#[test]
 fn an_unknown_adapter_is_a_clear_error() {
     let (code, _, err) = run(termtrace().args([
         "render",

@@ -35,6 +35,11 @@ pub struct GlobalArgs {
     /// best adapter is a software one or there is none.
     #[arg(long, global = true, env = "TERMTRACE_ADAPTER", value_name = "NAME")]
     pub adapter: Option<String>,
+    /// Threads of the native CPU tracer and of the host's parallel work (on a shared machine,
+    /// fewer than its cores). Default: one per core.
+    #[arg(long, global = true, env = "TERMTRACE_THREADS", value_name = "N",
+          value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub threads: Option<u32>,
     /// Write logs to this file.
     #[arg(long, global = true, value_name = "FILE")]
     pub log: Option<PathBuf>,
@@ -176,6 +181,16 @@ pub fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    if let Some(n) = cli.global.threads {
+        // Before anything runs on rayon's global pool, which this sizes.
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n as usize)
+            .build_global()
+        {
+            eprintln!("error: cannot start {n} threads: {e}");
+            return ExitCode::FAILURE;
+        }
+    }
     let is_view = matches!(cli.command, None | Some(Command::View(_)));
     if let Err(e) = init_logging(&cli.global, !is_view) {
         eprintln!("error: {e:#}");

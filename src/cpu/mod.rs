@@ -46,10 +46,18 @@ pub const ADAPTER_NAME: &str = "cpu-native";
 /// One line naming the CPU tracer and the threads it runs on.
 pub fn describe() -> String {
     format!(
-        "termtrace native CPU tracer ({} threads, {})",
-        rayon::current_num_threads(),
+        "termtrace native CPU tracer ({}, {})",
+        threads(),
         std::env::consts::ARCH
     )
+}
+
+/// "1 thread", "16 threads": what the CPU tracer runs on (`--threads`).
+pub fn threads() -> String {
+    match rayon::current_num_threads() {
+        1 => "1 thread".into(),
+        n => format!("{n} threads"),
+    }
 }
 
 /// Counters of one submission or since a reset (as the GPU's counters buffer holds them).

@@ -640,7 +640,7 @@ fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
             let short = ctx.info.name.split(" (").next().unwrap_or(&ctx.info.name);
             format!("{short} ({:?})", ctx.info.backend)
         }
-        Backend::Cpu => format!("CPU ({} threads)", rayon::current_num_threads()),
+        Backend::Cpu => format!("CPU ({})", crate::cpu::threads()),
     };
     let color = opts.color.unwrap_or_else(|| {
         ColorMode::detect(
