@@ -208,3 +208,30 @@ fn samples_traced_on_several_lanes_sum_to_the_same_accumulation() {
         }
     }
 }
+
+#[test]
+fn the_tuner_times_whole_rounds_taken_in_several_submissions() {
+    use termtrace::render::{Backend, Renderer};
+    // Submissions of a few rows each (a 1 µs target: each takes the fewest paths one may,
+    // 16 of 64 rows here), as a large image on a slow adapter has them: the tuner must time
+    // rounds made of several, and still come to a choice.
+    let scene = Scene::load("basic").unwrap();
+    let options = RenderOptions {
+        submission: std::time::Duration::from_micros(1),
+        ..Default::default()
+    };
+    let mut r = Renderer::new(Backend::Gpu(ctx()), &scene, settings(256, 64, 8), options);
+    let mut submissions = 0;
+    while r.tuned().is_none() && submissions < 400 {
+        r.submit(u32::MAX).expect("samples left");
+        r.wait(0);
+        submissions += 1;
+    }
+    let (_, (special, generic)) = r.tuned().expect("a choice within 400 submissions");
+    assert!(special > 0.0 && special.is_finite(), "{special}");
+    assert!(generic > 0.0 && generic.is_finite(), "{generic}");
+    // Five rounds of each at least, of one sample per pixel, each in several submissions.
+    eprintln!("{submissions} submissions, {} samples", r.samples());
+    assert!(r.samples() >= 10, "{} samples", r.samples());
+    assert!(submissions >= 2 * r.samples(), "{submissions} submissions");
+}

@@ -197,6 +197,19 @@ struct Round {
     /// 1: submissions take contiguous rows from `next_row` on; n > 1: each takes every n-th
     /// row from `next_row` (the first look), and the round ends when `next_row` reaches n.
     stride: u32,
+    /// The tuner's candidate this round is timing, and the round's number.
+    trial: Option<(usize, u64)>,
+}
+
+/// A round being timed for the tuner: its candidate and number, the paths and GPU seconds of
+/// its submissions so far, and whether all of them used the candidate's pipeline.
+#[derive(Clone, Copy)]
+struct Trial {
+    candidate: usize,
+    round: u64,
+    paths: u64,
+    seconds: f64,
+    uniform: bool,
 }
 
 /// A submission the GPU has not finished (the CPU's finish before `submit` returns).
@@ -207,6 +220,10 @@ struct InFlight {
     features: Features,
     paths: u64,
     submitted: Instant,
+    /// The tuner's (candidate, round number) where the round is timed, and whether this is
+    /// the round's last submission.
+    trial: Option<(usize, u64)>,
+    ends_round: bool,
 }
 
 pub struct Renderer {
@@ -223,6 +240,11 @@ pub struct Renderer {
     in_flight: VecDeque<InFlight>,
     /// Timing the specialized pipeline against the generic one, until one is chosen.
     tune: Option<tune::Tune>,
+    /// The round being timed, as its submissions finish; rounds are numbered by `rounds`.
+    trial: Option<Trial>,
+    rounds: u64,
+    /// The first round the current tuner gave out (rounds before it timed an older one).
+    tune_from: u64,
     /// When the GPU last finished a submission (as seen by `wait`).
     last_done: Instant,
 }
@@ -252,6 +274,9 @@ impl Renderer {
             fresh: true,
             in_flight: VecDeque::new(),
             tune: None,
+            trial: None,
+            rounds: 0,
+            tune_from: 0,
             last_done: Instant::now(),
         };
         r.retune();
@@ -260,11 +285,9 @@ impl Renderer {
 
     /// Starts timing the specialized pipeline against the generic one, where they differ.
     /// Not on the CPU tracer: there both are monomorphizations of one Rust function, with no
-    /// driver between the code and the machine to surprise, and the submissions the tuner
-    /// compares trace different rows, whose costs differ by more than its margin (weekend
-    /// 1280×720: 190 against 170 ns/path for the same code), so it chose at random; the
-    /// specialized CPU tracer is measured at least as fast as the generic one on every
-    /// shipped scene instead (BENCHMARKS.md).
+    /// driver between the code and the machine to surprise, and the specialized CPU tracer is
+    /// measured at least as fast as the generic one on every shipped scene instead
+    /// (BENCHMARKS.md).
     fn retune(&mut self) {
         let generic = self.generic_features();
         self.tune = (!self.options.generic
@@ -273,6 +296,8 @@ impl Renderer {
             && !matches!(self.engine, Engine::Cpu(_))
             && self.features != generic)
             .then(|| tune::Tune::new(self.features, generic));
+        self.trial = None;
+        self.tune_from = self.rounds + 1;
     }
 
     /// The tuner's outcome: the pipeline chosen and the seconds per path measured of the
@@ -362,6 +387,58 @@ impl Renderer {
     }
 
     /// Starts the accumulation afresh on the next submission.
+    /// A new round of `k` samples per pixel (`stride` as in `Round`), timing the tuner's next
+    /// candidate while it has not chosen.
+    fn start_round(&mut self, k: u32, stride: u32) -> Round {
+        self.rounds += 1;
+        let trial = self
+            .tune
+            .as_mut()
+            .and_then(tune::Tune::start_round)
+            .map(|i| (i, self.rounds));
+        Round {
+            k,
+            next_row: 0,
+            stride,
+            trial,
+        }
+    }
+
+    /// Adds finished submission `f` to the round it times; a whole round is the tuner's
+    /// trial. Rounds shorter than half a submission's target are mostly fixed cost and would
+    /// not tell the pipelines apart; a round cut short by a reset, or traced partly by the
+    /// other pipeline while its own compiled, does not count either.
+    fn time_trial(&mut self, f: &InFlight, took: Duration) {
+        let (Some(t), Some((candidate, round))) = (&mut self.tune, f.trial) else {
+            return;
+        };
+        if round < self.tune_from {
+            return;
+        }
+        if let Some(old) = self.trial.filter(|o| o.round != round) {
+            t.refund(old.candidate);
+            self.trial = None;
+        }
+        let trial = self.trial.get_or_insert(Trial {
+            candidate,
+            round,
+            paths: 0,
+            seconds: 0.0,
+            uniform: true,
+        });
+        trial.paths += f.paths;
+        trial.seconds += took.as_secs_f64();
+        trial.uniform &= f.features == t.candidate(candidate);
+        if f.ends_round {
+            let done = self.trial.take().expect("the trial just added to");
+            if done.uniform && done.seconds >= self.schedule.target.as_secs_f64() / 2.0 {
+                t.record(done.candidate, done.paths, done.seconds);
+            } else {
+                t.refund(done.candidate);
+            }
+        }
+    }
+
     pub fn reset(&mut self) {
         self.samples = 0;
         self.round = None;
@@ -377,11 +454,11 @@ impl Renderer {
         self.options.generic_features()
     }
 
-    /// The pipeline the next submission uses: the tuner's pick (or the scene's own) when
-    /// compiled; else, when compiling in the background, whichever of the scene's own and the
-    /// generic one is ready (they render the same image); else compiled now.
-    fn pipeline_features(&mut self) -> Features {
-        let want = self.tune.as_ref().map_or(self.features, tune::Tune::next);
+    /// The pipeline the next submission uses: `want` (the round's candidate, the tuner's
+    /// choice or the scene's own) when compiled; else, when compiling in the background,
+    /// whichever of the scene's own and the generic one is ready (they render the same
+    /// image); else compiled now.
+    fn pipeline_features(&mut self, want: Features) -> Features {
         let generic = self.generic_features();
         let Engine::Gpu(g) = &mut self.engine else {
             return want;
@@ -429,24 +506,24 @@ impl Renderer {
             return None;
         }
         let (w, h) = (self.settings.width, self.settings.height);
-        let features = self.pipeline_features();
         let round = match self.round {
             Some(r) => r,
             // The first round after a reset takes one sample, so that a first image exists
             // as soon as possible.
-            None if self.fresh => Round {
-                k: 1,
-                next_row: 0,
-                stride: if self.options.first_look { 2 } else { 1 },
-            },
-            None => Round {
-                k: self
+            None if self.fresh => self.start_round(1, if self.options.first_look { 2 } else { 1 }),
+            None => {
+                let k = self
                     .schedule
-                    .samples_per_round(w, h, max_samples - self.samples),
-                next_row: 0,
-                stride: 1,
-            },
+                    .samples_per_round(w, h, max_samples - self.samples);
+                self.start_round(k, 1)
+            }
         };
+        let want = match (round.trial, &self.tune) {
+            (Some((i, _)), Some(t)) => t.candidate(i),
+            (None, Some(t)) => t.chosen().unwrap_or(self.features),
+            _ => self.features,
+        };
+        let features = self.pipeline_features(want);
         let rows = if round.stride > 1 {
             (h - round.next_row).div_ceil(round.stride)
         } else {
@@ -472,18 +549,20 @@ impl Renderer {
                 (None, Some(start.elapsed()))
             }
         };
+        let (next_row, end) = if round.stride > 1 {
+            (round.next_row + 1, round.stride.min(h))
+        } else {
+            (round.next_row + rows, h)
+        };
         self.in_flight.push_back(InFlight {
             index,
             took,
             features,
             paths,
             submitted: Instant::now(),
+            trial: round.trial,
+            ends_round: next_row >= end,
         });
-        let (next_row, end) = if round.stride > 1 {
-            (round.next_row + 1, round.stride.min(h))
-        } else {
-            (round.next_row + rows, h)
-        };
         if next_row >= end {
             self.samples += round.k;
             self.round = None;
@@ -500,7 +579,7 @@ impl Renderer {
     pub fn wait(&mut self, keep: usize) {
         while self.in_flight.len() > keep {
             let f = self.in_flight.pop_front().expect("a submission in flight");
-            if let (Engine::Gpu(g), Some(index)) = (&self.engine, f.index) {
+            if let (Engine::Gpu(g), Some(index)) = (&self.engine, f.index.clone()) {
                 g.ctx
                     .device
                     .poll(wgpu::PollType::Wait {
@@ -514,13 +593,7 @@ impl Renderer {
                 .took
                 .unwrap_or_else(|| now - f.submitted.max(self.last_done));
             self.schedule.observe(f.paths, took);
-            // Short submissions are mostly fixed cost: they would not tell the pipelines
-            // apart.
-            if let Some(t) = &mut self.tune
-                && took >= self.schedule.target / 2
-            {
-                t.observe(f.features, f.paths, took.as_secs_f64());
-            }
+            self.time_trial(&f, took);
             tracing::debug!(
                 "submission of {} paths took {:.2} ms ({} queued behind it)",
                 f.paths,

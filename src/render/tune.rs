@@ -8,14 +8,19 @@
 //! module scope every specialized pipeline measured is as fast as the generic one or faster
 //! (H200 1.07–1.23×, lavapipe 1.0–2.9×). The tuner stays as the guard: both pipelines render
 //! the same image bit for bit (tests/specialization.rs), so the choice can be measured rather
-//! than assumed, as cuDNN's autotuner chooses among equivalent kernels: the first submissions
+//! than assumed, as cuDNN's autotuner chooses among equivalent kernels: the first rounds
 //! alternate between the two, and the generic one is kept only if it is clearly (3 %) faster
 //! per path. A scene's default tracer is then never slower than the generic one by more than
 //! the noise.
+//!
+//! The unit of a trial is a round (a number of samples of every pixel), not a submission: a
+//! large image on a slow adapter takes a round in several submissions of a few rows each, and
+//! rows differ in cost (sky against ground: weekend's differ by 2×), so submissions of
+//! different rows compared the rows as much as the pipelines. A round traces every row.
 
 use crate::gpu::Features;
 
-/// Timed submissions of each candidate before choosing.
+/// Timed rounds of each candidate before choosing.
 const TRIALS: u32 = 5;
 /// The generic pipeline must be this much faster per path to be chosen.
 const MARGIN: f64 = 0.03;
@@ -24,9 +29,11 @@ const MARGIN: f64 = 0.03;
 pub struct Tune {
     /// [specialized, generic].
     candidates: [Features; 2],
-    /// The fastest seconds per path seen of each.
+    /// The fastest seconds per path seen of each, over whole rounds.
     best: [f64; 2],
     trials: [u32; 2],
+    /// Rounds given to each and not refunded (`start_round`, `refund`).
+    assigned: [u32; 2],
 }
 
 impl Tune {
@@ -35,6 +42,7 @@ impl Tune {
             candidates: [specialized, generic],
             best: [f64::INFINITY; 2],
             trials: [0; 2],
+            assigned: [0; 2],
         }
     }
 
@@ -49,24 +57,36 @@ impl Tune {
         })
     }
 
-    /// The pipeline for the next submission: the chosen one, or the one timed less so far.
-    pub fn next(&self) -> Features {
-        self.chosen().unwrap_or(if self.trials[1] < self.trials[0] {
-            self.candidates[1]
-        } else {
-            self.candidates[0]
-        })
+    /// A round is about to start: the candidate to time on it (given fewer rounds so far),
+    /// or None once the choice is made. Every submission of the round should use it.
+    pub fn start_round(&mut self) -> Option<usize> {
+        if self.chosen().is_some() {
+            return None;
+        }
+        let i = usize::from(self.assigned[1] < self.assigned[0]);
+        self.assigned[i] += 1;
+        Some(i)
     }
 
-    /// A submission with `features` traced `paths` paths in `seconds` on the GPU.
-    pub fn observe(&mut self, features: Features, paths: u64, seconds: f64) {
-        if paths == 0 || self.chosen().is_some() {
+    /// Candidate `i`'s pipeline.
+    pub fn candidate(&self, i: usize) -> Features {
+        self.candidates[i]
+    }
+
+    /// A round of candidate `i` traced `paths` paths in `seconds` on the GPU, all of them
+    /// with its pipeline.
+    pub fn record(&mut self, i: usize, paths: u64, seconds: f64) {
+        if self.chosen().is_some() || paths == 0 {
             return;
         }
-        if let Some(i) = self.candidates.iter().position(|&c| c == features) {
-            self.best[i] = self.best[i].min(seconds / paths as f64);
-            self.trials[i] += 1;
-        }
+        self.best[i] = self.best[i].min(seconds / paths as f64);
+        self.trials[i] += 1;
+    }
+
+    /// A round of candidate `i` that does not count (cut short by a reset, too short to
+    /// time, or partly traced by the other pipeline while this one compiled): `i` is owed it.
+    pub fn refund(&mut self, i: usize) {
+        self.assigned[i] = self.assigned[i].saturating_sub(1);
     }
 
     /// Seconds per path of (specialized, generic), the fastest seen.
@@ -88,29 +108,73 @@ mod tests {
         (special, generic)
     }
 
+    /// Times `rounds` rounds, each of `parts` submissions whose costs per path are
+    /// `row_cost(part)` times the candidate's `per_path`.
+    fn time_rounds(t: &mut Tune, rounds: u32, parts: u32, per_path: impl Fn(Features) -> f64) {
+        let row_cost = |part: u32| if part.is_multiple_of(2) { 1.0 } else { 3.0 };
+        for _ in 0..rounds {
+            let Some(i) = t.start_round() else { return };
+            let seconds: f64 = (0..parts)
+                .map(|p| 1000.0 * per_path(t.candidate(i)) * row_cost(p))
+                .sum();
+            t.record(i, 1000 * parts as u64, seconds);
+        }
+    }
+
     #[test]
     fn both_are_timed_then_the_clearly_faster_one_is_kept() {
         let (s, g) = pair();
         let mut t = Tune::new(s, g);
-        for _ in 0..TRIALS {
-            let f = t.next();
-            // The generic pipeline takes 20 % less time per path.
-            t.observe(f, 1000, if f == g { 0.8e-3 } else { 1e-3 });
-            let f = t.next();
-            t.observe(f, 1000, if f == g { 0.8e-3 } else { 1e-3 });
-        }
+        // The generic pipeline takes 20 % less time per path.
+        time_rounds(
+            &mut t,
+            2 * TRIALS,
+            1,
+            |f| if f == g { 0.8e-6 } else { 1e-6 },
+        );
         assert_eq!(t.chosen(), Some(g));
-        assert_eq!(t.next(), g);
+        assert_eq!(t.start_round(), None);
     }
 
     #[test]
     fn within_the_margin_the_specialized_one_stays() {
         let (s, g) = pair();
         let mut t = Tune::new(s, g);
-        for _ in 0..2 * TRIALS {
-            let f = t.next();
-            t.observe(f, 1000, if f == g { 0.99e-3 } else { 1e-3 });
-        }
+        time_rounds(
+            &mut t,
+            2 * TRIALS,
+            1,
+            |f| if f == g { 0.99e-6 } else { 1e-6 },
+        );
         assert_eq!(t.chosen(), Some(s));
+    }
+
+    #[test]
+    fn rounds_of_cheap_and_dear_rows_compare_the_pipelines_not_the_rows() {
+        // Four submissions a round, rows alternately 1× and 3× as costly; the generic
+        // pipeline 5 % faster. Had the candidates alternated by submission, the specialized
+        // one would have had the cheap rows and looked 2.9× faster.
+        let (s, g) = pair();
+        let mut t = Tune::new(s, g);
+        time_rounds(
+            &mut t,
+            2 * TRIALS,
+            4,
+            |f| if f == g { 0.95e-6 } else { 1e-6 },
+        );
+        assert_eq!(t.chosen(), Some(g));
+        let (special, generic) = t.measured();
+        assert!((generic / special - 0.95).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_refunded_round_is_given_again() {
+        let (s, g) = pair();
+        let mut t = Tune::new(s, g);
+        assert_eq!(t.start_round(), Some(0));
+        t.refund(0);
+        assert_eq!(t.start_round(), Some(0));
+        assert_eq!(t.start_round(), Some(1));
+        assert_eq!(t.start_round(), Some(0));
     }
 }
