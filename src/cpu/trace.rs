@@ -35,6 +35,8 @@ pub const LANES: usize = 8;
 /// A BVH reference's primitive index (its kind in the top two bits).
 pub(super) const INDEX: u32 = 0x3fff_ffff;
 pub(super) const T_FAR: f32 = 3.0e38;
+/// No primitive (a reference no scene has: the 2^30-th triangle).
+const NONE: u32 = u32::MAX;
 const RR_START: u32 = 3;
 const RR_MAX_SURVIVAL: f32 = 0.95;
 const LOCAL_SELECTION_MAX: u32 = 32;
@@ -60,6 +62,23 @@ pub(super) fn hit_primitive<const P: u32>(s: &CpuScene, r: u32, ray: &Ray, t_max
         2 => hit_box(&s.boxes[i], ray, t_max),
         _ => hit_triangle(&s.triangles[i], ray, t_max),
     }
+}
+
+/// `hit_primitive`, but NO_HIT for primitive `skip` (counted in `skipped`).
+#[inline(always)]
+fn hit_except<const P: u32>(
+    s: &CpuScene,
+    r: u32,
+    ray: &Ray,
+    t_max: f32,
+    skip: u32,
+    skipped: &mut u64,
+) -> f32 {
+    if r == skip {
+        *skipped += 1;
+        return NO_HIT;
+    }
+    hit_primitive::<P>(s, r, ray, t_max)
 }
 
 fn power_heuristic(a: f32, b: f32) -> f32 {
@@ -133,12 +152,14 @@ impl<'a> Tracer<'a> {
         (0..4u32).flat_map(move |k| (0..counts[k as usize] as u32).map(move |i| k << 30 | i))
     }
 
+    /// The nearest hit of `ray`, primitive `skip` left out (the one the ray leaves, where it
+    /// cannot be hit again: `NONE` for none).
     #[inline(always)]
-    fn intersect<const P: u32>(&mut self, ray: &Ray) -> Option<Hit> {
+    fn intersect<const P: u32>(&mut self, ray: &Ray, skip: u32) -> Option<Hit> {
         let s = self.s;
         if !self.f.bvh {
             let mut best: Option<Hit> = None;
-            for r in self.all_refs() {
+            for r in self.all_refs().filter(|&r| r != skip) {
                 let t = hit_primitive::<P>(s, r, ray, best.map_or(T_FAR, |h| h.t));
                 if t > 0.0 {
                     best = Some(Hit { t, r });
@@ -146,10 +167,13 @@ impl<'a> Tracer<'a> {
             }
             return best;
         }
+        // Walks count the primitives of the leaves they enter as tested; the one skipped is
+        // not.
+        let mut skipped = 0;
         #[cfg(target_arch = "x86_64")]
         if let Some(b8) = &s.bvh8 {
             // SAFETY: `bvh8` exists only where the CPU has AVX.
-            return unsafe {
+            let hit = unsafe {
                 b8.closest(
                     &s.bvh.refs,
                     ray,
@@ -157,21 +181,22 @@ impl<'a> Tracer<'a> {
                     &mut self.tally,
                     &mut self.stack8,
                     #[inline(always)]
-                    |r, t| hit_primitive::<P>(s, r, ray, t),
+                    |r, t| hit_except::<P>(s, r, ray, t, skip, &mut skipped),
                 )
-            }
-            .map(|(t, r)| Hit { t, r });
+            };
+            self.tally.tests -= skipped;
+            return hit.map(|(t, r)| Hit { t, r });
         }
-        s.bvh
-            .closest(
-                ray,
-                T_FAR,
-                &mut self.tally,
-                &mut self.stack,
-                #[inline(always)]
-                |r, t| hit_primitive::<P>(s, r, ray, t),
-            )
-            .map(|(t, r)| Hit { t, r })
+        let hit = s.bvh.closest(
+            ray,
+            T_FAR,
+            &mut self.tally,
+            &mut self.stack,
+            #[inline(always)]
+            |r, t| hit_except::<P>(s, r, ray, t, skip, &mut skipped),
+        );
+        self.tally.tests -= skipped;
+        hit.map(|(t, r)| Hit { t, r })
     }
 
     /// Whether anything but primitive `skip` lies on the ray before t_max.
@@ -418,6 +443,8 @@ impl<'a> Tracer<'a> {
         let mut prev_point = ray.origin;
         let mut prev_normal = Vec3A::Y;
         let mut bounce = 0;
+        // The primitive the ray leaves, where it cannot meet it again.
+        let mut skip = NONE;
         while bounce <= u.max_bounces {
             segments += 1;
             #[cfg(test)]
@@ -428,7 +455,7 @@ impl<'a> Tracer<'a> {
             });
             let found = match first.take() {
                 Some(known) => known.map(|(t, r)| Hit { t, r }),
-                None => self.intersect::<P>(&ray),
+                None => self.intersect::<P>(&ray, skip),
             };
             let Some(hit) = found else {
                 radiance += throughput * self.sky(ray.dir);
@@ -486,10 +513,19 @@ impl<'a> Tracer<'a> {
                 }
                 throughput /= q;
             }
-            let side = if sc.dir.dot(n_out) > 0.0 {
-                n_out
-            } else {
-                -n_out
+            let out = sc.dir.dot(n_out) > 0.0;
+            let side = if out { n_out } else { -n_out };
+            // A ray leaving a plane, or a convex primitive outward, cannot meet it again (in
+            // exact arithmetic: in floating point the test could only find the surface it
+            // starts on, which the offset below is there to avoid), so its test is skipped.
+            // A sphere's normal points inward where its radius is negative (a hollow one).
+            skip = match hit.r >> 30 {
+                0 => {
+                    let outward = self.s.spheres[(hit.r & INDEX) as usize].radius > 0.0;
+                    if out == outward { hit.r } else { NONE }
+                }
+                2 if !out => NONE,
+                _ => hit.r,
             };
             ray = Ray {
                 origin: offset_ray(point.position, side),
