@@ -211,27 +211,42 @@ fn samples_traced_on_several_lanes_sum_to_the_same_accumulation() {
 
 #[test]
 fn the_tuner_times_whole_rounds_taken_in_several_submissions() {
+    use std::collections::BTreeMap;
     use termtrace::render::{Backend, Renderer};
     // Submissions of a few rows each (a 1 µs target: each takes the fewest paths one may,
-    // 16 of 64 rows here), as a large image on a slow adapter has them: the tuner must time
-    // rounds made of several, and still come to a choice.
+    // 16 of 64 rows here), as a large image on a slow adapter has them: every submission of
+    // a round must use the round's pipeline, both pipelines must be timed, and a choice come.
     let scene = Scene::load("basic").unwrap();
     let options = RenderOptions {
         submission: std::time::Duration::from_micros(1),
         ..Default::default()
     };
     let mut r = Renderer::new(Backend::Gpu(ctx()), &scene, settings(256, 64, 8), options);
-    let mut submissions = 0;
-    while r.tuned().is_none() && submissions < 400 {
+    // The pipelines of each round's submissions, by the samples done before the round.
+    let mut rounds: BTreeMap<u32, Vec<_>> = BTreeMap::new();
+    while r.tuned().is_none() && rounds.len() < 100 {
+        let before = r.samples();
         r.submit(u32::MAX).expect("samples left");
+        rounds
+            .entry(before)
+            .or_default()
+            .push(r.last_pipeline().unwrap());
         r.wait(0);
-        submissions += 1;
     }
-    let (_, (special, generic)) = r.tuned().expect("a choice within 400 submissions");
+    let (chosen, (special, generic)) = r.tuned().expect("a choice within 100 rounds");
     assert!(special > 0.0 && special.is_finite(), "{special}");
     assert!(generic > 0.0 && generic.is_finite(), "{generic}");
-    // Five rounds of each at least, of one sample per pixel, each in several submissions.
-    eprintln!("{submissions} submissions, {} samples", r.samples());
-    assert!(r.samples() >= 10, "{} samples", r.samples());
-    assert!(submissions >= 2 * r.samples(), "{submissions} submissions");
+    for (samples, pipelines) in &rounds {
+        assert!(
+            pipelines.len() > 1,
+            "round at {samples} spp: one submission"
+        );
+        assert!(
+            pipelines.iter().all(|p| *p == pipelines[0]),
+            "round at {samples} spp mixes pipelines"
+        );
+    }
+    let timed: Vec<_> = rounds.values().map(|p| p[0]).collect();
+    assert!(timed.contains(&r.features()) && timed.iter().any(|p| *p != r.features()));
+    assert!(chosen == r.features() || timed.contains(&chosen));
 }

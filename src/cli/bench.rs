@@ -36,7 +36,9 @@ pub struct BenchArgs {
     /// Seconds to measure (after a warm-up).
     #[arg(long, default_value_t = 10.0)]
     pub time: f64,
-    /// Seconds of warm-up (pipeline compilation, submission sizing).
+    /// Seconds of warm-up (pipeline compilation, submission sizing); it goes on until the
+    /// tuner has chosen between the specialized and the generic pipeline, for at most a
+    /// minute more (a large image on a slow adapter times seconds-long rounds).
     #[arg(long, default_value_t = 2.0)]
     pub warmup: f64,
     /// Measure the generic tracer instead of the specialized one.
@@ -123,7 +125,9 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let mut r = Renderer::new(ctx.clone(), &scene, settings, options);
     let prepare = prepare.elapsed();
     let warm = Instant::now();
-    while warm.elapsed().as_secs_f64() < a.warmup {
+    while warm.elapsed().as_secs_f64() < a.warmup
+        || (r.tuning() && warm.elapsed().as_secs_f64() < a.warmup + 60.0)
+    {
         r.step(Duration::from_millis(200), u32::MAX);
     }
     r.reset();

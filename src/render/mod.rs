@@ -245,6 +245,8 @@ pub struct Renderer {
     rounds: u64,
     /// The first round the current tuner gave out (rounds before it timed an older one).
     tune_from: u64,
+    /// The pipeline of the latest submission.
+    last_pipeline: Option<Features>,
     /// When the GPU last finished a submission (as seen by `wait`).
     last_done: Instant,
 }
@@ -277,6 +279,7 @@ impl Renderer {
             trial: None,
             rounds: 0,
             tune_from: 0,
+            last_pipeline: None,
             last_done: Instant::now(),
         };
         r.retune();
@@ -298,6 +301,17 @@ impl Renderer {
             .then(|| tune::Tune::new(self.features, generic));
         self.trial = None;
         self.tune_from = self.rounds + 1;
+    }
+
+    /// The pipeline the latest submission used (the scene's own, the generic one, or the
+    /// candidate a round times).
+    pub fn last_pipeline(&self) -> Option<Features> {
+        self.last_pipeline
+    }
+
+    /// Whether the tuner is still timing the pipelines.
+    pub fn tuning(&self) -> bool {
+        self.tune.as_ref().is_some_and(|t| t.chosen().is_none())
     }
 
     /// The tuner's outcome: the pipeline chosen and the seconds per path measured of the
@@ -524,6 +538,7 @@ impl Renderer {
             _ => self.features,
         };
         let features = self.pipeline_features(want);
+        self.last_pipeline = Some(features);
         let rows = if round.stride > 1 {
             (h - round.next_row).div_ceil(round.stride)
         } else {
