@@ -309,9 +309,9 @@ impl Renderer {
         self.last_pipeline
     }
 
-    /// Whether the tuner is still timing the pipelines.
+    /// Whether the tuner's choice is still to come (`Tune::pending`).
     pub fn tuning(&self) -> bool {
-        self.tune.as_ref().is_some_and(|t| t.chosen().is_none())
+        self.tune.as_ref().is_some_and(tune::Tune::pending)
     }
 
     /// The tuner's outcome: the pipeline chosen and the seconds per path measured of the

@@ -38,6 +38,8 @@ pub struct Tune {
     trials: [u32; 2],
     /// Rounds given to each and not refunded (`start_round`, `refund`).
     assigned: [u32; 2],
+    /// Rounds timed or refunded.
+    seen: u32,
 }
 
 impl Tune {
@@ -47,6 +49,7 @@ impl Tune {
             best: [f64::INFINITY; 2],
             trials: [0; 2],
             assigned: [0; 2],
+            seen: 0,
         }
     }
 
@@ -92,6 +95,7 @@ impl Tune {
         if self.chosen().is_some() || paths == 0 {
             return;
         }
+        self.seen += 1;
         self.best[i] = self.best[i].min(seconds / paths as f64);
         self.trials[i] += 1;
     }
@@ -100,6 +104,14 @@ impl Tune {
     /// time, or partly traced by the other pipeline while this one compiled): `i` is owed it.
     pub fn refund(&mut self, i: usize) {
         self.assigned[i] = self.assigned[i].saturating_sub(1);
+        self.seen += 1;
+    }
+
+    /// Whether the choice is still to come: no round has finished yet, or rounds are being
+    /// timed (where every round is too short to time, none ever is, and the scene's own
+    /// pipeline is used).
+    pub fn pending(&self) -> bool {
+        self.chosen().is_none() && (self.seen == 0 || self.trials.iter().any(|&t| t > 0))
     }
 
     /// Seconds per path of (specialized, generic), the fastest seen.
@@ -198,10 +210,15 @@ mod tests {
     fn a_refunded_round_is_given_again() {
         let (s, g) = pair();
         let mut t = Tune::new(s, g);
+        assert!(t.pending());
         assert_eq!(t.start_round(), Some(0));
         t.refund(0);
+        // Refunded rounds only: too short to time, nothing pending.
+        assert!(!t.pending());
         assert_eq!(t.start_round(), Some(0));
         assert_eq!(t.start_round(), Some(1));
+        t.record(1, 1000, 1e-3);
+        assert!(t.pending());
         assert_eq!(t.start_round(), Some(0));
     }
 }
