@@ -199,14 +199,14 @@ impl<'a> Tracer<'a> {
         hit.map(|(t, r)| Hit { t, r })
     }
 
-    /// Whether anything but primitive `skip` lies on the ray before t_max.
+    /// Whether anything but primitives `skip` and `from` lies on the ray before t_max.
     #[inline(always)]
-    fn occluded<const P: u32>(&mut self, ray: &Ray, t_max: f32, skip: u32) -> bool {
+    fn occluded<const P: u32>(&mut self, ray: &Ray, t_max: f32, skip: u32, from: u32) -> bool {
         let s = self.s;
         if !self.f.bvh {
             return self
                 .all_refs()
-                .any(|r| r != skip && hit_primitive::<P>(s, r, ray, t_max) > 0.0);
+                .any(|r| r != skip && r != from && hit_primitive::<P>(s, r, ray, t_max) > 0.0);
         }
         s.bvh.any(
             ray,
@@ -214,7 +214,7 @@ impl<'a> Tracer<'a> {
             &mut self.tally,
             &mut self.stack,
             #[inline(always)]
-            |r| r != skip && hit_primitive::<P>(s, r, ray, t_max) > 0.0,
+            |r| r != skip && r != from && hit_primitive::<P>(s, r, ray, t_max) > 0.0,
         )
     }
 
@@ -251,6 +251,23 @@ impl<'a> Tracer<'a> {
             }
         }
         c
+    }
+
+    /// Primitive `r` where a ray leaving its surface on the side of its normal (`out`) or
+    /// against it cannot meet it again, else NONE. A ray leaving a plane, or a convex primitive
+    /// outward, cannot (in exact arithmetic: in floating point its test could only find the
+    /// surface the ray starts on, which the ray offset is there to avoid), so its test is
+    /// skipped. A sphere's normal points inward where its radius is negative (a hollow one).
+    #[inline(always)]
+    fn leaving(&self, r: u32, out: bool) -> u32 {
+        match r >> 30 {
+            0 => {
+                let outward = self.s.spheres[(r & INDEX) as usize].radius > 0.0;
+                if out == outward { r } else { NONE }
+            }
+            2 if !out => NONE,
+            _ => r,
+        }
     }
 
     /// Thin-lens camera through the jittered pixel (Shirley, Ray Tracing in One Weekend §13).
@@ -358,7 +375,14 @@ impl<'a> Tracer<'a> {
 
     /// The light-sampled estimate at p (facing normal n) for the Lambertian lobe, its 1/π
     /// included and its tint not, MIS-weighted.
-    fn sample_light<const P: u32>(&mut self, p: Vec3A, n: Vec3A, rng: &mut Rng) -> Vec3A {
+    /// `from`: the primitive p lies on, where the shadow ray cannot meet it (`leaving`).
+    fn sample_light<const P: u32>(
+        &mut self,
+        p: Vec3A,
+        n: Vec3A,
+        from: u32,
+        rng: &mut Rng,
+    ) -> Vec3A {
         // One light is chosen without a draw.
         let pick = if self.s.u.n_lights > 1 {
             rng.rand()
@@ -412,7 +436,7 @@ impl<'a> Tracer<'a> {
             dir,
         };
         let t_light = hit_primitive::<ANY>(self.s, light.prim, &shadow, T_FAR);
-        if t_light <= 0.0 || self.occluded::<P>(&shadow, t_light, light.prim) {
+        if t_light <= 0.0 || self.occluded::<P>(&shadow, t_light, light.prim, from) {
             return Vec3A::ZERO;
         }
         let m = &self.s.materials[material as usize];
@@ -485,15 +509,15 @@ impl<'a> Tracer<'a> {
             } else {
                 // A certain lobe takes no draw.
                 let is_spec = m.specular >= 1.0 || (m.specular > 0.0 && rng.rand() < m.specular);
-                let n = if ray.dir.dot(n_out) < 0.0 {
-                    n_out
-                } else {
-                    -n_out
-                };
+                let front = ray.dir.dot(n_out) < 0.0;
+                let n = if front { n_out } else { -n_out };
                 let cosine_lobe = !is_spec || m.smoothness == 0.0;
                 if nee && cosine_lobe {
                     let tint = if is_spec { m.specular_color } else { m.color };
-                    radiance += throughput * tint * self.sample_light::<P>(point.position, n, rng);
+                    // The shadow ray leaves on the side of n.
+                    let from = self.leaving(hit.r, front);
+                    radiance +=
+                        throughput * tint * self.sample_light::<P>(point.position, n, from, rng);
                 }
                 sc = scatter_surface(m, ray.dir, n_out, is_spec, rng);
                 if cosine_lobe {
@@ -515,18 +539,7 @@ impl<'a> Tracer<'a> {
             }
             let out = sc.dir.dot(n_out) > 0.0;
             let side = if out { n_out } else { -n_out };
-            // A ray leaving a plane, or a convex primitive outward, cannot meet it again (in
-            // exact arithmetic: in floating point the test could only find the surface it
-            // starts on, which the offset below is there to avoid), so its test is skipped.
-            // A sphere's normal points inward where its radius is negative (a hollow one).
-            skip = match hit.r >> 30 {
-                0 => {
-                    let outward = self.s.spheres[(hit.r & INDEX) as usize].radius > 0.0;
-                    if out == outward { hit.r } else { NONE }
-                }
-                2 if !out => NONE,
-                _ => hit.r,
-            };
+            skip = self.leaving(hit.r, out);
             ray = Ray {
                 origin: offset_ray(point.position, side),
                 dir: sc.dir,
