@@ -250,11 +250,8 @@ impl CpuEngine {
         let stride = d.row_stride.max(1);
         let rows = d.row_offset..(d.row_offset + d.row_count * stride).min(self.height);
         let in_submission = |y: u32| rows.contains(&y) && (y - d.row_offset).is_multiple_of(stride);
-        let parts = parts_per_row(
-            rows.clone().step_by(stride as usize).len(),
-            d.sample_count,
-            rayon::current_num_threads(),
-        );
+        let ys: Vec<u32> = rows.clone().step_by(stride as usize).collect();
+        let parts = parts_per_row(ys.len(), d.sample_count, rayon::current_num_threads());
         let scene = &self.scene;
         let ahead = self.ahead;
         let trace = |y: u32, samples: std::ops::Range<u32>, sums: &mut [(Fixed, Fixed)]| {
@@ -301,7 +298,6 @@ impl CpuEngine {
         // Fewer rows than the threads need: each row's samples split into `parts` ranges,
         // traced into sums of their own, then added to the row's. The sums are exact integers,
         // so the image is the same bit for bit however the samples are split.
-        let ys: Vec<u32> = rows.clone().step_by(stride as usize).collect();
         let traced: Vec<Part> = (0..ys.len() * parts as usize)
             .into_par_iter()
             .map(|i| {

@@ -400,7 +400,6 @@ impl Renderer {
         }
     }
 
-    /// Starts the accumulation afresh on the next submission.
     /// A new round of `k` samples per pixel (`stride` as in `Round`), timing the tuner's next
     /// candidate while it has not chosen.
     fn start_round(&mut self, k: u32, stride: u32) -> Round {
@@ -453,6 +452,7 @@ impl Renderer {
         }
     }
 
+    /// Starts the accumulation afresh on the next submission.
     pub fn reset(&mut self) {
         self.samples = 0;
         self.round = None;
