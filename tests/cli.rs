@@ -154,6 +154,35 @@ fn an_unwritable_output_fails_before_rendering() {
 }
 
 #[test]
+fn the_output_name_decides_the_format_and_others_are_refused_before_rendering() {
+    let dir = tmpdir();
+    let jpg = dir.path().join("out.jpg");
+    let (code, _, err) = run(termtrace().args(["render", "basic", "-o"]).arg(&jpg));
+    assert_ne!(code, 0);
+    assert!(err.contains("out.jpg") && err.contains(".exr"), "{err}");
+    assert!(!err.contains("rendering"), "it rendered first: {err}");
+    assert!(only_file(dir.path()).is_empty(), "it wrote something");
+
+    let exr = dir.path().join("linear.EXR");
+    let (code, _, err) = run(termtrace()
+        .args([
+            "render", "basic", "--spp", "2", "--width", "12", "--height", "8", "-q",
+        ])
+        .arg("-o")
+        .arg(&exr));
+    assert_eq!(code, 0, "{err}");
+    let img = image::open(&exr).unwrap();
+    assert_eq!(img.color(), image::ColorType::Rgb32F);
+    assert_eq!((img.width(), img.height()), (12, 8));
+
+    let (code, _, err) = run(termtrace()
+        .args(["render", "basic", "--exr"])
+        .arg(dir.path().join("b.png")));
+    assert_ne!(code, 0);
+    assert!(err.contains("b.png") && err.contains(".exr"), "{err}");
+}
+
+#[test]
 fn conflicting_and_invalid_options_are_refused() {
     let (code, _, err) = run(termtrace().args(["render", "basic", "--spp", "4", "--time", "2"]));
     assert_eq!(code, 2, "{err}");

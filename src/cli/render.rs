@@ -3,7 +3,7 @@
 
 use super::GlobalArgs;
 use crate::gpu::FrameSettings;
-use crate::output::{LinearImage, Transfer, check_writable, write_exr, write_png};
+use crate::output::{ImageFile, LinearImage, Transfer, check_writable, write_exr, write_png};
 use crate::render::Backend;
 use crate::render::{RenderOptions, Renderer};
 use crate::scene::MAX_IMAGE_SIDE;
@@ -20,8 +20,9 @@ use std::time::{Duration, Instant};
 pub struct RenderArgs {
     /// Scene file, or the name of a built-in scene (weekend, cornell, …).
     pub scene: String,
-    /// Output PNG [default: SCENE.png in the current directory].
-    #[arg(short, long, value_name = "PNG")]
+    /// Output image: a PNG, or the linear radiance as OpenEXR when the name ends in `.exr`
+    /// [default: SCENE.png in the current directory].
+    #[arg(short, long, value_name = "FILE")]
     pub output: Option<PathBuf>,
     /// Samples per pixel [default: the scene's `spp`].
     #[arg(long, conflicts_with = "time", value_parser = clap::value_parser!(u32).range(1..))]
@@ -41,7 +42,7 @@ pub struct RenderArgs {
     /// Maximum scatterings per path [default: the scene's].
     #[arg(long, value_parser = clap::value_parser!(u32).range(..=crate::scene::MAX_BOUNCES as i64))]
     pub max_bounces: Option<u32>,
-    /// Also write the linear radiance as 32-bit float OpenEXR.
+    /// Also write the linear radiance as 32-bit float OpenEXR (a name ending in `.exr`).
     #[arg(long, value_name = "EXR")]
     pub exr: Option<PathBuf>,
     /// Write a 16-bit PNG.
@@ -108,12 +109,25 @@ pub(crate) fn frame_settings(
 
 pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.scene)?;
-    let png = a
+    let out = a
         .output
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("{}.png", scene.short_name())));
-    check_writable(&png)?;
+    let kind = ImageFile::of(&out)?;
+    check_writable(&out)?;
+    if kind == ImageFile::Exr && a.png16 {
+        anyhow::bail!(
+            "--png16 asks for a 16-bit PNG, but {} is an OpenEXR file (32-bit float)",
+            out.display()
+        );
+    }
     if let Some(exr) = &a.exr {
+        if ImageFile::of(exr)? != ImageFile::Exr || exr.extension().is_none() {
+            anyhow::bail!(
+                "--exr {}: the OpenEXR file's name must end in .exr",
+                exr.display()
+            );
+        }
         check_writable(exr)?;
     }
     let settings = FrameSettings {
@@ -238,8 +252,11 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let snap = r.snapshot();
     let image = snap.image();
     let estimate = snap.noise_estimate();
-    let png_written = save(&png, &image, |p| write_png(p, &image, a.transfer, a.png16))?;
-    let mut outputs = vec![png_written.display().to_string()];
+    let written = match kind {
+        ImageFile::Png => save(&out, &image, |p| write_png(p, &image, a.transfer, a.png16))?,
+        ImageFile::Exr => save(&out, &image, |p| write_exr(p, &image))?,
+    };
+    let mut outputs = vec![written.display().to_string()];
     if let Some(exr) = &a.exr {
         outputs.push(
             save(exr, &image, |p| write_exr(p, &image))?

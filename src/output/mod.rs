@@ -5,4 +5,4 @@ pub mod image;
 pub mod write;
 
 pub use image::{LinearImage, Transfer, srgb8};
-pub use write::{OutputError, check_writable, write_exr, write_png};
+pub use write::{ImageFile, OutputError, check_writable, write_exr, write_png};

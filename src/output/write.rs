@@ -25,6 +25,36 @@ fn dir_of(path: &Path) -> &Path {
     }
 }
 
+/// The image files termtrace writes, told apart by the name's extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageFile {
+    /// `.png`, or a name without an extension.
+    Png,
+    /// `.exr`: the linear radiance as 32-bit float OpenEXR.
+    Exr,
+}
+
+impl ImageFile {
+    /// The kind a name asks for (case-insensitive), or an error naming the file for an
+    /// extension termtrace does not write, rather than PNG bytes under a `.jpg` name.
+    pub fn of(path: &Path) -> Result<Self, OutputError> {
+        let Some(ext) = path.extension() else {
+            return Ok(Self::Png);
+        };
+        match ext.to_string_lossy().to_ascii_lowercase().as_str() {
+            "png" => Ok(Self::Png),
+            "exr" => Ok(Self::Exr),
+            other => Err(err(
+                path,
+                format!(
+                    "termtrace writes PNG (.png) and linear OpenEXR (.exr), not `.{other}`; \
+                     convert the PNG with another tool"
+                ),
+            )),
+        }
+    }
+}
+
 /// Fails now, before any rendering, if `path` could not be written later.
 pub fn check_writable(path: &Path) -> Result<(), OutputError> {
     if path.is_dir() {
@@ -114,4 +144,26 @@ pub fn write_exr(path: &Path, img: &LinearImage) -> Result<(), OutputError> {
             .write_to(w, ::image::ImageFormat::OpenExr)
             .map_err(|e| e.to_string())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_extension_decides_the_format_and_an_unknown_one_is_refused() {
+        for (name, want) in [
+            ("a.png", ImageFile::Png),
+            ("dir.v2/a.PNG", ImageFile::Png),
+            ("a", ImageFile::Png),
+            ("a.exr", ImageFile::Exr),
+            ("a.EXR", ImageFile::Exr),
+        ] {
+            assert_eq!(ImageFile::of(Path::new(name)).unwrap(), want, "{name}");
+        }
+        for name in ["a.jpg", "a.jpeg", "out.bmp", "a.png.tmp"] {
+            let e = ImageFile::of(Path::new(name)).unwrap_err().to_string();
+            assert!(e.contains(name) && e.contains(".png"), "{name}: {e}");
+        }
+    }
 }
