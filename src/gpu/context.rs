@@ -18,7 +18,7 @@ pub enum GpuError {
     #[error("no GPU adapter that can run compute shaders was found.\n{tried}\n{HINT}")]
     NoAdapter { tried: String },
     #[error(
-        "no adapter matches `{selector}`.\n{tried}\nSelect one by a part of its name, its backend (vulkan, gl, metal, dx12), its type (cpu, discrete, integrated) or its number in `termtrace adapters`."
+        "no adapter matches `{selector}`.\n{tried}\nSelect one by a part of its name, its backend (vulkan, gl, metal, dx12), its type (cpu, discrete, integrated) or its number in `termtrace adapters`, or the native CPU tracer by `cpu-native`."
     )]
     NoMatch { selector: String, tried: String },
     #[error("could not open a device on {adapter}: {message}")]
