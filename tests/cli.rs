@@ -296,7 +296,9 @@ fn an_unknown_adapter_is_a_clear_error() {
     ]));
     assert_ne!(code, 0);
     assert!(
-        err.contains("no adapter matches `no-such-gpu`") && err.contains("Adapters found"),
+        err.contains("no adapter matches `no-such-gpu`")
+            && err.contains("Adapters found")
+            && err.contains("cpu-native"),
         "{err}"
     );
 }
