@@ -249,6 +249,7 @@ fn screen_with_status_lines() {
     insta::assert_snapshot!(screen(&a, 100, 8).backend());
 }
 
+/// Both status lines keep what matters: the samples, rate and noise; the active value.
 #[test]
 fn narrow_screen_drops_inactive_camera_values() {
     let a = app();

@@ -172,30 +172,33 @@ fn rate(r: f64) -> String {
 }
 
 /// First status line: a fresh message and the background save first (they are what the
-/// user is waiting for; a narrow terminal clips the end), then what renders and how fast.
-pub fn stats_line(app: &App) -> Line<'static> {
+/// user is waiting for), then what renders and how fast. When `width` is too narrow for all,
+/// the graphics mode, the image size, the time and the adapter go, in that order, so that the
+/// samples, the rate and the noise stay in view.
+pub fn stats_line(app: &App, width: u16) -> Line<'static> {
     let s = &app.stats;
+    // (text, when it goes: 0 never, else the lowest first).
     let mut parts = vec![
-        format!(" {}", app.scene.short_name()),
-        app.adapter.clone(),
-        app.graphics.clone(),
-        format!("{}×{}", s.width, s.height),
-        format!("{} spp", s.spp),
-        rate(s.samples_per_second),
-        duration(s.elapsed),
+        (format!(" {}", app.scene.short_name()), 0),
+        (app.adapter.clone(), 4),
+        (app.graphics.clone(), 1),
+        (format!("{}×{}", s.width, s.height), 2),
+        (format!("{} spp", s.spp), 0),
+        (rate(s.samples_per_second), 0),
+        (duration(s.elapsed), 3),
     ];
     match s.noise {
-        Some(n) => parts.push(format!("noise {:.2}%", n * 100.0)),
-        None => parts.push("noise –".into()),
+        Some(n) => parts.push((format!("noise {:.2}%", n * 100.0), 0)),
+        None => parts.push(("noise –".into(), 0)),
     }
     if s.invalid > 0 {
-        parts.push(format!("{} invalid", s.invalid));
+        parts.push((format!("{} invalid", s.invalid), 0));
     }
     if !app.nee {
-        parts.push("NEE off".into());
+        parts.push(("NEE off".into(), 0));
     }
     if let Some(link) = &app.link {
-        parts.push(link.clone());
+        parts.push((link.clone(), 0));
     }
     let mut spans = Vec::new();
     if let Some(m) = app.current_message() {
@@ -215,7 +218,22 @@ pub fn stats_line(app: &App) -> Line<'static> {
             Style::new().fg(Color::Black).bg(Color::Yellow),
         ));
     }
-    spans.push(Span::raw(parts.join(SEP)));
+    let room = (width as usize)
+        .saturating_sub(spans.iter().map(|x: &Span| x.content.chars().count()).sum());
+    let joined = |parts: &[(String, u8)]| {
+        parts
+            .iter()
+            .map(|(t, _)| t.as_str())
+            .collect::<Vec<_>>()
+            .join(SEP)
+    };
+    for level in 1..=4 {
+        if joined(&parts).chars().count() <= room {
+            break;
+        }
+        parts.retain(|&(_, l)| l != level);
+    }
+    spans.push(Span::raw(joined(&parts)));
     Line::from(spans)
 }
 
@@ -335,7 +353,7 @@ pub fn draw(app: &App, grid: &Grid, area: Rect, buf: &mut Buffer) {
             height: 1,
             ..status
         };
-        Paragraph::new(stats_line(app)).render(first, buf);
+        Paragraph::new(stats_line(app, first.width)).render(first, buf);
     }
     if status.height >= 2 {
         let second = Rect {
