@@ -15,7 +15,7 @@ fn the_harness_sees_each_edit_with_a_restarted_sample_count() {
         timeout: Duration::from_secs(60),
         window: Duration::from_millis(800),
         args: vec!["--max-spp".into(), "1000000".into()],
-        ..PreviewBench::new(env!("CARGO_BIN_EXE_termtrace"), "basic", 60, 16)
+        ..PreviewBench::new(env!("CARGO_BIN_EXE_termtrace"), "basic", 80, 16)
     };
     let r = b.run().expect("the preview runs in a pseudo-terminal");
     assert_eq!(r.misses, 0, "{r:?}");
@@ -30,7 +30,7 @@ fn the_harness_sees_each_edit_with_a_restarted_sample_count() {
     assert_eq!(first_after, second_before);
     assert_eq!(second_after, first_before, "{r:?}");
     assert!(first_before.starts_with('▸'), "{first_before}");
-    // The traced size of a 60×16 terminal in half blocks: 60 × (16 - 2 status rows) × 2.
-    assert_eq!(r.size, "60×28");
+    // The traced size of an 80×16 terminal in half blocks: 80 × (16 - 2 status rows) × 2.
+    assert_eq!(r.size, "80×28");
     assert!(r.fps > 0.0 && r.bytes_per_second > 0.0, "{r:?}");
 }

@@ -173,19 +173,20 @@ fn rate(r: f64) -> String {
 
 /// First status line: a fresh message and the background save first (they are what the
 /// user is waiting for), then what renders and how fast. When `width` is too narrow for all,
-/// the graphics mode, the image size, the time and the adapter go, in that order, so that the
-/// samples, the rate and the noise stay in view.
+/// the graphics mode, the adapter, the image size and the time go, in that order, so that the
+/// samples, the rate and the noise stay in view (`bench --preview` reads the size and time
+/// where they fit).
 pub fn stats_line(app: &App, width: u16) -> Line<'static> {
     let s = &app.stats;
     // (text, when it goes: 0 never, else the lowest first).
     let mut parts = vec![
         (format!(" {}", app.scene.short_name()), 0),
-        (app.adapter.clone(), 4),
+        (app.adapter.clone(), 2),
         (app.graphics.clone(), 1),
-        (format!("{}×{}", s.width, s.height), 2),
+        (format!("{}×{}", s.width, s.height), 3),
         (format!("{} spp", s.spp), 0),
         (rate(s.samples_per_second), 0),
-        (duration(s.elapsed), 3),
+        (duration(s.elapsed), 4),
     ];
     match s.noise {
         Some(n) => parts.push((format!("noise {:.2}%", n * 100.0), 0)),
