@@ -173,7 +173,7 @@ fn rate(r: f64) -> String {
 
 /// First status line: a fresh message and the background save first (they are what the
 /// user is waiting for), then what renders and how fast. When `width` is too narrow for all,
-/// the graphics mode, the adapter, the image size and the time go, in that order, so that the
+/// the adapter, the graphics mode, the image size and the time go, in that order, so that the
 /// samples, the rate and the noise stay in view (`bench --preview` reads the size and time
 /// where they fit).
 pub fn stats_line(app: &App, width: u16) -> Line<'static> {
@@ -181,8 +181,8 @@ pub fn stats_line(app: &App, width: u16) -> Line<'static> {
     // (text, when it goes: 0 never, else the lowest first).
     let mut parts = vec![
         (format!(" {}", app.scene.short_name()), 0),
-        (app.adapter.clone(), 2),
-        (app.graphics.clone(), 1),
+        (app.adapter.clone(), 1),
+        (app.graphics.clone(), 2),
         (format!("{}×{}", s.width, s.height), 3),
         (format!("{} spp", s.spp), 0),
         (rate(s.samples_per_second), 0),
