@@ -133,45 +133,37 @@ mod tests {
         (special, generic)
     }
 
-    /// Times `rounds` rounds, each of `parts` submissions whose costs per path are
-    /// `row_cost(part)` times the candidate's `per_path`.
-    fn time_rounds(t: &mut Tune, rounds: u32, parts: u32, per_path: impl Fn(Features) -> f64) {
+    /// A new tuner after `rounds` rounds, each of `parts` submissions whose costs per path
+    /// are `row_cost(part)` times the candidate's: 1 µs for the specialized pipeline,
+    /// `generic` seconds for the generic one.
+    fn timed(rounds: u32, parts: u32, generic: f64) -> Tune {
+        let (s, g) = pair();
+        let mut t = Tune::new(s, g);
+        let per_path = |f: Features| if f == g { generic } else { 1e-6 };
         let row_cost = |part: u32| if part.is_multiple_of(2) { 1.0 } else { 3.0 };
         for _ in 0..rounds {
-            let Some(i) = t.start_round() else { return };
+            let Some(i) = t.start_round() else { break };
             let seconds: f64 = (0..parts)
                 .map(|p| 1000.0 * per_path(t.candidate(i)) * row_cost(p))
                 .sum();
             t.record(i, 1000 * parts as u64, seconds);
         }
+        t
     }
 
     #[test]
     fn both_are_timed_then_the_clearly_faster_one_is_kept() {
-        let (s, g) = pair();
-        let mut t = Tune::new(s, g);
+        let (_, g) = pair();
         // The generic pipeline takes 20 % less time per path.
-        time_rounds(
-            &mut t,
-            2 * TRIALS,
-            1,
-            |f| if f == g { 0.8e-6 } else { 1e-6 },
-        );
+        let mut t = timed(2 * TRIALS, 1, 0.8e-6);
         assert_eq!(t.chosen(), Some(g));
         assert_eq!(t.start_round(), None);
     }
 
     #[test]
     fn within_the_margin_the_specialized_one_stays() {
-        let (s, g) = pair();
-        let mut t = Tune::new(s, g);
-        time_rounds(
-            &mut t,
-            2 * TRIALS,
-            1,
-            |f| if f == g { 0.99e-6 } else { 1e-6 },
-        );
-        assert_eq!(t.chosen(), Some(s));
+        let (s, _) = pair();
+        assert_eq!(timed(2 * TRIALS, 1, 0.99e-6).chosen(), Some(s));
     }
 
     #[test]
@@ -179,14 +171,8 @@ mod tests {
         // Four submissions a round, rows alternately 1× and 3× as costly; the generic
         // pipeline 5 % faster. Had the candidates alternated by submission, the specialized
         // one would have had the cheap rows and looked 2.9× faster.
-        let (s, g) = pair();
-        let mut t = Tune::new(s, g);
-        time_rounds(
-            &mut t,
-            2 * TRIALS,
-            4,
-            |f| if f == g { 0.95e-6 } else { 1e-6 },
-        );
+        let (_, g) = pair();
+        let t = timed(2 * TRIALS, 4, 0.95e-6);
         assert_eq!(t.chosen(), Some(g));
         let (special, generic) = t.measured();
         assert!((generic / special - 0.95).abs() < 1e-9);
@@ -196,14 +182,10 @@ mod tests {
     fn a_decisive_difference_is_chosen_after_one_round_of_each() {
         let (s, g) = pair();
         for (generic, kept) in [(2e-6, s), (0.6e-6, g)] {
-            let mut t = Tune::new(s, g);
-            time_rounds(&mut t, 2, 4, |f| if f == g { generic } else { 1e-6 });
-            assert_eq!(t.chosen(), Some(kept));
+            assert_eq!(timed(2, 4, generic).chosen(), Some(kept));
         }
         // 20 % is not decisive: five rounds of each.
-        let mut t = Tune::new(s, g);
-        time_rounds(&mut t, 2, 4, |f| if f == g { 0.8e-6 } else { 1e-6 });
-        assert_eq!(t.chosen(), None);
+        assert_eq!(timed(2, 4, 0.8e-6).chosen(), None);
     }
 
     #[test]
