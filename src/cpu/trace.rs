@@ -170,33 +170,36 @@ impl<'a> Tracer<'a> {
         // Walks count the primitives of the leaves they enter as tested; the one skipped is
         // not.
         let mut skipped = 0;
+        let hit = self.walk_closest(
+            ray,
+            #[inline(always)]
+            |r, t| hit_except::<P>(s, r, ray, t, skip, &mut skipped),
+        );
+        self.tally.tests -= skipped;
+        hit.map(|(t, r)| Hit { t, r })
+    }
+
+    /// The nearest hit the BVH walk finds, `test` giving a primitive's: through the
+    /// eight-wide nodes where the CPU has AVX, else the four-wide ones.
+    #[inline(always)]
+    fn walk_closest(&mut self, ray: &Ray, test: impl FnMut(u32, f32) -> f32) -> Option<(f32, u32)> {
+        let s = self.s;
         #[cfg(target_arch = "x86_64")]
         if let Some(b8) = &s.bvh8 {
             // SAFETY: `bvh8` exists only where the CPU has AVX.
-            let hit = unsafe {
+            return unsafe {
                 b8.closest(
                     &s.bvh.refs,
                     ray,
                     T_FAR,
                     &mut self.tally,
                     &mut self.stack8,
-                    #[inline(always)]
-                    |r, t| hit_except::<P>(s, r, ray, t, skip, &mut skipped),
+                    test,
                 )
             };
-            self.tally.tests -= skipped;
-            return hit.map(|(t, r)| Hit { t, r });
         }
-        let hit = s.bvh.closest(
-            ray,
-            T_FAR,
-            &mut self.tally,
-            &mut self.stack,
-            #[inline(always)]
-            |r, t| hit_except::<P>(s, r, ray, t, skip, &mut skipped),
-        );
-        self.tally.tests -= skipped;
-        hit.map(|(t, r)| Hit { t, r })
+        s.bvh
+            .closest(ray, T_FAR, &mut self.tally, &mut self.stack, test)
     }
 
     /// Whether anything but primitives `skip` and `from` lies on the ray before t_max.
