@@ -247,25 +247,30 @@ impl CpuEngine {
     ) -> Counters {
         let width = self.width;
         let row_words = width as usize * ACCUM_WORDS;
-        let stride = d.row_stride.max(1);
-        let rows = d.row_offset..(d.row_offset + d.row_count * stride).min(self.height);
-        let in_submission = |y: u32| rows.contains(&y) && (y - d.row_offset).is_multiple_of(stride);
-        let ys: Vec<u32> = rows.clone().step_by(stride as usize).collect();
+        // The rows of this submission: every `stride`-th from `row_offset`, `row_count` of
+        // them at most.
+        let stride = d.row_stride.max(1) as usize;
+        let ys: Vec<u32> = (d.row_offset..self.height)
+            .step_by(stride)
+            .take(d.row_count as usize)
+            .collect();
         let parts = parts_per_row(ys.len(), d.sample_count, rayon::current_num_threads());
         let scene = &self.scene;
         let ahead = self.ahead;
         let trace = |y: u32, samples: std::ops::Range<u32>, sums: &mut [(Fixed, Fixed)]| {
             trace_row::<P, NEE>(scene, f, ahead, y, samples, sums)
         };
-        // The rows of this submission, with their words in each half.
+        // Those rows with their words in each half, in the order of `ys`.
         let rows_words = self
             .even
             .par_chunks_mut(row_words)
             .zip(self.odd.par_chunks_mut(row_words))
-            .enumerate()
-            .filter(|(y, _)| in_submission(*y as u32))
-            .map(|(y, halves)| (y as u32, halves));
-        let load = |words: (&mut [u32], &mut [u32])| -> Vec<(Fixed, Fixed)> {
+            .skip(d.row_offset as usize)
+            .step_by(stride)
+            .take(ys.len())
+            .zip(ys.par_iter().copied())
+            .map(|(halves, y)| (y, halves));
+        let load = |words: (&[u32], &[u32])| -> Vec<(Fixed, Fixed)> {
             (0..width as usize)
                 .map(|x| {
                     let at = x * ACCUM_WORDS..(x + 1) * ACCUM_WORDS;
@@ -288,7 +293,7 @@ impl CpuEngine {
             // A task per row, its sums added to in place.
             return rows_words
                 .map(|(y, (e, o))| {
-                    let mut sums = load((&mut *e, &mut *o));
+                    let mut sums = load((e, o));
                     let c = trace(y, d.sample_base..d.sample_base + d.sample_count, &mut sums);
                     store(&sums, (e, o));
                     c
@@ -309,19 +314,19 @@ impl CpuEngine {
             })
             .collect();
         let counters = traced.iter().fold(Counters::default(), |a, t| a + t.2);
-        let by_row: Vec<&[Part]> = traced.chunks(parts as usize).collect();
-        rows_words.for_each(|(y, (e, o))| {
-            let part = by_row[((y - d.row_offset) / stride) as usize];
-            debug_assert!(part.iter().all(|t| t.0 == y));
-            let mut sums = load((&mut *e, &mut *o));
-            for (_, p, _) in part {
-                for (s, q) in sums.iter_mut().zip(p) {
-                    s.0.merge(&q.0);
-                    s.1.merge(&q.1);
+        rows_words
+            .zip(traced.par_chunks(parts as usize))
+            .for_each(|((y, (e, o)), part)| {
+                debug_assert!(part.iter().all(|t| t.0 == y));
+                let mut sums = load((e, o));
+                for (_, p, _) in part {
+                    for (s, q) in sums.iter_mut().zip(p) {
+                        s.0.merge(&q.0);
+                        s.1.merge(&q.1);
+                    }
                 }
-            }
-            store(&sums, (e, o));
-        });
+                store(&sums, (e, o));
+            });
         counters
     }
 
@@ -407,40 +412,56 @@ mod tests {
     use super::*;
 
     #[test]
-    fn rows_split_into_sample_ranges_sum_to_the_same_words() {
+    fn rows_split_strided_or_whole_sum_to_the_same_words() {
         let scene = Scene::load("showcase").unwrap();
         let settings = FrameSettings::new(20, 6, scene.render.max_bounces, 1);
         let f = Features::of(&scene);
-        let dispatch = |sample_base, sample_count, accumulate| DispatchUniforms {
-            sample_base,
-            sample_count,
-            row_offset: 0,
-            row_count: 6,
-            accumulate,
-            lanes: 1,
-            row_stride: 1,
-            _pad: 0,
+        let dispatch = |(sample_base, sample_count, accumulate),
+                        (row_offset, row_count, row_stride)| {
+            DispatchUniforms {
+                sample_base,
+                sample_count,
+                row_offset,
+                row_count,
+                accumulate,
+                lanes: 1,
+                row_stride,
+                _pad: 0,
+            }
         };
-        // Three samples, then nine more added to them, on `threads` threads.
-        let run = |threads| {
+        let run = |threads, submissions: &[DispatchUniforms]| {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()
                 .unwrap();
             let mut e = CpuEngine::new(&scene, &settings);
-            pool.install(|| {
-                e.run(&dispatch(0, 3, 0), f);
-                e.run(&dispatch(3, 9, 1), f);
-            });
+            pool.install(|| submissions.iter().for_each(|d| e.run(d, f)));
             (e.even, e.odd, e.counters.segments, e.counters.drawn)
         };
+        let (first, rest) = ((0, 3, 0), (3, 9, 1));
+        // Three samples, then nine more added to them, each a submission of the six rows.
+        let whole = [dispatch(first, (0, 6, 1)), dispatch(rest, (0, 6, 1))];
+        // The same, the three taken by every other row (the preview's first look: rows 0, 2,
+        // 4, then 1, 3, 5), the nine by rows 0-3 and then by a submission asking for rows 4-8
+        // of the six.
+        let parted = [
+            dispatch(first, (0, 3, 2)),
+            dispatch(first, (1, 3, 2)),
+            dispatch(rest, (0, 4, 1)),
+            dispatch(rest, (4, 5, 1)),
+        ];
         // One thread: a task per row; sixteen: each row's samples in three and in nine parts.
         assert_eq!(parts_per_row(6, 9, 1), 1);
         assert_eq!(parts_per_row(6, 3, 16), 3);
         assert_eq!(parts_per_row(6, 9, 16), 9);
-        let (one, many) = (run(1), run(16));
+        let one = run(1, &whole);
         assert!(one.2 > 0);
-        assert!(one == many, "the split rows' sums differ");
+        assert!(one == run(16, &whole), "the split rows' sums differ");
+        assert!(one == run(1, &parted), "the strided rows' sums differ");
+        assert!(
+            one == run(16, &parted),
+            "the split strided rows' sums differ"
+        );
     }
 
     #[test]
