@@ -122,7 +122,8 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         );
     }
     if let Some(exr) = &a.exr {
-        if ImageFile::of(exr)? != ImageFile::Exr || exr.extension().is_none() {
+        // A name without an extension is a PNG's (`ImageFile::of`).
+        if ImageFile::of(exr)? != ImageFile::Exr {
             anyhow::bail!(
                 "--exr {}: the OpenEXR file's name must end in .exr",
                 exr.display()

@@ -171,6 +171,11 @@ fn rate(r: f64) -> String {
     }
 }
 
+/// The columns `spans` take (a character each).
+fn text_width(spans: &[Span]) -> usize {
+    spans.iter().map(|x| x.content.chars().count()).sum()
+}
+
 /// First status line: a fresh message and the background save first (they are what the
 /// user is waiting for), then what renders and how fast. When `width` is too narrow for all,
 /// the adapter, the graphics mode, the image size and the time go, in that order, so that the
@@ -219,8 +224,7 @@ pub fn stats_line(app: &App, width: u16) -> Line<'static> {
             Style::new().fg(Color::Black).bg(Color::Yellow),
         ));
     }
-    let room = (width as usize)
-        .saturating_sub(spans.iter().map(|x: &Span| x.content.chars().count()).sum());
+    let room = (width as usize).saturating_sub(text_width(&spans));
     let joined = |parts: &[(String, u8)]| {
         parts
             .iter()
@@ -243,9 +247,7 @@ pub fn stats_line(app: &App, width: u16) -> Line<'static> {
 /// go first, then the help hint.
 pub fn params_line(app: &App, width: u16) -> Line<'static> {
     let full = params_spans(app, true, true);
-    let fits = |s: &Vec<Span>| {
-        s.iter().map(|x| x.content.chars().count()).sum::<usize>() <= width as usize
-    };
+    let fits = |s: &Vec<Span>| text_width(s) <= width as usize;
     if fits(&full) {
         return Line::from(full);
     }
