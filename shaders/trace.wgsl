@@ -7,7 +7,7 @@
 // The path tracer: one invocation traces its share of a round's `sample_count` paths through
 // one pixel and adds them to that pixel's running sums (src/gpu/trace.rs drives it).
 
-// Per-scene specialization (src/gpu/features.rs): what a scene does not use is compiled out.
+// Per-scene specialization (src/common/features.rs): what a scene does not use is compiled out.
 override HAS_SPHERES: bool = true;
 override HAS_QUADS: bool = true;
 override HAS_BOXES: bool = true;
@@ -19,7 +19,7 @@ override HAS_DOF: bool = true;
 override HAS_SUN: bool = true;
 // Counting path segments costs an atomic per workgroup; only `bench` turns it on.
 override COUNT_SEGMENTS: bool = false;
-// Walk the BVH, or test every primitive in turn (tests compare the two; see src/gpu/features.rs).
+// Walk the BVH, or test every primitive in turn (tests compare the two; see src/common/features.rs).
 override USE_BVH: bool = true;
 
 @group(0) @binding(0) var<uniform> scene: SceneUniforms;

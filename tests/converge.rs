@@ -137,7 +137,10 @@ fn the_bias_check_finds_a_biased_image_and_passes_an_unbiased_one() {
 /// Settings with another seed.
 struct FrameSettingsWith;
 impl FrameSettingsWith {
-    fn seed(mut s: termtrace::gpu::FrameSettings, seed: u32) -> termtrace::gpu::FrameSettings {
+    fn seed(
+        mut s: termtrace::common::FrameSettings,
+        seed: u32,
+    ) -> termtrace::common::FrameSettings {
         s.seed = seed;
         s
     }

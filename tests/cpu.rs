@@ -11,7 +11,7 @@ use termtrace::render::{Backend, RenderOptions, Renderer, Snapshot};
 use termtrace::scene::{BUILTIN_SCENES, Scene};
 
 fn render_on(backend: Backend, scene: &Scene, seed: u32, spp: u32) -> Snapshot {
-    let s = termtrace::gpu::FrameSettings {
+    let s = termtrace::common::FrameSettings {
         seed,
         ..settings(32, 24, scene.render.max_bounces.min(12))
     };

@@ -7,7 +7,7 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicI64, Ordering};
 use std::time::Duration;
-use termtrace::cli::preview_bench::{PreviewBench, Probe};
+use termtrace::measure::preview::{PreviewBench, Probe};
 
 mod common;
 
@@ -96,7 +96,7 @@ fn once_the_accumulation_stops_the_far_screen_is_a_direct_render() {
         .expect("the preview runs in a pseudo-terminal");
 
     let scene = termtrace::scene::Scene::load("basic").unwrap();
-    let s = termtrace::gpu::FrameSettings::new(
+    let s = termtrace::common::FrameSettings::new(
         cols as u32,
         2 * (rows as u32 - 2),
         scene.render.max_bounces,

@@ -6,8 +6,8 @@
 
 mod common;
 use common::*;
+use termtrace::common::FrameSettings;
 use termtrace::converge::metrics;
-use termtrace::gpu::FrameSettings;
 use termtrace::render::Snapshot;
 use termtrace::scene::Scene;
 

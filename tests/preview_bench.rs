@@ -4,7 +4,7 @@
 //! bytes it counts while converging must be there.
 
 use std::time::Duration;
-use termtrace::cli::preview_bench::PreviewBench;
+use termtrace::measure::preview::PreviewBench;
 
 #[test]
 fn the_harness_sees_each_edit_with_a_restarted_sample_count() {

@@ -3,7 +3,8 @@
 //! size and field offsets naga computes for its WGSL twin.
 
 use std::path::Path;
-use termtrace::gpu::{layout, shader};
+use termtrace::common::{layout, wgsl};
+use termtrace::gpu::shader;
 
 fn validate(name: &str) -> naga::Module {
     let src = shader::assemble(name).unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -47,15 +48,15 @@ fn every_wgsl_file_is_embedded_and_validates() {
         )
         .unwrap();
         assert_eq!(
-            shader::source(f),
+            wgsl::source(f),
             Some(on_disk.as_str()),
-            "{f} is not in gpu::shader::SOURCES (or differs from the file)"
+            "{f} is not in common::wgsl::SOURCES (or differs from the file)"
         );
         validate(f);
     }
     assert_eq!(
         files.len(),
-        shader::SOURCES.len(),
+        wgsl::SOURCES.len(),
         "SOURCES lists a file that is not on disk"
     );
 }

@@ -1,12 +1,12 @@
 //! The preview through real OpenSSH: a throw-away sshd on a loopback port behind a throttling
-//! proxy (`cli::ssh_link`), `ssh -tt` into it in a pseudo-terminal read by a terminal
+//! proxy (`measure::ssh_link`), `ssh -tt` into it in a pseudo-terminal read by a terminal
 //! emulator that answers status queries, as a user's terminal does. Checked for what the
 //! far screen shows, not for how fast: each edit arrives with a restarted sample count, and
 //! the status line shows the link as the preview measured it from the answers.
 
 use std::time::Duration;
-use termtrace::cli::preview_bench::PreviewBench;
-use termtrace::cli::ssh_link::{SSHD, SshLink};
+use termtrace::measure::preview::PreviewBench;
+use termtrace::measure::ssh_link::{SSHD, SshLink};
 
 #[test]
 fn the_preview_works_through_openssh_and_measures_the_link() {

@@ -6,7 +6,7 @@
 mod common;
 use common::*;
 use glam::DVec3;
-use termtrace::gpu::FrameSettings;
+use termtrace::common::FrameSettings;
 use termtrace::scene::{EXTREME_SCENES, Scene, Shape};
 use termtrace::stability::{self, FURNACE_BOUNCES, FURNACE_SKY, FURNACE_TOLERANCE};
 

@@ -1,4 +1,4 @@
-// Exact fixed-point sums of radiance: the accumulation's number format (src/gpu/accum.rs
+// Exact fixed-point sums of radiance: the accumulation's number format (src/common/accum.rs
 // decodes it).
 
 // The accumulation is integer arithmetic, exact and independent of order: a compiler may

@@ -1,4 +1,4 @@
-// Scene data as the tracer sees it. Mirrored field by field by `src/gpu/layout.rs`
+// Scene data as the tracer sees it. Mirrored field by field by `src/common/layout.rs`
 // (byte offsets in the comments; a test checks both against naga's layout).
 
 struct SceneUniforms {
@@ -130,7 +130,7 @@ struct BvhNode4 {
 }                           // 128
 
 // A light for next-event estimation: an emissive sphere or quad, picked in proportion to its
-// power (src/gpu/scene_buffers.rs: Lights).
+// power (src/common/arrays.rs: lights).
 struct Light {
     prim: u32,              //   0  a BVH reference: kind in the top two bits, index below
     cdf: f32,               //   4  probability of picking this light or one before it

@@ -12,7 +12,7 @@
 //! issue 12).
 
 use super::{Aabb, Bvh};
-use crate::gpu::layout::GpuBvhNode4;
+use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
 /// `count` of a slot that holds nothing.
@@ -30,6 +30,22 @@ const SPLIT_LEVELS: usize = 8;
 pub const STACK: usize = 3 * LEVELS + 4;
 /// The most levels a four-wide tree has.
 pub const LEVELS: usize = super::MAX_DEPTH + SPLIT_LEVELS;
+
+/// A four-wide node as both tracers read it (`BvhNode4` in shaders/common/types.wgsl):
+/// the bounds of its four slots as structure of arrays; a slot is an inner node (`count` 0,
+/// `child` its index), a leaf (`count` references from `child` on) or empty ([`EMPTY_SLOT`]).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuBvhNode4 {
+    pub min_x: [f32; 4],
+    pub min_y: [f32; 4],
+    pub min_z: [f32; 4],
+    pub max_x: [f32; 4],
+    pub max_y: [f32; 4],
+    pub max_z: [f32; 4],
+    pub child: [u32; 4],
+    pub count: [u32; 4],
+}
 
 /// A node of the binary tree with its bounds rounded outward to f32.
 #[derive(Clone, Copy, Debug)]
@@ -300,7 +316,7 @@ mod tests {
     /// The WGSL walk's stack is as deep as the CPU's, which the bound above sizes.
     #[test]
     fn the_shader_stack_has_the_bound_of_the_tree() {
-        let n = crate::gpu::shader::u32_constant("trace.wgsl", "STACK_SIZE");
+        let n = crate::common::wgsl::u32_constant("trace.wgsl", "STACK_SIZE");
         assert_eq!(n as usize, STACK);
     }
 

@@ -1,8 +1,8 @@
 //! `termtrace bench`: samples/s and path segments/s of one scene on the chosen adapter, or
 //! with `--preview` the live preview's key → frame latency and frame rate in a
-//! pseudo-terminal (`preview_bench`).
+//! pseudo-terminal (`measure::preview`).
 
-use super::GlobalArgs;
+use super::args::GlobalArgs;
 use super::render::{frame_settings, rate_text};
 use crate::render::Backend;
 use crate::render::{RenderOptions, Renderer};
@@ -47,8 +47,8 @@ pub struct BenchArgs {
     /// Compile these features in although the scene does not need them (comma-separated:
     /// spheres, quads, boxes, triangles, dielectrics, emitters, nee, dof, sun), to measure
     /// what each costs.
-    #[arg(long, value_name = "LIST", value_parser = crate::gpu::Features::parse_list)]
-    pub with: Option<crate::gpu::Features>,
+    #[arg(long, value_name = "LIST", value_parser = crate::common::Features::parse_list)]
+    pub with: Option<crate::common::Features>,
     /// Measure the live preview instead: run it in a pseudo-terminal of --cols × --rows,
     /// type an edit key --presses times and time each until the screen shows the edit.
     #[arg(long)]
@@ -109,7 +109,7 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         Some(n) => crate::scene::generate::sphere_field(n, 2024),
         None => load_scene(&a.scene)?,
     };
-    let settings = crate::gpu::FrameSettings {
+    let settings = crate::common::FrameSettings {
         nee: !a.no_nee,
         ..frame_settings(&scene, Some(a.width), Some(a.height), a.max_bounces, None)
     };
@@ -245,7 +245,7 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// `bench --preview`: the preview in a pseudo-terminal (`preview_bench`).
+/// `bench --preview`: the preview in a pseudo-terminal (`measure::preview`).
 fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     anyhow::ensure!(
         a.settle >= 0.0 && a.timeout > 0.0,
@@ -271,7 +271,7 @@ fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     if a.generic {
         args.push("--generic".to_string());
     }
-    let mut b = super::preview_bench::PreviewBench {
+    let mut b = crate::measure::preview::PreviewBench {
         exe: match &a.exe {
             Some(p) => p.clone(),
             None => std::env::current_exe()?,
@@ -284,7 +284,7 @@ fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         timeout: Duration::from_secs_f64(a.timeout),
         window: Duration::from_secs_f64(a.time),
         args,
-        link: a.link_mbps.map(|mbps| super::preview_bench::Link {
+        link: a.link_mbps.map(|mbps| crate::measure::preview::Link {
             bits_per_second: mbps * 1e6,
             rtt: Duration::from_secs_f64(a.rtt_ms / 1e3),
             window: a.window_kib << 10,
@@ -294,7 +294,7 @@ fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     };
     // Kept alive while the preview runs through it.
     let _ssh = if a.ssh {
-        let link = super::ssh_link::SshLink::start(
+        let link = crate::measure::ssh_link::SshLink::start(
             a.link_mbps.unwrap_or(1000.0) * 1e6,
             Duration::from_secs_f64(a.rtt_ms / 1e3),
         )?;
@@ -315,6 +315,6 @@ fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         None
     };
     let report = b.run()?;
-    super::preview_bench::print(&b, &report);
+    crate::measure::preview::print(&b, &report);
     Ok(ExitCode::SUCCESS)
 }

@@ -1,6 +1,6 @@
 //! `termtrace check`: validates scene files and prints what each contains.
 
-use crate::gpu::Features;
+use crate::common::Features;
 use crate::scene::{Scene, Sky};
 use clap::Args;
 use std::process::ExitCode;
@@ -18,7 +18,7 @@ pub struct CheckArgs {
     pub spp: u32,
 }
 
-pub fn run(a: CheckArgs, g: &super::GlobalArgs) -> anyhow::Result<ExitCode> {
+pub fn run(a: CheckArgs, g: &super::args::GlobalArgs) -> anyhow::Result<ExitCode> {
     if a.stress {
         return stress(&a, g);
     }
@@ -119,8 +119,9 @@ pub fn summary(s: &Scene) -> String {
 /// Samples per pixel of the accumulation-drift row: a million frames.
 const DRIFT_SPP: u32 = 1_000_000;
 
-fn stress(a: &CheckArgs, g: &super::GlobalArgs) -> anyhow::Result<ExitCode> {
-    use crate::gpu::{FrameSettings, GpuContext};
+fn stress(a: &CheckArgs, g: &super::args::GlobalArgs) -> anyhow::Result<ExitCode> {
+    use crate::common::FrameSettings;
+    use crate::gpu::GpuContext;
     use crate::stability::{self, FURNACE_BOUNCES, FURNACE_SKY};
     use std::sync::Arc;
     let ctx = Arc::new(GpuContext::new(g.adapter.as_deref())?);

@@ -1,7 +1,7 @@
 //! `termtrace converge`: how fast the noise falls, measured against a reference, for one or
 //! several ways of rendering the same scene.
 
-use super::GlobalArgs;
+use super::args::GlobalArgs;
 use super::render::frame_settings;
 use crate::converge::{self, Variant, metrics, plot, reference};
 use crate::output::{Transfer, write_exr, write_png};
@@ -20,7 +20,7 @@ pub struct ConvergeArgs {
     /// Scene file or built-in scene name.
     pub scene: String,
     /// Seconds of rendering per run.
-    #[arg(long, default_value_t = 10.0, value_parser = super::positive)]
+    #[arg(long, default_value_t = 10.0, value_parser = super::args::positive)]
     pub time: f64,
     /// Directory for convergence.csv, convergence.png, final.png and reference.exr.
     #[arg(long, value_name = "DIR")]
@@ -160,7 +160,7 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
                 a.reference_spp as u64,
                 "reference {elapsed_precise} [{wide_bar}] {pos}/{len} spp  ETA {eta}",
             );
-            let ref_settings = crate::gpu::FrameSettings {
+            let ref_settings = crate::common::FrameSettings {
                 nee: !a.reference_no_nee,
                 ..settings
             };
@@ -365,6 +365,6 @@ fn pseudo_snapshot(img: &crate::output::LinearImage) -> crate::render::Snapshot 
         width: img.width,
         height: img.height,
         samples: 2,
-        data: crate::gpu::AccumData::from_halves(px.clone(), px),
+        data: crate::common::AccumData::from_halves(px.clone(), px),
     }
 }

@@ -1,17 +1,17 @@
 //! The command line: `termtrace [SCENE]` (the live preview) and its subcommands.
 
 mod adapters;
+mod args;
 mod bench;
 mod check;
 mod converge;
-pub mod preview_bench;
 mod render;
-pub mod ssh_link;
 
 use crate::output::cells::{CellMode, ColorMode};
 use crate::ui::{Graphics, ViewOptions};
+pub use args::GlobalArgs;
+use args::{positive, scale};
 use clap::{Args, Parser, Subcommand};
-use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// A GPU path tracer whose live preview is drawn in the terminal.
@@ -24,28 +24,6 @@ pub struct Cli {
     view: ViewArgs,
     #[command(flatten)]
     global: GlobalArgs,
-}
-
-/// Options every command takes.
-#[derive(Args, Debug, Clone)]
-pub struct GlobalArgs {
-    /// Where to trace: `cpu-native` (the native CPU tracer), or a GPU adapter by part of its
-    /// name, a backend (vulkan, gl, metal, dx12), a type (cpu, discrete, integrated) or its
-    /// number in `termtrace adapters`. Default: the best GPU; the native CPU tracer where the
-    /// best adapter is a software one or there is none.
-    #[arg(long, global = true, env = "TERMTRACE_ADAPTER", value_name = "NAME")]
-    pub adapter: Option<String>,
-    /// Threads of the native CPU tracer and of the host's parallel work (on a shared machine,
-    /// fewer than its cores). Default: one per core.
-    #[arg(long, global = true, env = "TERMTRACE_THREADS", value_name = "N",
-          value_parser = clap::value_parser!(u32).range(1..=4096))]
-    pub threads: Option<u32>,
-    /// Write logs to this file.
-    #[arg(long, global = true, value_name = "FILE")]
-    pub log: Option<PathBuf>,
-    /// More detail in the logs (-v info, -vv debug).
-    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
-    pub verbose: u8,
 }
 
 #[derive(Subcommand, Debug)]
@@ -108,20 +86,6 @@ pub struct ViewArgs {
     /// Print frames drawn and bytes written when the preview ends.
     #[arg(long)]
     pub stats: bool,
-}
-
-fn scale(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(x) if x > 0.0 && x <= 1.0 => Ok(x),
-        _ => Err(format!("`{s}` is not a fraction in (0, 1]")),
-    }
-}
-
-pub(crate) fn positive(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
-        _ => Err(format!("`{s}` is not a positive number")),
-    }
 }
 
 fn init_logging(g: &GlobalArgs, to_stderr: bool) -> anyhow::Result<()> {

@@ -1,8 +1,8 @@
 //! `termtrace render`: a headless render to PNG (and linear EXR), with a progress bar,
 //! Ctrl-C that stops early and still saves, and atomic output files.
 
-use super::GlobalArgs;
-use crate::gpu::FrameSettings;
+use super::args::GlobalArgs;
+use crate::common::FrameSettings;
 use crate::output::{ImageFile, LinearImage, Transfer, check_writable, write_exr, write_png};
 use crate::render::Backend;
 use crate::render::{RenderOptions, Renderer};
@@ -60,7 +60,7 @@ pub struct RenderArgs {
     pub no_nee: bool,
     /// Stop once the estimated relative RMSE (from the difference of two independent halves
     /// of the samples) falls below this, e.g. 0.01 for 1 %.
-    #[arg(long, value_name = "E", value_parser = super::positive)]
+    #[arg(long, value_name = "E", value_parser = super::args::positive)]
     pub target_error: Option<f64>,
     /// No progress bar.
     #[arg(short, long)]

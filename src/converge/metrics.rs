@@ -1,7 +1,8 @@
 //! Error of an image against a reference, in linear radiance, and the per-tile bias test.
 
+use crate::common::resolved::REL_MSE_EPSILON;
 use crate::output::LinearImage;
-use crate::render::{REL_MSE_EPSILON, Snapshot};
+use crate::render::Snapshot;
 use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
 
 /// Errors of one image against a reference, over every pixel and channel.
@@ -302,7 +303,7 @@ mod tests {
             width: 1,
             height: 1,
             samples: 2,
-            data: crate::gpu::AccumData::from_halves(
+            data: crate::common::AccumData::from_halves(
                 vec![[0.9, 0.9, 0.9, 1.0]],
                 vec![[1.1, 1.1, 1.1, 1.0]],
             ),
@@ -338,7 +339,7 @@ mod tests {
             width: 4,
             height: 4,
             samples: 2 * n as u32,
-            data: crate::gpu::AccumData::from_halves(
+            data: crate::common::AccumData::from_halves(
                 vec![[v * n, v * n, v * n, n]; 16],
                 vec![[v * n, v * n, v * n, n]; 16],
             ),

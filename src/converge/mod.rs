@@ -6,7 +6,7 @@ pub mod metrics;
 pub mod plot;
 pub mod reference;
 
-use crate::gpu::FrameSettings;
+use crate::common::FrameSettings;
 use crate::render::Backend;
 use crate::render::{RenderOptions, Renderer, Snapshot};
 use crate::scene::Scene;

@@ -1,8 +1,8 @@
 //! The reference a convergence run is measured against: an EXR the user gives, or a long
 //! render made once and cached under a hash of everything that decides its pixels.
 
-use crate::gpu::AccumData;
-use crate::gpu::FrameSettings;
+use crate::common::AccumData;
+use crate::common::FrameSettings;
 use crate::output::LinearImage;
 use crate::render::Backend;
 use crate::render::{RenderOptions, Renderer, Snapshot};
@@ -109,7 +109,7 @@ pub fn cache_key(scene: &Scene, s: &FrameSettings, spp: u32, adapter: &str) -> u
         REFERENCE_SEED,
     )
         .hash(&mut h);
-    for (_, src) in crate::gpu::shader::SOURCES {
+    for (_, src) in crate::common::wgsl::SOURCES {
         src.hash(&mut h);
     }
     env!("CARGO_PKG_VERSION").hash(&mut h);

@@ -6,8 +6,8 @@
 //! segment, for about two primitive tests each.
 
 use super::intersect::{Ray, safe_inverse};
+use crate::bvh::wide::GpuBvhNode4;
 use crate::bvh::wide::{EMPTY_SLOT, STACK};
-use crate::gpu::layout::GpuBvhNode4;
 use glam::Vec4;
 
 /// Four children: their bounds by axis, and for each either an inner node (`child` its

@@ -3,7 +3,7 @@
 //! [r.frac, r.low, r.high, g…, b…, samples] (`ACCUM_WORDS` per pixel), so that the GPU's
 //! readback decoding and every consumer of the sums work unchanged.
 
-use crate::gpu::accum::ACCUM_WORDS;
+use crate::common::accum::ACCUM_WORDS;
 
 /// The largest f32 below 2^32: samples are clamped to it.
 const FIXED_MAX: f32 = 4294967040.0;

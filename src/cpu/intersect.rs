@@ -1,8 +1,47 @@
 //! Ray/primitive intersection and self-intersection avoidance: shaders/common/intersect.wgsl
 //! in Rust, term for term (its comments give the sources and the reasoning).
 
-use super::scene::{Cuboid, Quad, Sphere, Triangle};
 use glam::{IVec3, Vec3A};
+
+/// Rays walked together: the camera rays of `LANES` neighbouring pixels (the packet walk,
+/// `trace::Tracer::camera_hits`).
+pub const LANES: usize = 8;
+
+/// The primitives as the CPU tracer tests them: the arrays of `common::layout` as vectors
+/// (`cpu::scene` converts them).
+#[derive(Clone, Copy, Debug)]
+pub struct Sphere {
+    pub anchor: Vec3A,
+    pub anchor_normal: Vec3A,
+    pub radius: f32,
+    pub material: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Quad {
+    pub q: Vec3A,
+    pub u: Vec3A,
+    pub v: Vec3A,
+    pub normal: Vec3A,
+    pub w: Vec3A,
+    pub material: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Cuboid {
+    pub center: Vec3A,
+    pub half_extents: Vec3A,
+    pub axes: [Vec3A; 3],
+    pub material: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Triangle {
+    pub v0: Vec3A,
+    pub e1: Vec3A,
+    pub e2: Vec3A,
+    pub material: u32,
+}
 
 #[derive(Clone, Copy, Debug)]
 pub struct Ray {

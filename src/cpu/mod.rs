@@ -1,7 +1,7 @@
 //! The native CPU tracer: the GPU tracer's model (shaders/trace.wgsl) in Rust on every core
 //! (rayon), for machines without a GPU, where it replaces Mesa's software adapters.
 //!
-//! It reads the scene the GPU reads (`gpu::scene_buffers`: the same primitives, lights and
+//! It reads the scene the GPU reads (`common::arrays`: the same primitives, lights and
 //! BVH, the latter collapsed to four-wide nodes in `cpu::bvh`, and to eight-wide ones in
 //! `cpu::bvh8` for single rays on a CPU with AVX), traces the same random streams (a group
 //! of eight pixels' samplers made at once: `rng::Rng::group`), and keeps the same exact
@@ -25,17 +25,17 @@ pub mod sampling;
 pub mod scene;
 pub mod trace;
 
-use crate::gpu::accum::{ACCUM_WORDS, AccumData, decode, decode_pixel};
-use crate::gpu::layout::DispatchUniforms;
-use crate::gpu::resolve::Resolved;
-use crate::gpu::{Features, FrameSettings};
+use crate::common::Resolved;
+use crate::common::accum::{ACCUM_WORDS, AccumData, decode, decode_pixel};
+use crate::common::layout::DispatchUniforms;
+use crate::common::{Features, FrameSettings};
 use crate::scene::Scene;
 use fixed::Fixed;
-use intersect::Ray;
+use intersect::{LANES, Ray};
 use rayon::prelude::*;
 use rng::Rng;
 use scene::CpuScene;
-use trace::{ANY, LANES, SPHERES, Tracer};
+use trace::{ANY, SPHERES, Tracer};
 
 // A pixel group's samplers are made together.
 const _: () = assert!(LANES == rng::GROUP);
@@ -391,7 +391,7 @@ impl CpuEngine {
                                 b[4] += v;
                                 b[5] += v
                                     / ((se[c] / ne * (so[c] / no)).max(0.0)
-                                        + crate::render::REL_MSE_EPSILON as f32);
+                                        + crate::common::resolved::REL_MSE_EPSILON as f32);
                             }
                         }
                     }

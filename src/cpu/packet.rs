@@ -4,10 +4,9 @@
 //! hits are those of single rays bit for bit (tested), so the images do not change.
 
 use super::bvh::{Bvh4, Tally, nearest_next, slots};
-use super::intersect::{Ray, safe_inverse};
-use super::scene::Sphere;
-use super::trace::{INDEX, LANES};
+use super::intersect::{LANES, Ray, Sphere, safe_inverse};
 use crate::bvh::wide::STACK;
+use crate::common::arrays::REF_INDEX as INDEX;
 use std::arch::x86_64::*;
 
 /// Up to eight rays, structure of arrays; `active` the lanes that hold one.

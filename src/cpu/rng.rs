@@ -304,7 +304,7 @@ mod tests {
     /// rng.wgsl stratifies as many draws and keeps the draw count in the same bits.
     #[test]
     fn the_shader_sampler_has_the_same_constants() {
-        let constant = |name| crate::gpu::shader::u32_constant("common/rng.wgsl", name);
+        let constant = |name| crate::common::wgsl::u32_constant("common/rng.wgsl", name);
         assert_eq!(constant("QMC_SLOTS"), QMC_SLOTS);
         assert_eq!(constant("SLOT_BITS"), SLOT_BITS);
     }

@@ -1,14 +1,15 @@
 //! The scene as the CPU tracer reads it: the very arrays the GPU gets
-//! (`gpu::scene_buffers::Primitives`, `scene_uniforms`, the same BVH), converted to SIMD
+//! (`common::arrays::Primitives`, `scene_uniforms`, the same BVH), converted to SIMD
 //! vectors (`glam::Vec3A`), with the BVH collapsed to four children per node (`cpu::bvh`),
 //! and where the CPU has AVX to eight (`cpu::bvh8`).
 
 use super::bvh::Bvh4;
 #[cfg(target_arch = "x86_64")]
 use super::bvh8::Bvh8;
-use crate::gpu::FrameSettings;
-use crate::gpu::layout::{GpuLight, GpuMaterial, SceneUniforms};
-use crate::gpu::scene_buffers::{Primitives, geometry_hash, gpu_bvh, scene_uniforms};
+use super::intersect::{Cuboid, Quad, Sphere, Triangle};
+use crate::common::FrameSettings;
+use crate::common::arrays::{Primitives, geometry_hash, gpu_bvh, scene_uniforms};
+use crate::common::layout::{GpuLight, GpuMaterial, SceneUniforms};
 use crate::scene::Scene;
 use glam::{DVec3, Vec3A};
 
@@ -26,40 +27,6 @@ pub struct Material {
     pub light: f32,
     pub ior: f32,
     pub light_slot: u32,
-}
-
-#[derive(Clone, Copy, Debug)]
-pub struct Sphere {
-    pub anchor: Vec3A,
-    pub anchor_normal: Vec3A,
-    pub radius: f32,
-    pub material: u32,
-}
-
-#[derive(Clone, Copy, Debug)]
-pub struct Quad {
-    pub q: Vec3A,
-    pub u: Vec3A,
-    pub v: Vec3A,
-    pub normal: Vec3A,
-    pub w: Vec3A,
-    pub material: u32,
-}
-
-#[derive(Clone, Copy, Debug)]
-pub struct Cuboid {
-    pub center: Vec3A,
-    pub half_extents: Vec3A,
-    pub axes: [Vec3A; 3],
-    pub material: u32,
-}
-
-#[derive(Clone, Copy, Debug)]
-pub struct Triangle {
-    pub v0: Vec3A,
-    pub e1: Vec3A,
-    pub e2: Vec3A,
-    pub material: u32,
 }
 
 /// The uniforms the tracer reads per sample, as vectors.

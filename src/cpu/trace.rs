@@ -19,9 +19,10 @@ use super::material::{Scatter, scatter_dielectric, scatter_surface};
 use super::packet::Packets;
 use super::rng::Rng;
 use super::sampling::{PI, basis, random_in_disk, sin_cos_turns};
-use super::scene::{CpuScene, Sphere};
-use crate::gpu::Features;
-use crate::gpu::layout::GpuLight;
+use super::scene::CpuScene;
+use crate::common::Features;
+use crate::common::arrays::REF_INDEX as INDEX;
+use crate::common::layout::GpuLight;
 use glam::Vec3A;
 
 /// `P`: only spheres.
@@ -29,11 +30,6 @@ pub const SPHERES: u32 = 1;
 /// `P`: any primitive kind.
 pub const ANY: u32 = 15;
 
-/// Camera rays walked together (`camera_hits`).
-pub const LANES: usize = 8;
-
-/// A BVH reference's primitive index (its kind in the top two bits).
-pub(super) const INDEX: u32 = 0x3fff_ffff;
 pub(super) const T_FAR: f32 = 3.0e38;
 /// No primitive (a reference no scene has: the 2^30-th triangle).
 const NONE: u32 = u32::MAX;
@@ -571,8 +567,8 @@ pub(super) fn recorded(
     h: u32,
     spp: u32,
 ) -> (CpuScene, Vec<(u32, super::intersect::Ray)>) {
-    use crate::gpu::FrameSettings;
-    use crate::gpu::layout::DispatchUniforms;
+    use crate::common::FrameSettings;
+    use crate::common::layout::DispatchUniforms;
     let scene = crate::scene::Scene::load(name).unwrap();
     let settings = FrameSettings::new(w, h, scene.render.max_bounces, 1);
     let mut engine = super::CpuEngine::new(&scene, &settings);

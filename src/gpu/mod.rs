@@ -1,10 +1,9 @@
-//! The GPU stage: adapter and device, the scene's buffers, the tracer pass, the accumulation
-//! it writes, the reduce pass that merges lanes and the preview's resolve pass.
+//! The GPU stage: adapter and device, the scene's buffers (the arrays of [`crate::common`]
+//! uploaded), the tracer pass, the accumulation it writes, the reduce pass that merges lanes
+//! and the preview's resolve pass.
 
 pub mod accum;
 pub mod context;
-pub mod features;
-pub mod layout;
 pub mod reduce;
 pub mod resolve;
 pub mod scene_buffers;
@@ -12,10 +11,9 @@ pub mod shader;
 pub mod timer;
 pub mod trace;
 
-pub use accum::{AccumData, Accumulation};
+pub use accum::Accumulation;
 pub use context::{GpuContext, GpuError, describe, list_adapters, select_adapter};
-pub use features::Features;
-pub use scene_buffers::{FrameSettings, SceneBuffers};
+pub use scene_buffers::SceneBuffers;
 pub use trace::TracePass;
 
 /// A compute-stage buffer binding of the given type.

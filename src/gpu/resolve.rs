@@ -4,9 +4,9 @@
 //! frame, goes on tracing, and takes the frame once its copy has landed.
 
 use super::accum::Accumulation;
-use super::layout::ResolveUniforms;
 use super::{GpuContext, bind_buffers, simple_pass};
-use crate::output::LinearImage;
+use crate::common::layout::ResolveUniforms;
+use crate::common::resolved::Resolved;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 
@@ -21,56 +21,6 @@ const FREE: u8 = 0;
 const PENDING: u8 = 1;
 const MAPPED: u8 = 2;
 const FAILED: u8 = 3;
-
-/// One resolved frame on the host.
-#[derive(Clone, Debug)]
-pub struct Resolved {
-    pub image: LinearImage,
-    /// The traced image's estimated relative RMSE (see `Snapshot::error_estimate`); `None`
-    /// until every pixel has a sample in each half.
-    pub noise: Option<f64>,
-    /// Samples discarded as NaN or infinite since the last reset.
-    pub invalid: u64,
-    /// Per image pixel, the estimated standard error of its linear value (the two halves'
-    /// estimate, averaged over channels and the block); 0 where not yet known.
-    pub sigma: Vec<f32>,
-}
-
-impl Resolved {
-    /// The frame from the resolve's two vec4f per output pixel (see resolve.wgsl; the CPU
-    /// tracer computes the same terms on the host): `out` pixels, each the mean of a
-    /// `factor × factor` block.
-    pub fn from_blocks(words: &[[f32; 8]], out: (u32, u32), factor: u32, invalid: u64) -> Resolved {
-        let n = out.0 as usize * out.1 as usize;
-        // The block's mean has 1/factor⁴ of its pixels' summed variance.
-        let block = (factor * factor) as f32;
-        let sigma = words
-            .iter()
-            .map(|w| (w[4] / (3.0 * block * block)).max(0.0).sqrt())
-            .collect();
-        let (mut rel, mut fewest) = (0.0f64, f32::INFINITY);
-        let pixels = words
-            .iter()
-            .map(|w| {
-                fewest = fewest.min(w[3]);
-                rel += w[5] as f64;
-                [w[0], w[1], w[2]]
-            })
-            .collect();
-        // Over the traced pixels the output covers (all of them when the size divides).
-        let channels = 3.0 * n as f64 * block as f64;
-        Resolved {
-            image: LinearImage {
-                width: out.0,
-                height: out.1,
-                pixels,
-            },
-            noise: (fewest >= 1.0).then(|| (rel / channels).sqrt()),
-            invalid,
-            sigma,
-        }
-    }
-}
 
 struct Slot {
     buffer: Option<wgpu::Buffer>,

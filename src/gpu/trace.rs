@@ -22,11 +22,11 @@
 //! pipeline per scene.
 
 use super::accum::Accumulation;
-use super::features::Features;
-use super::layout::DispatchUniforms;
 use super::scene_buffers::SceneBuffers;
 use super::timer::GpuTimer;
 use super::{bind_buffers, layout_entry as entry, shader};
+use crate::common::Features;
+use crate::common::layout::DispatchUniforms;
 use std::collections::{HashMap, HashSet};
 use std::sync::{Arc, Mutex};
 

@@ -16,17 +16,16 @@ mod snapshot;
 pub mod tune;
 
 pub use schedule::Schedule;
-pub use snapshot::{ErrorEstimate, REL_MSE_EPSILON, Snapshot};
+pub use snapshot::{ErrorEstimate, Snapshot};
 
+use crate::common::Resolved;
+use crate::common::layout::DispatchUniforms;
+use crate::common::{Features, FrameSettings};
 use crate::cpu::CpuEngine;
-use crate::gpu::layout::DispatchUniforms;
 use crate::gpu::reduce::ReducePass;
-use crate::gpu::resolve::Resolved;
 use crate::gpu::timer::GpuTimer;
 use crate::gpu::trace::TraceDispatch;
-use crate::gpu::{
-    Accumulation, Features, FrameSettings, GpuContext, GpuError, SceneBuffers, TracePass,
-};
+use crate::gpu::{Accumulation, GpuContext, GpuError, SceneBuffers, TracePass};
 use crate::scene::Scene;
 use std::collections::VecDeque;
 use std::sync::Arc;

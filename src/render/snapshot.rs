@@ -1,12 +1,9 @@
 //! What the accumulation holds at one moment, on the host: per-pixel sums of the even and
 //! odd samples, from which the image and its noise estimate are computed.
 
-use crate::gpu::AccumData;
+use crate::common::AccumData;
+use crate::common::resolved::REL_MSE_EPSILON;
 use crate::output::LinearImage;
-
-/// pbrt's relative MSE adds this to the squared reference so that black pixels do not divide
-/// by zero (pbrt-v4, `imgtool diff --metric relmse`).
-pub const REL_MSE_EPSILON: f64 = 0.01;
 
 /// An image's estimated error, in linear radiance.
 #[derive(Clone, Copy, Debug, PartialEq)]

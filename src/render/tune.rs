@@ -18,7 +18,7 @@
 //! rows differ in cost (sky against ground: weekend's differ by 2×), so submissions of
 //! different rows compared the rows as much as the pipelines. A round traces every row.
 
-use crate::gpu::Features;
+use crate::common::Features;
 
 /// Timed rounds of each candidate before choosing.
 const TRIALS: u32 = 5;

@@ -2,6 +2,7 @@
 //! (`cargo run --example gen_scenes`) and random sphere fields for benchmarks.
 
 use super::*;
+use glam::{DVec3, Vec3};
 
 /// SplitMix64 (Steele, Lea & Flood 2014): a tiny, well-mixed generator so that generated
 /// scenes are the same on every machine and toolchain.

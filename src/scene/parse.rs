@@ -1,7 +1,9 @@
 //! The scene file grammar of MODEL.md ("A scene file, spelled out"): TOML → [`Scene`].
 
+use super::error::SceneError;
+use super::model::*;
 use super::reader::{Sink, Table};
-use super::*;
+use glam::{DVec3, Vec3};
 use toml::de::DeTable;
 
 const TOP_KEYS: &[&str] = &[

@@ -3,6 +3,7 @@
 
 use super::color::to_hex_exact;
 use super::*;
+use glam::{DVec3, Vec3};
 use std::fmt::Write;
 
 fn num(x: f64) -> String {

@@ -4,9 +4,10 @@
 pub mod probe;
 pub mod reference;
 
-use crate::gpu::layout::{GpuQuad, GpuSphere};
-use crate::gpu::scene_buffers::sphere_anchor;
-use crate::gpu::{FrameSettings, GpuContext};
+use crate::common::FrameSettings;
+use crate::common::arrays::sphere_anchor;
+use crate::common::layout::{GpuQuad, GpuSphere};
+use crate::gpu::GpuContext;
 use crate::render::{RenderOptions, Renderer};
 use crate::scene::generate::SplitMix64;
 use crate::scene::{Material, Scene, Shape, Sky};

@@ -1,8 +1,8 @@
 //! The probe pass (`shaders/probe.wgsl`): the tracer's own intersection and scattering
 //! functions, run on the GPU on inputs from the host.
 
+use crate::common::layout::{GpuQuad, GpuSphere};
 use crate::gpu::GpuContext;
-use crate::gpu::layout::{GpuQuad, GpuSphere};
 use crate::gpu::shader;
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;

@@ -8,12 +8,12 @@
 //! first round is one sample per pixel, and its frame is requested as soon as that round is
 //! queued, whatever the frame rate. Frames of an older state still in flight are dropped.
 
-use super::Event;
 use super::app::Stats;
-use crate::gpu::FrameSettings;
-use crate::gpu::resolve::Resolved;
+use super::event::{Event, Frame};
+use crate::common::FrameSettings;
+use crate::common::Resolved;
 use crate::gpu::resolve::{ResolvePass, SLOTS};
-use crate::output::{LinearImage, Transfer, write_png};
+use crate::output::{Transfer, write_png};
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::Scene;
 use std::path::PathBuf;
@@ -44,19 +44,6 @@ pub enum Request {
     Save { scene: Box<Scene>, path: PathBuf },
     /// Stop; a background save in progress writes what it has.
     Quit,
-}
-
-/// One preview frame.
-pub struct Frame {
-    /// The traced image averaged down by the request's `factor`.
-    pub image: LinearImage,
-    /// Per image pixel, the standard error of its value (see `Resolved::sigma`).
-    pub sigma: Vec<f32>,
-    /// The accumulation has stopped: the image is final.
-    pub last: bool,
-    pub stats: Stats,
-    /// The `Request::Scene` this frame renders.
-    pub generation: u64,
 }
 
 #[derive(Clone, Copy, Debug)]

@@ -6,7 +6,8 @@
 use glam::DVec3;
 use std::cell::RefCell;
 use std::sync::{Arc, OnceLock};
-use termtrace::gpu::{FrameSettings, GpuContext, layout::SceneUniforms, scene_buffers};
+use termtrace::common::{FrameSettings, arrays, layout::SceneUniforms};
+use termtrace::gpu::GpuContext;
 use termtrace::output::LinearImage;
 use termtrace::render::{Backend, RenderOptions, Renderer, Snapshot};
 use termtrace::scene::Scene;
@@ -97,7 +98,7 @@ pub fn render(toml: &str, w: u32, h: u32, spp: u32, max_bounces: u32) -> LinearI
 /// The camera frame the tracer uses, for host-side geometry.
 pub fn camera_frame(scene: &Scene, w: u32, h: u32) -> SceneUniforms {
     let mut u = SceneUniforms::default();
-    scene_buffers::camera_uniforms(&scene.camera, w as f64 / h as f64, DVec3::ZERO, &mut u);
+    arrays::camera_uniforms(&scene.camera, w as f64 / h as f64, DVec3::ZERO, &mut u);
     u
 }
 

@@ -1,6 +1,8 @@
 //! `#[repr(C)]` mirrors of the WGSL structs in `shaders/common/types.wgsl`, padding spelled
-//! out; `tests/shaders.rs` checks every size and offset against naga's layout of the WGSL.
+//! out, as both tracers read them (the BVH's node, `GpuBvhNode4`, is `bvh::wide`'s);
+//! `tests/shaders.rs` checks every size and offset against naga's layout of the WGSL.
 
+use crate::bvh::wide::GpuBvhNode4;
 use bytemuck::{Pod, Zeroable};
 
 #[repr(C)]
@@ -123,19 +125,6 @@ pub struct GpuTriangle {
     pub _pad0: f32,
     pub e2: [f32; 3],
     pub _pad1: f32,
-}
-
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
-pub struct GpuBvhNode4 {
-    pub min_x: [f32; 4],
-    pub min_y: [f32; 4],
-    pub min_z: [f32; 4],
-    pub max_x: [f32; 4],
-    pub max_y: [f32; 4],
-    pub max_z: [f32; 4],
-    pub child: [u32; 4],
-    pub count: [u32; 4],
 }
 
 #[repr(C)]

@@ -1,0 +1,42 @@
+//! What every subcommand shares: the global options and the value parsers.
+
+use clap::Args;
+use std::path::PathBuf;
+
+/// Options every command takes.
+#[derive(Args, Debug, Clone)]
+pub struct GlobalArgs {
+    /// Where to trace: `cpu-native` (the native CPU tracer), or a GPU adapter by part of its
+    /// name, a backend (vulkan, gl, metal, dx12), a type (cpu, discrete, integrated) or its
+    /// number in `termtrace adapters`. Default: the best GPU; the native CPU tracer where the
+    /// best adapter is a software one or there is none.
+    #[arg(long, global = true, env = "TERMTRACE_ADAPTER", value_name = "NAME")]
+    pub adapter: Option<String>,
+    /// Threads of the native CPU tracer and of the host's parallel work (on a shared machine,
+    /// fewer than its cores). Default: one per core.
+    #[arg(long, global = true, env = "TERMTRACE_THREADS", value_name = "N",
+          value_parser = clap::value_parser!(u32).range(1..=4096))]
+    pub threads: Option<u32>,
+    /// Write logs to this file.
+    #[arg(long, global = true, value_name = "FILE")]
+    pub log: Option<PathBuf>,
+    /// More detail in the logs (-v info, -vv debug).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    pub verbose: u8,
+}
+
+/// A fraction in (0, 1] (`--scale`).
+pub(super) fn scale(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x > 0.0 && x <= 1.0 => Ok(x),
+        _ => Err(format!("`{s}` is not a fraction in (0, 1]")),
+    }
+}
+
+/// A finite number above zero.
+pub(super) fn positive(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+        _ => Err(format!("`{s}` is not a positive number")),
+    }
+}

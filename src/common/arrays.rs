@@ -1,0 +1,402 @@
+//! The scene as both tracers read it: uniforms and the primitive, material, light and BVH
+//! arrays in the layouts of [`super::layout`], converted from the host's f64 model, and the
+//! frame settings beside them.
+
+use super::layout::*;
+use crate::bvh::wide::GpuBvhNode4;
+use crate::bvh::{Aabb, Bvh};
+use crate::scene::{Camera, Object, Scene, Shape, Sky, euler_xyz};
+use glam::DVec3;
+use std::hash::{Hash, Hasher};
+
+/// What the tracer needs besides the scene itself.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameSettings {
+    pub width: u32,
+    pub height: u32,
+    pub max_bounces: u32,
+    pub seed: u32,
+    /// Width / height of one pixel: 1 for images; a terminal's pixels are taller than wide.
+    pub pixel_aspect: f64,
+    /// Next-event estimation (light sampling with MIS, and Russian roulette) where the scene
+    /// has lights; off gives the lecture's brute-force path tracer.
+    pub nee: bool,
+}
+
+impl FrameSettings {
+    /// Settings for square pixels.
+    pub fn new(width: u32, height: u32, max_bounces: u32, seed: u32) -> FrameSettings {
+        FrameSettings {
+            width,
+            height,
+            max_bounces,
+            seed,
+            pixel_aspect: 1.0,
+            nee: true,
+        }
+    }
+
+    /// Width / height of the whole image, as the camera sees it.
+    pub fn aspect(&self) -> f64 {
+        self.width as f64 * self.pixel_aspect / self.height as f64
+    }
+}
+
+/// The camera of MODEL.md as the focus-plane frame the shader uses (Shirley, Ray Tracing in
+/// One Weekend §11–13), computed in f64, relative to `look_from`, and its position relative
+/// to the scene's `origin` (the floating origin of `gpu::SceneBuffers`).
+pub fn camera_uniforms(cam: &Camera, aspect: f64, origin: DVec3, u: &mut SceneUniforms) {
+    let focus = cam.focus();
+    let half_h = (cam.vfov.to_radians() / 2.0).tan();
+    let view_h = 2.0 * half_h * focus;
+    let view_w = aspect * view_h;
+    let w = (cam.look_from - cam.look_at).normalize();
+    let right = cam.up.cross(w).normalize();
+    let up = w.cross(right);
+    let horizontal = view_w * right;
+    let vertical = view_h * up;
+    let f = |v: DVec3| v.as_vec3().to_array();
+    u.cam_origin = f(cam.look_from - origin);
+    u.lens_radius = (cam.aperture / 2.0) as f32;
+    u.cam_to_corner = f(-focus * w - horizontal / 2.0 + vertical / 2.0);
+    u.cam_horizontal = f(horizontal);
+    u.cam_vertical = f(vertical);
+    u.cam_u = f(right);
+    u.cam_v = f(up);
+}
+
+/// The uniforms of a scene rendered with `s`, positions relative to `origin`.
+pub fn scene_uniforms(scene: &Scene, s: &FrameSettings, origin: DVec3) -> SceneUniforms {
+    let mut u = SceneUniforms {
+        width: s.width,
+        height: s.height,
+        max_bounces: s.max_bounces,
+        seed: s.seed,
+        ..Default::default()
+    };
+    camera_uniforms(&scene.camera, s.aspect(), origin, &mut u);
+    match &scene.sky {
+        Sky::Uniform(c) => {
+            u.sky_uniform = 1;
+            u.sky_bottom = c.to_array();
+        }
+        Sky::Gradient { bottom, top, sun } => {
+            u.sky_bottom = bottom.to_array();
+            u.sky_top = top.to_array();
+            if let Some(sun) = sun {
+                u.sun_dir = sun.direction.normalize().as_vec3().to_array();
+                u.sun_size = sun.size;
+                u.sun_radiance = (sun.color * sun.intensity).to_array();
+            }
+        }
+    }
+    u.n_lights = lights(scene, s.nee).0.len() as u32;
+    let n = scene.counts();
+    u.n_spheres = n.spheres as u32;
+    u.n_quads = n.quads as u32;
+    u.n_boxes = n.boxes as u32;
+    u.n_triangles = n.triangles as u32;
+    u
+}
+
+/// A sphere's anchor: the surface point nearest `toward` (the camera's `look_at`), where
+/// intersections are most precise (see `hit_sphere` in intersect.wgsl).
+pub fn sphere_anchor(center: DVec3, radius: f64, toward: DVec3) -> (DVec3, DVec3) {
+    let d = toward - center;
+    let n = if d.length() > 0.0 {
+        d.normalize()
+    } else {
+        DVec3::Y
+    };
+    (center + radius.abs() * n, n)
+}
+
+/// Primitive kinds as the BVH's references encode them (top two bits; `KIND_* - 1` in
+/// trace.wgsl).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Kind {
+    Sphere = 0,
+    Quad = 1,
+    Box = 2,
+    Triangle = 3,
+}
+
+/// A BVH reference's index in its kind's array (below the kind's two bits).
+pub const REF_INDEX: u32 = (1 << 30) - 1;
+
+/// A BVH reference: kind in the top two bits, index in its array below.
+pub fn encode_ref(kind: Kind, index: usize) -> u32 {
+    assert!(index < 1 << 30, "more than 2^30 primitives of one kind");
+    (kind as u32) << 30 | index as u32
+}
+
+/// The primitive arrays (one material per object, primitives grouped by kind) and the
+/// bounds of every primitive, in the order `refs` names them.
+#[derive(Default)]
+pub struct Primitives {
+    pub materials: Vec<GpuMaterial>,
+    pub spheres: Vec<GpuSphere>,
+    pub quads: Vec<GpuQuad>,
+    pub boxes: Vec<GpuCuboid>,
+    pub triangles: Vec<GpuTriangle>,
+    pub lights: Vec<GpuLight>,
+    /// The reference and bounds of every primitive.
+    pub refs: Vec<u32>,
+    pub bounds: Vec<Aabb>,
+}
+
+/// A vector (a direction or an extent) in f32: never moved by the origin.
+fn dir(v: DVec3) -> [f32; 3] {
+    v.as_vec3().to_array()
+}
+
+/// A position in f32 (callers subtract the origin first).
+fn f(v: DVec3) -> [f32; 3] {
+    v.as_vec3().to_array()
+}
+
+impl Primitives {
+    /// The scene's primitives with positions relative to `origin`, subtracted in f64 before
+    /// the rounding to f32 (bounds stay in world coordinates relative to it too).
+    pub fn of(scene: &Scene, origin: DVec3, nee: bool) -> Primitives {
+        let mut p = Primitives::default();
+        let (lights, slots) = lights(scene, nee);
+        p.lights = lights;
+        // Positions are taken relative to the origin (in f64, before rounding); directions
+        // and extents go through `dir` unchanged.
+        let pos = |v: DVec3| f(v - origin);
+        for (i, o) in scene.objects.iter().enumerate() {
+            p.materials.push(GpuMaterial {
+                light_slot: slots[i],
+                ..material(o)
+            });
+            let mat = i as u32;
+            match &o.shape {
+                Shape::Sphere { center, radius } => {
+                    let (a, n) = sphere_anchor(*center, *radius, scene.camera.look_at);
+                    let r = DVec3::splat(radius.abs());
+                    let c = *center - origin;
+                    p.push(
+                        Kind::Sphere,
+                        p.spheres.len(),
+                        Aabb {
+                            min: c - r,
+                            max: c + r,
+                        },
+                    );
+                    p.spheres.push(GpuSphere {
+                        anchor: pos(a),
+                        radius: *radius as f32,
+                        anchor_normal: dir(n),
+                        material: mat,
+                    });
+                }
+                Shape::Quad { q, u, v } => {
+                    let n = u.cross(*v);
+                    let q0 = *q - origin;
+                    let b = Aabb::of_points(&[q0, q0 + *u, q0 + *v, q0 + *u + *v]);
+                    p.push(Kind::Quad, p.quads.len(), b);
+                    p.quads.push(GpuQuad {
+                        q: pos(*q),
+                        material: mat,
+                        u: dir(*u),
+                        v: dir(*v),
+                        normal: dir(n.normalize()),
+                        w: dir(n / n.dot(n)),
+                        ..Default::default()
+                    });
+                }
+                Shape::Box {
+                    center,
+                    half_extents,
+                    rotation,
+                } => {
+                    let r = euler_xyz(*rotation);
+                    let h = *half_extents;
+                    let corners: Vec<DVec3> = (0..8)
+                        .map(|k| {
+                            let s = DVec3::new(
+                                if k & 1 == 0 { -1.0 } else { 1.0 },
+                                if k & 2 == 0 { -1.0 } else { 1.0 },
+                                if k & 4 == 0 { -1.0 } else { 1.0 },
+                            );
+                            *center - origin + r * (s * h)
+                        })
+                        .collect();
+                    p.push(Kind::Box, p.boxes.len(), Aabb::of_points(&corners));
+                    p.boxes.push(GpuCuboid {
+                        center: pos(*center),
+                        material: mat,
+                        half_extents: dir(h),
+                        axis_x: dir(r.x_axis),
+                        axis_y: dir(r.y_axis),
+                        axis_z: dir(r.z_axis),
+                        ..Default::default()
+                    });
+                }
+                Shape::Mesh { .. } => {
+                    for [a, b, c] in o.shape.world_triangles() {
+                        let local = [a - origin, b - origin, c - origin];
+                        p.push(Kind::Triangle, p.triangles.len(), Aabb::of_points(&local));
+                        p.triangles.push(GpuTriangle {
+                            v0: pos(a),
+                            material: mat,
+                            e1: dir(b - a),
+                            e2: dir(c - a),
+                            ..Default::default()
+                        });
+                    }
+                }
+            }
+        }
+        p
+    }
+
+    fn push(&mut self, kind: Kind, index: usize, bounds: Aabb) {
+        self.refs.push(encode_ref(kind, index));
+        self.bounds.push(bounds);
+    }
+}
+
+/// The lights next-event estimation samples: every emissive sphere and quad with its share
+/// of the total power (luminance × light × emitting area, both faces of a quad) and the
+/// cumulative table of those shares; and each object's slot (1 + its index in the table; 0
+/// for objects that are not sampled: non-emitters, emissive boxes and meshes, which paths
+/// still reach by scattering). Empty when `nee` is off.
+pub fn lights(scene: &Scene, nee: bool) -> (Vec<GpuLight>, Vec<u32>) {
+    let mut slots = vec![0u32; scene.objects.len()];
+    if !nee {
+        return (Vec::new(), slots);
+    }
+    let (mut spheres, mut quads) = (0usize, 0usize);
+    // (reference, object, power, area)
+    let mut found = Vec::new();
+    for (i, o) in scene.objects.iter().enumerate() {
+        let m = &o.material;
+        let lum = |c: glam::Vec3| (0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z) as f64;
+        match &o.shape {
+            Shape::Sphere { radius, .. } => {
+                if m.is_emitter() {
+                    let area = 4.0 * std::f64::consts::PI * radius * radius;
+                    found.push((
+                        encode_ref(Kind::Sphere, spheres),
+                        i,
+                        lum(m.color) * m.light as f64 * area,
+                        area,
+                    ));
+                }
+                spheres += 1;
+            }
+            Shape::Quad { u, v, .. } => {
+                if m.is_emitter() {
+                    let area = u.cross(*v).length();
+                    found.push((
+                        encode_ref(Kind::Quad, quads),
+                        i,
+                        2.0 * lum(m.color) * m.light as f64 * area,
+                        area,
+                    ));
+                }
+                quads += 1;
+            }
+            _ => {}
+        }
+    }
+    let total: f64 = found.iter().map(|l| l.2).sum();
+    if found.is_empty() || total <= 0.0 {
+        return (Vec::new(), slots);
+    }
+    let mut cdf = 0.0;
+    let n = found.len();
+    let table = found
+        .iter()
+        .enumerate()
+        .map(|(k, &(prim, object, power, area))| {
+            let p = power / total;
+            cdf += p;
+            slots[object] = k as u32 + 1;
+            GpuLight {
+                prim,
+                // The last entry is exactly 1, whatever the rounding.
+                cdf: if k + 1 == n { 1.0 } else { cdf as f32 },
+                pmf: p as f32,
+                area: area as f32,
+            }
+        })
+        .collect();
+    (table, slots)
+}
+
+/// The BVH over `p`, as both tracers read it: four-wide nodes (`bvh::wide`), and the
+/// references in leaf order. A scene without primitives gets an empty list (the buffer then
+/// holds one zeroed node, which the tracer never reads: it checks the primitive counts first).
+pub fn gpu_bvh(p: &Primitives) -> (Vec<GpuBvhNode4>, Vec<u32>) {
+    if p.bounds.is_empty() {
+        return (Vec::new(), Vec::new());
+    }
+    let bvh = Bvh::build(&p.bounds);
+    let refs = bvh.order.iter().map(|&i| p.refs[i as usize]).collect();
+    (crate::bvh::wide::collapse(&bvh), refs)
+}
+
+fn material(o: &Object) -> GpuMaterial {
+    let m = &o.material;
+    GpuMaterial {
+        color: m.color.to_array(),
+        smoothness: m.smoothness,
+        specular_color: m.specular_tint().to_array(),
+        absorption: m.absorption,
+        specular: m.specular,
+        light: m.light,
+        ior: m.ior,
+        light_slot: 0,
+    }
+}
+
+/// A storage buffer of `items`, or of one zeroed item when there are none (WGSL arrays
+/// cannot be empty).
+/// A hash of everything the BVH depends on: the shapes (not the materials, not the camera).
+pub fn geometry_hash(scene: &Scene) -> u64 {
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for o in &scene.objects {
+        let v: Vec<f64> = match &o.shape {
+            Shape::Sphere { center, radius } => vec![0.0, center.x, center.y, center.z, *radius],
+            Shape::Quad { q, u, v } => [1.0]
+                .into_iter()
+                .chain(q.to_array())
+                .chain(u.to_array())
+                .chain(v.to_array())
+                .collect(),
+            Shape::Box {
+                center,
+                half_extents,
+                rotation,
+            } => [2.0]
+                .into_iter()
+                .chain(center.to_array())
+                .chain(half_extents.to_array())
+                .chain(rotation.to_array())
+                .collect(),
+            Shape::Mesh {
+                mesh,
+                translate,
+                rotation,
+                scale,
+                ..
+            } => {
+                (std::sync::Arc::as_ptr(mesh) as usize).hash(&mut h);
+                [3.0]
+                    .into_iter()
+                    .chain(translate.to_array())
+                    .chain(rotation.to_array())
+                    .chain(scale.to_array())
+                    .collect()
+            }
+        };
+        for x in v {
+            x.to_bits().hash(&mut h);
+        }
+    }
+    h.finish()
+}

@@ -1,0 +1,323 @@
+//! The scene types of `MODEL.md` on the host and their defaults: what a scene file says after
+//! validation.
+
+use super::mesh::Mesh;
+use glam::{DMat3, DVec3, Vec3};
+use std::path::Path;
+use std::sync::Arc;
+
+/// The pinhole or thin-lens camera of MODEL.md ("Space and camera").
+#[derive(Clone, Debug, PartialEq)]
+pub struct Camera {
+    pub look_from: DVec3,
+    pub look_at: DVec3,
+    pub up: DVec3,
+    /// Vertical field of view in degrees.
+    pub vfov: f64,
+    /// Lens diameter; 0 is a pinhole.
+    pub aperture: f64,
+    /// Distance to the plane in focus; `None` means `|look_at - look_from|`.
+    pub focus_distance: Option<f64>,
+}
+
+impl Camera {
+    /// The focus distance actually used: the explicit one, or the distance to `look_at`.
+    pub fn focus(&self) -> f64 {
+        self.focus_distance
+            .unwrap_or_else(|| (self.look_at - self.look_from).length())
+    }
+}
+
+impl Default for Camera {
+    fn default() -> Self {
+        Camera {
+            look_from: DVec3::new(0.0, 0.0, 0.0),
+            look_at: DVec3::new(0.0, 0.0, -1.0),
+            up: DVec3::Y,
+            vfov: 60.0,
+            aperture: 0.0,
+            focus_distance: None,
+        }
+    }
+}
+
+/// The `[render]` table: the settings of a final render.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    /// Samples per pixel for `render` when neither `--spp` nor `--time` is given.
+    pub spp: u32,
+    pub max_bounces: u32,
+    pub seed: u32,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            width: 640,
+            height: 360,
+            spp: 256,
+            max_bounces: 10,
+            seed: 1,
+        }
+    }
+}
+
+/// Upper bounds that keep a scene file from asking for absurd work by mistake.
+pub const MAX_IMAGE_SIDE: u32 = 16384;
+/// llvmpipe (the software adapter) ends any shader loop after 65535 iterations; 10000
+/// bounces stays well inside that, and far beyond what any scene needs.
+pub const MAX_BOUNCES: u32 = 10_000;
+
+/// The optional sun of the gradient sky: `color * intensity * max(dot(direction, dir), 0)^size`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sun {
+    /// Direction towards the sun, as written (not necessarily unit length).
+    pub direction: DVec3,
+    pub color: Vec3,
+    pub intensity: f32,
+    pub size: f32,
+}
+
+/// The sky seen by rays that leave the scene.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Sky {
+    /// `(1-t)*bottom + t*top` with `t = 0.5*(dir.y + 1)`, plus an optional sun.
+    Gradient {
+        bottom: Vec3,
+        top: Vec3,
+        sun: Option<Sun>,
+    },
+    /// One constant radiance in every direction (furnace tests).
+    Uniform(Vec3),
+}
+
+impl Default for Sky {
+    fn default() -> Self {
+        Sky::Gradient {
+            bottom: Vec3::ONE,
+            top: Vec3::new(0.5, 0.7, 1.0),
+            sun: None,
+        }
+    }
+}
+
+impl Sky {
+    /// Radiance seen along the unit direction `dir` (MODEL.md "Sky"), on the host.
+    pub fn radiance(&self, dir: DVec3) -> DVec3 {
+        match self {
+            Sky::Uniform(c) => c.as_dvec3(),
+            Sky::Gradient { bottom, top, sun } => {
+                let t = 0.5 * (dir.y + 1.0);
+                let mut c = (1.0 - t) * bottom.as_dvec3() + t * top.as_dvec3();
+                if let Some(s) = sun {
+                    let k = s
+                        .direction
+                        .normalize()
+                        .dot(dir)
+                        .max(0.0)
+                        .powf(s.size as f64);
+                    c += s.color.as_dvec3() * s.intensity as f64 * k;
+                }
+                c
+            }
+        }
+    }
+}
+
+/// The lecture's four material parameters plus `ior` and `specular_color` (MODEL.md table).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    /// Albedo, emission colour or glass tint; linear.
+    pub color: Vec3,
+    /// 0 Lambertian … 1 mirror; < 0 dielectric.
+    pub smoothness: f32,
+    /// The lecture's "Absorption = Fuzz": radius of the random unit vector added to reflections.
+    pub absorption: f32,
+    /// Probability that a bounce takes the specular lobe.
+    pub specular: f32,
+    /// Emission strength; radiance = `color * light`.
+    pub light: f32,
+    /// Index of refraction, used when `smoothness < 0`.
+    pub ior: f32,
+    /// Tint of specular bounces; `None` means the same as `color`.
+    pub specular_color: Option<Vec3>,
+}
+
+/// Default albedo of MODEL.md for non-dielectrics.
+pub const DEFAULT_COLOR: Vec3 = Vec3::new(0.8, 0.8, 0.8);
+/// Default tint of dielectrics.
+pub const DEFAULT_GLASS_COLOR: Vec3 = Vec3::ONE;
+
+impl Default for Material {
+    fn default() -> Self {
+        Material {
+            color: DEFAULT_COLOR,
+            smoothness: 0.0,
+            absorption: 0.0,
+            specular: 1.0,
+            light: 0.0,
+            ior: 1.5,
+            specular_color: None,
+        }
+    }
+}
+
+impl Material {
+    pub fn is_dielectric(&self) -> bool {
+        self.smoothness < 0.0
+    }
+    pub fn is_emitter(&self) -> bool {
+        self.light > 0.0
+    }
+    /// The specular tint actually used.
+    pub fn specular_tint(&self) -> Vec3 {
+        self.specular_color.unwrap_or(self.color)
+    }
+}
+
+/// The geometry of one object (MODEL.md "Primitives").
+#[derive(Clone, Debug, PartialEq)]
+pub enum Shape {
+    /// A negative radius keeps the geometry of `|radius|` and flips the normal inward.
+    Sphere { center: DVec3, radius: f64 },
+    /// Corner `q`, edges `u` and `v`; two-sided.
+    Quad { q: DVec3, u: DVec3, v: DVec3 },
+    /// Box with Euler `rotation` in degrees, applied X then Y then Z.
+    Box {
+        center: DVec3,
+        half_extents: DVec3,
+        rotation: DVec3,
+    },
+    /// Triangles from an OBJ file, scaled, then rotated (Euler XYZ, degrees), then moved.
+    Mesh {
+        /// The file as the scene names it.
+        file: String,
+        mesh: Arc<Mesh>,
+        translate: DVec3,
+        rotation: DVec3,
+        scale: DVec3,
+    },
+}
+
+impl Shape {
+    /// The kind of primitive as the scene file spells its table.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Shape::Sphere { .. } => "sphere",
+            Shape::Quad { .. } => "quad",
+            Shape::Box { .. } => "box",
+            Shape::Mesh { .. } => "mesh",
+        }
+    }
+
+    /// A mesh's triangles in world space (empty for other shapes).
+    pub fn world_triangles(&self) -> Vec<[DVec3; 3]> {
+        match self {
+            Shape::Mesh {
+                mesh,
+                translate,
+                rotation,
+                scale,
+                ..
+            } => {
+                let r = euler_xyz(*rotation);
+                let f = |p: DVec3| *translate + r * (*scale * p);
+                mesh.triangles.iter().map(|t| t.map(f)).collect()
+            }
+            _ => Vec::new(),
+        }
+    }
+}
+
+/// Rotation matrix of a box's Euler angles (degrees), applied X then Y then Z: `Rz * Ry * Rx`.
+pub fn euler_xyz(degrees: DVec3) -> DMat3 {
+    let r = degrees * (std::f64::consts::PI / 180.0);
+    DMat3::from_rotation_z(r.z) * DMat3::from_rotation_y(r.y) * DMat3::from_rotation_x(r.x)
+}
+
+/// One object: a shape with its own (flattened) material.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Object {
+    /// Optional `name = "..."` from the file, shown by the preview.
+    pub name: Option<String>,
+    pub shape: Shape,
+    pub material: Material,
+    /// The named material the object started from, kept so the scene can be written back.
+    pub material_name: Option<String>,
+}
+
+impl Object {
+    /// A label for lists and status lines: the object's name, else `sphere #3`.
+    pub fn label(&self, index_in_kind: usize) -> String {
+        match &self.name {
+            Some(n) => n.clone(),
+            None => format!("{} #{}", self.shape.kind(), index_in_kind + 1),
+        }
+    }
+}
+
+/// Objects by kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counts {
+    pub spheres: usize,
+    pub quads: usize,
+    pub boxes: usize,
+    pub meshes: usize,
+    pub triangles: usize,
+}
+
+/// A validated scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// Where the scene came from: a path, or `builtin:NAME`.
+    pub origin: String,
+    pub camera: Camera,
+    pub render: RenderSettings,
+    pub sky: Sky,
+    /// The `[materials.NAME]` tables, as written (kept for writing the scene back).
+    pub materials: Vec<(String, Material)>,
+    pub objects: Vec<Object>,
+}
+
+impl Scene {
+    /// Short name for titles: file stem or built-in name.
+    pub fn short_name(&self) -> String {
+        let o = self.origin.strip_prefix("builtin:").unwrap_or(&self.origin);
+        Path::new(o)
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| o.to_string())
+    }
+
+    /// Objects with the index each has among the objects of its kind (for labels).
+    pub fn labels(&self) -> Vec<String> {
+        let mut counts = std::collections::HashMap::new();
+        self.objects
+            .iter()
+            .map(|o| {
+                let k = counts.entry(o.shape.kind()).or_insert(0usize);
+                *k += 1;
+                o.label(*k - 1)
+            })
+            .collect()
+    }
+
+    /// How many objects of each kind, and triangles in all meshes.
+    pub fn counts(&self) -> Counts {
+        let mut c = Counts::default();
+        for o in &self.objects {
+            match &o.shape {
+                Shape::Sphere { .. } => c.spheres += 1,
+                Shape::Quad { .. } => c.quads += 1,
+                Shape::Box { .. } => c.boxes += 1,
+                Shape::Mesh { mesh, .. } => {
+                    c.meshes += 1;
+                    c.triangles += mesh.triangles.len();
+                }
+            }
+        }
+        c
+    }
+}
