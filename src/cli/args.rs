@@ -17,6 +17,10 @@ pub struct GlobalArgs {
     #[arg(long, global = true, env = "TERMTRACE_THREADS", value_name = "N",
           value_parser = clap::value_parser!(u32).range(1..=4096))]
     pub threads: Option<u32>,
+    /// The camera of a glTF scene (`.gltf`, `.glb`) by name. Default: its first camera, or
+    /// one that frames the model when it has none.
+    #[arg(long, global = true, value_name = "NAME")]
+    pub camera: Option<String>,
     /// Write logs to this file.
     #[arg(long, global = true, value_name = "FILE")]
     pub log: Option<PathBuf>,

@@ -107,7 +107,7 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let prepare = Instant::now();
     let scene = match a.spheres {
         Some(n) => crate::scene::generate::sphere_field(n, 2024),
-        None => load_scene(&a.scene)?,
+        None => load_scene(&a.scene, g.camera.as_deref())?,
     };
     let settings = crate::common::FrameSettings {
         nee: !a.no_nee,

@@ -24,7 +24,7 @@ pub fn run(a: CheckArgs, g: &super::args::GlobalArgs) -> anyhow::Result<ExitCode
     }
     let mut failed = 0;
     for name in &a.scenes {
-        match Scene::load(name) {
+        match Scene::load_with_camera(name, g.camera.as_deref()) {
             Ok(s) => println!("{}", summary(&s)),
             Err(e) => {
                 failed += 1;
@@ -83,12 +83,25 @@ pub fn summary(s: &Scene) -> String {
             }
         ),
     };
+    let gltf: String = s
+        .gltf
+        .iter()
+        .enumerate()
+        .map(|(i, g)| {
+            let objects = s.objects.iter().filter(|o| o.gltf == Some(i)).count();
+            format!(
+                "\n  glTF       {}: {objects} objects, {} materials",
+                g.file,
+                g.materials.len()
+            )
+        })
+        .collect();
     format!(
         "{}: ok\n  camera     from {} to {}, vfov {}°, aperture {}, focus distance {}\n  \
          render     {}x{}, {} spp, max_bounces {}, seed {}\n  sky        {}\n  \
          objects    {} ({} spheres, {} quads, {} boxes, {} meshes of {} triangles)\n  \
          materials  {} Lambertian, {} glossy/metal, {} dielectric, {} emitters; {} named\n  \
-         tracer     {}",
+         tracer     {}{gltf}",
         s.origin,
         v3(c.look_from),
         v3(c.look_at),

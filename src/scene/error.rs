@@ -89,6 +89,9 @@ pub enum SceneError {
     NotFound { name: String, builtins: Vec<String> },
     #[error("{}", format_all(.0))]
     Invalid(Vec<Diagnostic>),
+    /// A glTF file that cannot be opened (what is wrong, naming the file and its part).
+    #[error("invalid glTF scene: {0}")]
+    Gltf(#[from] super::gltf::GltfError),
 }
 
 impl SceneError {

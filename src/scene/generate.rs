@@ -50,6 +50,7 @@ fn sphere(center: DVec3, radius: f64, material: Material, name: Option<&str>) ->
         },
         material,
         material_name: None,
+        gltf: None,
     }
 }
 
@@ -150,6 +151,7 @@ pub fn weekend(seed: u64) -> Scene {
         sky: Sky::default(),
         materials: Vec::new(),
         objects,
+        gltf: Vec::new(),
     }
 }
 
@@ -208,6 +210,7 @@ pub fn sphere_grid(cols: u32, rows: u32, seed: u64) -> Scene {
         sky: Sky::default(),
         materials: Vec::new(),
         objects,
+        gltf: Vec::new(),
     }
 }
 
@@ -229,6 +232,7 @@ pub fn sphere_field(n: usize, seed: u64) -> Scene {
         },
         material: lambertian(Vec3::splat(0.5)),
         material_name: None,
+        gltf: None,
     }];
     'grid: for a in 0..side {
         for b in 0..side {

@@ -8,6 +8,7 @@ mod builtin;
 pub mod color;
 mod error;
 pub mod generate;
+pub mod gltf;
 pub mod mesh;
 mod model;
 mod parse;
@@ -31,8 +32,29 @@ impl Scene {
     /// Loads a scene from a path, or from the built-in scenes when `name` is no file but is
     /// the name of one (`weekend`, `cornell`, …).
     pub fn load(name: &str) -> Result<Scene, SceneError> {
+        Self::load_with_camera(name, None)
+    }
+
+    /// [`Scene::load`], with a glTF file's camera chosen by name (`--camera`); a TOML scene
+    /// chooses its glTF cameras itself (`[[gltf]] camera = "…"`), and `camera` must be `None`
+    /// for one.
+    pub fn load_with_camera(name: &str, camera: Option<&str>) -> Result<Scene, SceneError> {
         let path = Path::new(name);
-        if path.exists() {
+        if is_gltf(path) {
+            return Self::from_gltf(path, camera);
+        }
+        if let Some(c) = camera {
+            return Err(SceneError::Gltf(gltf::GltfError {
+                path: name.to_string(),
+                message: format!(
+                    "--camera {c} chooses a camera of a glTF file; in a TOML scene write \
+                     `camera = \"{c}\"` in its [[gltf]] table"
+                ),
+            }));
+        }
+        // A file of that name, not a folder: `fuzz/` in the current folder does not hide the
+        // built-in `fuzz` scene.
+        if path.is_file() {
             return Self::load_file(path);
         }
         if let Some(text) = builtin_source(name) {
@@ -53,6 +75,45 @@ impl Scene {
         Self::from_toml(&text, &path.display().to_string())
     }
 
+    /// A glTF 2.0 file (`.gltf` or `.glb`) as a scene: its objects, its camera (the first, or
+    /// `camera` by name; without one, a camera that frames it), its directional light as the
+    /// sun over the default sky, and the default render settings.
+    pub fn from_gltf(path: &Path, camera: Option<&str>) -> Result<Scene, SceneError> {
+        let imported = gltf::import(path, glam::DMat4::IDENTITY, camera)?;
+        for s in &imported.skipped {
+            tracing::warn!("{}: left out: {s}", path.display());
+        }
+        let file = path.file_name().map_or_else(
+            || path.display().to_string(),
+            |f| f.to_string_lossy().into_owned(),
+        );
+        let mut sky = Sky::default();
+        if let (Sky::Gradient { sun, .. }, Some(s)) = (&mut sky, imported.sun.clone()) {
+            *sun = Some(s);
+        }
+        Ok(Scene {
+            origin: path.display().to_string(),
+            camera: imported
+                .camera
+                .unwrap_or_else(|| gltf::framing_camera(imported.bounds)),
+            render: RenderSettings::default(),
+            sky,
+            materials: Vec::new(),
+            objects: imported
+                .objects
+                .into_iter()
+                .map(|o| Object { gltf: Some(0), ..o })
+                .collect(),
+            gltf: vec![GltfPlacement {
+                file,
+                translate: glam::DVec3::ZERO,
+                rotation: glam::DVec3::ZERO,
+                scale: glam::DVec3::ONE,
+                materials: imported.materials,
+            }],
+        })
+    }
+
     /// The built-in scene the preview opens when none is given.
     pub fn default_scene() -> Scene {
         Self::load(DEFAULT_SCENE).expect("the built-in default scene is valid")
@@ -62,9 +123,15 @@ impl Scene {
 /// A scene by built-in name or file path, with an error message for the command line (an
 /// invalid scene lists every problem, each with its file, line and key). Below both the
 /// commands and the preview, which load scenes the same way.
-pub fn load_scene(name: &str) -> anyhow::Result<Scene> {
-    Scene::load(name).map_err(|e| match e {
+pub fn load_scene(name: &str, camera: Option<&str>) -> anyhow::Result<Scene> {
+    Scene::load_with_camera(name, camera).map_err(|e| match e {
         SceneError::Invalid(_) => anyhow::anyhow!("invalid scene\n{e}"),
         other => other.into(),
     })
+}
+
+/// Whether `path` names a glTF file (`.gltf` or `.glb`, any case).
+pub fn is_gltf(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"))
 }

@@ -244,8 +244,28 @@ pub struct Object {
     pub name: Option<String>,
     pub shape: Shape,
     pub material: Material,
-    /// The named material the object started from, kept so the scene can be written back.
+    /// The named material the object started from, kept so the scene can be written back
+    /// (for an object from a glTF file: its glTF material's key, see [`GltfPlacement`]).
     pub material_name: Option<String>,
+    /// The [`Scene::gltf`] placement the object was imported from; such an object is written
+    /// back as its placement, not on its own.
+    pub gltf: Option<usize>,
+}
+
+/// A glTF file placed in a scene (`[[gltf]]`, or the file itself when opened directly):
+/// its objects are imported with the transform scale, then rotation (Euler XYZ, degrees),
+/// then translation, like a mesh's.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GltfPlacement {
+    /// The file as the scene names it (relative to the scene file).
+    pub file: String,
+    pub translate: DVec3,
+    pub rotation: DVec3,
+    pub scale: DVec3,
+    /// Each glTF material's key (its name, `#INDEX` when unnamed) and the material it maps to
+    /// as the file gives it, before the scene's overrides: writing back writes each material
+    /// whose objects differ from this as an override.
+    pub materials: Vec<(String, Material)>,
 }
 
 impl Object {
@@ -279,6 +299,8 @@ pub struct Scene {
     /// The `[materials.NAME]` tables, as written (kept for writing the scene back).
     pub materials: Vec<(String, Material)>,
     pub objects: Vec<Object>,
+    /// The glTF files the scene places (their objects are in `objects`).
+    pub gltf: Vec<GltfPlacement>,
 }
 
 impl Scene {

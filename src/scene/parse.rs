@@ -3,7 +3,7 @@
 use super::error::SceneError;
 use super::model::*;
 use super::reader::{Sink, Table};
-use glam::{DVec3, Vec3};
+use glam::{DMat4, DVec3, Vec3};
 use toml::de::DeTable;
 
 const TOP_KEYS: &[&str] = &[
@@ -15,6 +15,7 @@ const TOP_KEYS: &[&str] = &[
     "quad",
     "box",
     "mesh",
+    "gltf",
 ];
 const CAMERA_KEYS: &[&str] = &[
     "look_from",
@@ -40,6 +41,14 @@ const SPHERE_KEYS: &[&str] = &["center", "radius"];
 const QUAD_KEYS: &[&str] = &["q", "u", "v"];
 const BOX_KEYS: &[&str] = &["center", "half_extents", "rotation"];
 const MESH_KEYS: &[&str] = &["file", "translate", "rotation", "scale"];
+const GLTF_KEYS: &[&str] = &[
+    "file",
+    "translate",
+    "rotation",
+    "scale",
+    "camera",
+    "materials",
+];
 /// Keys every object table takes besides its shape and material keys.
 const OBJECT_KEYS: &[&str] = &["name", "material"];
 
@@ -105,13 +114,34 @@ fn read_scene(root: &Table, origin: &str) -> Scene {
     for t in root.array_of_tables("mesh", &with(MESH_KEYS)) {
         objects.push(read_object(&t, &materials, read_mesh(&t, origin)));
     }
-    let objects = objects.into_iter().flatten().collect();
+    let mut objects: Vec<Object> = objects.into_iter().flatten().collect();
+    let mut gltf = Vec::new();
+    let mut camera = camera;
+    for t in root.array_of_tables("gltf", GLTF_KEYS) {
+        let Some((placement, imported, cam)) = read_gltf(&t, origin, gltf.len()) else {
+            continue;
+        };
+        if let Some(cam) = cam {
+            if root.has("camera") {
+                t.error(
+                    "camera",
+                    "the scene has a [camera] too",
+                    Some("keep one: the [camera] table, or this glTF camera".into()),
+                );
+            } else {
+                camera = cam;
+            }
+        }
+        objects.extend(imported);
+        gltf.push(placement);
+    }
 
     Scene {
         origin: origin.to_string(),
         camera,
         render,
         sky,
+        gltf,
         materials: materials
             .into_iter()
             .map(|(n, p)| (n, p.resolve()))
@@ -250,6 +280,19 @@ impl MaterialPatch {
         }
     }
 
+    /// Every key of a complete material.
+    fn of(m: &Material) -> MaterialPatch {
+        MaterialPatch {
+            color: Some(m.color),
+            smoothness: Some(m.smoothness),
+            absorption: Some(m.absorption),
+            specular: Some(m.specular),
+            light: Some(m.light),
+            ior: Some(m.ior),
+            specular_color: m.specular_color,
+        }
+    }
+
     /// Fills the defaults of MODEL.md; a dielectric's default colour is white.
     fn resolve(&self) -> Material {
         let d = Material::default();
@@ -299,6 +342,7 @@ fn read_object(
         shape: shape?,
         material: inline.over(&base).resolve(),
         material_name,
+        gltf: None,
     })
 }
 
@@ -405,4 +449,89 @@ fn read_mesh(t: &Table, origin: &str) -> Option<Shape> {
             None
         }
     }
+}
+
+/// A `[[gltf]]` table: the file's objects placed by the table's transform, its materials with
+/// the table's `[gltf.materials.KEY]` overrides, and its camera when `camera` names one.
+fn read_gltf(
+    t: &Table,
+    origin: &str,
+    index: usize,
+) -> Option<(GltfPlacement, Vec<Object>, Option<Camera>)> {
+    let file = required(t, "file", t.string("file"))?;
+    let translate = t.vec3("translate").unwrap_or(DVec3::ZERO);
+    let rotation = t.vec3("rotation").unwrap_or(DVec3::ZERO);
+    let scale = t.scale("scale").unwrap_or(DVec3::ONE);
+    if scale.abs().min_element() == 0.0 {
+        t.error("scale", "a glTF scale of 0 flattens it", None);
+        return None;
+    }
+    if origin.starts_with("builtin:") {
+        t.error("file", "a built-in scene cannot place glTF files", None);
+        return None;
+    }
+    let camera_name = t.string("camera");
+    let path = std::path::Path::new(origin)
+        .parent()
+        .unwrap_or(std::path::Path::new("."))
+        .join(&file);
+    let place = placement_matrix(translate, rotation, scale);
+    let imported = match super::gltf::import(&path, place, camera_name.as_deref()) {
+        Ok(i) => i,
+        Err(e) => {
+            t.error("file", format!("glTF `{file}`: {}", e.message), None);
+            return None;
+        }
+    };
+    let overrides = t.named_tables("materials", MATERIAL_KEYS);
+    let keys: Vec<&str> = imported.materials.iter().map(|(k, _)| k.as_str()).collect();
+    for (name, o) in &overrides {
+        if !keys.contains(&name.as_str()) {
+            let help = match super::reader::suggest(name, &keys) {
+                Some(s) => format!("did you mean `{s}`?"),
+                None => format!("its materials: {}", keys.join(", ")),
+            };
+            o.error_table(format!("`{file}` has no material `{name}`"), Some(help));
+        }
+    }
+    let apply = |key: &str, m: &Material| -> Material {
+        match overrides.iter().find(|(n, _)| n == key) {
+            Some((_, o)) => MaterialPatch::read(o).over(&MaterialPatch::of(m)).resolve(),
+            None => m.clone(),
+        }
+    };
+    let objects = imported
+        .objects
+        .into_iter()
+        .map(|mut o| {
+            if let Some(key) = &o.material_name {
+                o.material = apply(key, &o.material);
+            }
+            o.gltf = Some(index);
+            o
+        })
+        .collect();
+    let camera = if camera_name.is_some() {
+        imported.camera
+    } else {
+        None
+    };
+    Some((
+        GltfPlacement {
+            file,
+            translate,
+            rotation,
+            scale,
+            materials: imported.materials,
+        },
+        objects,
+        camera,
+    ))
+}
+
+/// A placement's transform: scale, then rotation (Euler XYZ, degrees), then translation.
+pub(super) fn placement_matrix(translate: DVec3, rotation: DVec3, scale: DVec3) -> DMat4 {
+    DMat4::from_translation(translate)
+        * DMat4::from_mat3(euler_xyz(rotation))
+        * DMat4::from_scale(scale)
 }

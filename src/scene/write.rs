@@ -106,7 +106,7 @@ pub fn to_toml(scene: &Scene) -> String {
             .map(|(_, m)| m.clone())
             .unwrap_or_default()
     };
-    for obj in &scene.objects {
+    for obj in scene.objects.iter().filter(|o| o.gltf.is_none()) {
         let _ = writeln!(o, "\n[[{}]]", obj.shape.kind());
         if let Some(n) = &obj.name {
             let _ = writeln!(o, "name = {n:?}");
@@ -151,6 +151,30 @@ pub fn to_toml(scene: &Scene) -> String {
             let _ = writeln!(o, "material = {n:?}");
         }
         material_lines(&mut o, &obj.material, &named(&obj.material_name));
+    }
+    for (i, g) in scene.gltf.iter().enumerate() {
+        let _ = writeln!(o, "\n[[gltf]]\nfile = {:?}", g.file);
+        let _ = writeln!(
+            o,
+            "translate = {}\nrotation = {}\nscale = {}",
+            v3(g.translate),
+            v3(g.rotation),
+            v3(g.scale)
+        );
+        // A material whose objects differ from the file's is written as an override of the
+        // keys that differ (the preview edits every object of a glTF material as one).
+        for (key, imported) in &g.materials {
+            let current = scene
+                .objects
+                .iter()
+                .find(|ob| ob.gltf == Some(i) && ob.material_name.as_deref() == Some(key));
+            if let Some(ob) = current
+                && ob.material != *imported
+            {
+                let _ = writeln!(o, "\n[gltf.materials.{key:?}]");
+                material_lines(&mut o, &ob.material, imported);
+            }
+        }
     }
     o
 }

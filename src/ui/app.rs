@@ -259,11 +259,20 @@ impl App {
                 }
                 _ => unreachable!("camera parameters are handled below"),
             }
-            return if *m == before {
-                Effect::None
-            } else {
-                Effect::SceneChanged
-            };
+            if *m == before {
+                return Effect::None;
+            }
+            // A glTF material is edited as one: every object of the same file that uses it
+            // changes with the selected one (and `w` writes it as one override).
+            let (m, from, key) = (m.clone(), obj.gltf, obj.material_name.clone());
+            if from.is_some() {
+                for o in &mut self.scene.objects {
+                    if o.gltf == from && o.material_name == key {
+                        o.material = m.clone();
+                    }
+                }
+            }
+            return Effect::SceneChanged;
         }
         let cam = &mut self.scene.camera;
         let focus = cam.focus();

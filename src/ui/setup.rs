@@ -32,6 +32,8 @@ pub enum Graphics {
 /// The preview's options (the command line's `view` flags).
 #[derive(Clone, Debug)]
 pub struct ViewOptions {
+    /// A glTF scene's camera by name (`--camera`).
+    pub camera: Option<String>,
     pub scene: Option<String>,
     pub cells: CellMode,
     /// `None`: detect from COLORTERM / TERM.
@@ -208,7 +210,7 @@ pub(super) struct Setup {
 
 pub(super) fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
     let scene = match &opts.scene {
-        Some(s) => crate::scene::load_scene(s)?,
+        Some(s) => crate::scene::load_scene(s, opts.camera.as_deref())?,
         None => Scene::default_scene(),
     };
     anyhow::ensure!(

@@ -1,0 +1,491 @@
+//! glTF 2.0 scenes (`.gltf` with its buffers, or `.glb`) through the `gltf` crate, mapped onto
+//! the render model: every triangle primitive of every node of the scene (transforms through
+//! the hierarchy, baked into world space) becomes a mesh object with its material's factors
+//! mapped onto MODEL.md's material (docs/MODEL-NOTES.md, "glTF materials"); the scene's
+//! perspective cameras (the first by default, or one by name) become the camera, else a
+//! camera that frames the scene's bounds; `KHR_lights_punctual` lights become the sun
+//! (directional) or small emitting spheres of the same power (point, spot).
+
+use super::mesh::Mesh;
+use super::model::{Camera, Material, Object, Shape, Sun};
+use glam::{DMat4, DVec3, Vec3};
+use std::path::Path;
+use std::sync::Arc;
+
+/// The reflectance of a dielectric at normal incidence that glTF's metallic-roughness model
+/// assumes (glTF 2.0 specification, Appendix B: `F0 = 0.04`).
+const DIELECTRIC_F0: f32 = 0.04;
+/// The radius of the sphere a point or spot light becomes, as a fraction of the scene's
+/// bounding-box diagonal: small enough to read as a point, large enough to be found by
+/// paths that do not sample it.
+const POINT_LIGHT_RADIUS: f64 = 0.005;
+/// glTF's punctual light intensities are photometric (candela for point and spot lights, lux
+/// for directional ones); the render model's radiance is relative, and one unit of either is
+/// taken as one unit of the model's: a point light of intensity I becomes a sphere of
+/// radiance I / (π r²) (the sphere's intensity is L·π r²), a directional light of E lux a sun
+/// lobe whose irradiance at normal incidence is E (docs/MODEL-NOTES.md).
+const CANDELA_PER_UNIT: f64 = std::f64::consts::PI;
+/// The exponent of the sun lobe a directional light becomes: about 5° across at half
+/// maximum, a sharp sun that light sampling finds.
+const SUN_SIZE: f32 = 1000.0;
+
+/// What one glTF file adds to a scene.
+#[derive(Debug)]
+pub struct Imported {
+    pub objects: Vec<Object>,
+    /// The chosen camera (`None`: the file has none; see [`framing_camera`]).
+    pub camera: Option<Camera>,
+    /// The first directional light, as the sun.
+    pub sun: Option<Sun>,
+    /// Primitives left out, with why (points, lines, no positions, degenerate triangles).
+    pub skipped: Vec<String>,
+    /// The bounds of every imported triangle, in world space.
+    pub bounds: (DVec3, DVec3),
+    /// Each glTF material the objects use, by key ([`material_key`]), as mapped.
+    pub materials: Vec<(String, Material)>,
+}
+
+/// How a glTF material is named in a scene: its name, `#INDEX` when it has none, `default`
+/// for glTF's default material.
+pub fn material_key(m: &gltf::Material) -> String {
+    match (m.name(), m.index()) {
+        (Some(n), _) => n.to_string(),
+        (None, Some(i)) => format!("#{i}"),
+        (None, None) => "default".to_string(),
+    }
+}
+
+/// An error reading a glTF file: what went wrong, naming the part of the file.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct GltfError {
+    pub path: String,
+    pub message: String,
+}
+
+/// Imports the glTF file at `path` (its buffers beside it), placed by `place` (the TOML's
+/// transform; identity when the file is opened directly); `camera` picks a camera by name.
+pub fn import(path: &Path, place: DMat4, camera: Option<&str>) -> Result<Imported, GltfError> {
+    let bytes = std::fs::read(path).map_err(|e| GltfError {
+        path: path.display().to_string(),
+        message: format!("cannot read it: {e}"),
+    })?;
+    import_slice(
+        &bytes,
+        path.parent(),
+        &path.display().to_string(),
+        place,
+        camera,
+    )
+}
+
+/// Imports a glTF or GLB file from memory; `base` is the folder its relative URIs are read
+/// from (`None`: only embedded data), `name` names it in errors.
+pub fn import_slice(
+    bytes: &[u8],
+    base: Option<&Path>,
+    name: &str,
+    place: DMat4,
+    camera: Option<&str>,
+) -> Result<Imported, GltfError> {
+    let err = |message: String| GltfError {
+        path: name.to_string(),
+        message,
+    };
+    let gltf =
+        gltf::Gltf::from_slice(bytes).map_err(|e| err(format!("not a valid glTF file: {e}")))?;
+    let buffers = gltf::import_buffers(&gltf.document, base, gltf.blob.clone())
+        .map_err(|e| err(format!("cannot read its buffers: {e}")))?;
+    let doc = &gltf.document;
+    let scene = doc
+        .default_scene()
+        .or_else(|| doc.scenes().next())
+        .ok_or_else(|| err("the file has no scene".into()))?;
+    let mut out = Imported {
+        objects: Vec::new(),
+        camera: None,
+        sun: None,
+        skipped: Vec::new(),
+        bounds: (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        materials: Vec::new(),
+    };
+    let mut cameras = Vec::new();
+    let mut lights = Vec::new();
+    let mut stack: Vec<(gltf::Node, DMat4)> = scene.nodes().map(|n| (n, place)).collect();
+    stack.reverse();
+    while let Some((node, parent)) = stack.pop() {
+        let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
+        let world = parent * local;
+        if !world.is_finite() {
+            return Err(err(format!(
+                "node {} has a transform that is not finite",
+                label(&node)
+            )));
+        }
+        if let Some(mesh) = node.mesh() {
+            import_mesh(&mesh, world, &buffers, &mut out).map_err(err)?;
+        }
+        if let Some(cam) = node.camera() {
+            cameras.push((cam, world));
+        }
+        if let Some(light) = node.light() {
+            lights.push((light, world));
+        }
+        let children: Vec<_> = node.children().map(|c| (c, world)).collect();
+        stack.extend(children.into_iter().rev());
+    }
+    if out.objects.is_empty() {
+        return Err(err(format!(
+            "the scene has no triangles{}",
+            if out.skipped.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", out.skipped.join("; "))
+            }
+        )));
+    }
+    out.camera = pick_camera(&cameras, camera).map_err(err)?;
+    let diagonal = (out.bounds.1 - out.bounds.0).length();
+    for (light, world) in lights {
+        add_light(&light, world, diagonal, &mut out);
+    }
+    Ok(out)
+}
+
+fn label(node: &gltf::Node) -> String {
+    match node.name() {
+        Some(n) => format!("`{n}`"),
+        None => format!("#{}", node.index()),
+    }
+}
+
+fn import_mesh(
+    mesh: &gltf::Mesh,
+    world: DMat4,
+    buffers: &[gltf::buffer::Data],
+    out: &mut Imported,
+) -> Result<(), String> {
+    let mesh_name = mesh
+        .name()
+        .map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
+    for prim in mesh.primitives() {
+        let what = format!("mesh `{mesh_name}` primitive {}", prim.index());
+        let Some(pos) = prim.get(&gltf::Semantic::Positions) else {
+            out.skipped.push(format!("{what}: no positions"));
+            continue;
+        };
+        for a in std::iter::once(pos).chain(prim.indices()) {
+            accessor_fits(&a, buffers).map_err(|e| format!("{what}: {e}"))?;
+        }
+        let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+        let Some(positions) = reader.read_positions() else {
+            out.skipped.push(format!("{what}: no positions"));
+            continue;
+        };
+        let points: Vec<DVec3> = positions
+            .map(|p| world.transform_point3(DVec3::from(p.map(f64::from))))
+            .collect();
+        let indices: Vec<u32> = match reader.read_indices() {
+            Some(i) => i.into_u32().collect(),
+            None => (0..points.len() as u32).collect(),
+        };
+        let triangles = match prim.mode() {
+            gltf::mesh::Mode::Triangles => indices
+                .chunks_exact(3)
+                .map(|t| [t[0], t[1], t[2]])
+                .collect::<Vec<_>>(),
+            gltf::mesh::Mode::TriangleStrip => (2..indices.len())
+                .map(|i| {
+                    // Every second triangle of a strip is flipped to keep the winding.
+                    if i % 2 == 0 {
+                        [indices[i - 2], indices[i - 1], indices[i]]
+                    } else {
+                        [indices[i - 1], indices[i - 2], indices[i]]
+                    }
+                })
+                .collect(),
+            gltf::mesh::Mode::TriangleFan => (2..indices.len())
+                .map(|i| [indices[0], indices[i - 1], indices[i]])
+                .collect(),
+            other => {
+                out.skipped
+                    .push(format!("{what}: {other:?} (not triangles)"));
+                continue;
+            }
+        };
+        // A transform that mirrors (negative determinant) turns the winding over; swap two
+        // corners so that the front stays where the file's winding puts it.
+        let mirrored = world.determinant() < 0.0;
+        let mut m = Mesh {
+            triangles: Vec::with_capacity(triangles.len()),
+            skipped: 0,
+        };
+        for t in triangles {
+            let v = t.map(|i| points.get(i as usize).copied());
+            let [Some(a), Some(b), Some(c)] = v else {
+                return Err(format!(
+                    "{what}: an index refers to vertex {} of {}",
+                    t.iter().max().unwrap_or(&0),
+                    points.len()
+                ));
+            };
+            let area = (b - a).cross(c - a).length();
+            if area > 0.0 && area.is_finite() {
+                for p in [a, b, c] {
+                    out.bounds.0 = out.bounds.0.min(p);
+                    out.bounds.1 = out.bounds.1.max(p);
+                }
+                m.triangles
+                    .push(if mirrored { [a, c, b] } else { [a, b, c] });
+            } else {
+                m.skipped += 1;
+            }
+        }
+        if m.triangles.is_empty() {
+            out.skipped.push(format!("{what}: no triangle with area"));
+            continue;
+        }
+        let gm = prim.material();
+        let key = material_key(&gm);
+        let mapped = material(&gm);
+        if !out.materials.iter().any(|(k, _)| *k == key) {
+            out.materials.push((key.clone(), mapped.clone()));
+        }
+        out.objects.push(Object {
+            name: Some(match prim.index() {
+                0 => mesh_name.clone(),
+                i => format!("{mesh_name}.{i}"),
+            }),
+            shape: Shape::Mesh {
+                file: String::new(),
+                mesh: Arc::new(m),
+                translate: DVec3::ZERO,
+                rotation: DVec3::ZERO,
+                scale: DVec3::ONE,
+            },
+            material: mapped,
+            material_name: Some(key),
+            gltf: None,
+        });
+    }
+    Ok(())
+}
+
+/// Checks that `a`'s elements lie inside its buffer's data: the crate's reader slices without
+/// checking, so a view or accessor that overruns its buffer would otherwise panic.
+fn accessor_fits(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(), String> {
+    let name = format!("accessor {}", a.index());
+    if a.sparse().is_some() {
+        return Err(format!("{name} is sparse, which termtrace does not read"));
+    }
+    let Some(view) = a.view() else {
+        return Err(format!("{name} has no buffer view"));
+    };
+    let data = buffers
+        .get(view.buffer().index())
+        .ok_or_else(|| format!("{name}: no buffer {}", view.buffer().index()))?;
+    let elem = a.size();
+    let stride = view.stride().unwrap_or(elem).max(elem);
+    let span = match a.count() {
+        0 => Some(0),
+        n => stride
+            .checked_mul(n - 1)
+            .and_then(|x| x.checked_add(elem))
+            .and_then(|x| x.checked_add(a.offset())),
+    };
+    let view_end = view.offset().checked_add(view.length());
+    match (span, view_end) {
+        (Some(span), Some(end)) if span <= view.length() && end <= data.len() => Ok(()),
+        _ => Err(format!(
+            "{name} reaches past the end of its buffer view or buffer ({} bytes)",
+            data.len()
+        )),
+    }
+}
+
+/// glTF's metallic-roughness factors as MODEL.md's material (docs/MODEL-NOTES.md):
+/// - base colour → `color` (glTF's factors are linear already);
+/// - a metal reflects all it does specularly, tinted by its base colour; a dielectric base
+///   reflects `F0 = 0.04` specularly, untinted, and the rest diffusely: `specular` is
+///   `metallic + (1 − metallic) · 0.04` and `specular_color` the mix of white and base colour
+///   that gives each part its share;
+/// - roughness → `absorption` (the fuzz radius), with `smoothness` 1 (the lobe about the
+///   mirror direction);
+/// - emission → `light` (strength × the brightest channel of `emissiveFactor`) with the
+///   emissive colour as `color`, since the model's emitter radiance is `color × light`;
+/// - `KHR_materials_transmission` above one half → the model's dielectric, with
+///   `KHR_materials_ior` (default 1.5) and the base colour as the glass's tint.
+pub fn material(m: &gltf::Material) -> Material {
+    let pbr = m.pbr_metallic_roughness();
+    let [r, g, b, _] = pbr.base_color_factor();
+    let base = Vec3::new(r, g, b).max(Vec3::ZERO);
+    let metallic = pbr.metallic_factor().clamp(0.0, 1.0);
+    let roughness = pbr.roughness_factor().clamp(0.0, 1.0);
+    let emissive = Vec3::from(m.emissive_factor()).max(Vec3::ZERO)
+        * m.emissive_strength().unwrap_or(1.0).max(0.0);
+    let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
+    let ior = m.ior().unwrap_or(1.5);
+    if emissive.max_element() > 0.0 {
+        let light = emissive.max_element();
+        return Material {
+            color: emissive / light,
+            smoothness: 0.0,
+            absorption: 0.0,
+            specular: 0.0,
+            light,
+            ior: 1.5,
+            specular_color: None,
+        };
+    }
+    if transmission > 0.5 {
+        return Material {
+            color: base,
+            smoothness: -1.0,
+            absorption: roughness,
+            specular: 1.0,
+            light: 0.0,
+            ior: if ior > 0.0 && ior.is_finite() {
+                ior
+            } else {
+                1.5
+            },
+            specular_color: None,
+        };
+    }
+    let specular = metallic + (1.0 - metallic) * DIELECTRIC_F0;
+    // The specular part's mean tint: metallic·base + (1 − metallic)·F0·white, per unit share.
+    let tint = (metallic * base + (1.0 - metallic) * DIELECTRIC_F0 * Vec3::ONE) / specular;
+    Material {
+        color: base,
+        smoothness: 1.0,
+        absorption: roughness,
+        specular,
+        light: 0.0,
+        ior: 1.5,
+        specular_color: Some(tint),
+    }
+}
+
+/// The camera named `name` (or the first perspective camera) as the model's camera: the
+/// node looks down its −Z with +Y up (glTF 2.0 §3.10.3).
+fn pick_camera(
+    cameras: &[(gltf::Camera, DMat4)],
+    name: Option<&str>,
+) -> Result<Option<Camera>, String> {
+    let found = match name {
+        Some(n) => Some(
+            cameras
+                .iter()
+                .find(|(c, _)| c.name() == Some(n))
+                .ok_or_else(|| {
+                    let names: Vec<String> = cameras
+                        .iter()
+                        .map(|(c, _)| c.name().unwrap_or("(unnamed)").to_string())
+                        .collect();
+                    if names.is_empty() {
+                        format!("no camera `{n}`: the file has no cameras")
+                    } else {
+                        format!("no camera `{n}`; its cameras: {}", names.join(", "))
+                    }
+                })?,
+        ),
+        None => cameras
+            .iter()
+            .find(|(c, _)| matches!(c.projection(), gltf::camera::Projection::Perspective(_))),
+    };
+    let Some((cam, world)) = found else {
+        return Ok(None);
+    };
+    let gltf::camera::Projection::Perspective(p) = cam.projection() else {
+        return Err(format!(
+            "camera `{}` is orthographic; the model's camera is a perspective one",
+            cam.name().unwrap_or("(unnamed)")
+        ));
+    };
+    let from = world.transform_point3(DVec3::ZERO);
+    let forward = world.transform_vector3(DVec3::NEG_Z).normalize_or_zero();
+    let up = world.transform_vector3(DVec3::Y).normalize_or_zero();
+    if forward == DVec3::ZERO || up == DVec3::ZERO || up.cross(forward).length() < 1e-9 {
+        return Err("a camera's node transform is degenerate".into());
+    }
+    Ok(Some(Camera {
+        look_from: from,
+        look_at: from + forward,
+        up,
+        vfov: (p.yfov() as f64).to_degrees().clamp(1e-3, 179.0),
+        aperture: 0.0,
+        focus_distance: None,
+    }))
+}
+
+/// A camera that frames `bounds`: from the front-right and a little above, at the distance
+/// at which the bounding sphere fills the vertical field of view.
+pub fn framing_camera(bounds: (DVec3, DVec3)) -> Camera {
+    let d = Camera::default();
+    let center = (bounds.0 + bounds.1) / 2.0;
+    let radius = ((bounds.1 - bounds.0).length() / 2.0).max(1e-6);
+    let dir = DVec3::new(0.35, 0.3, 1.0).normalize();
+    let distance = radius / (d.vfov.to_radians() / 2.0).sin();
+    Camera {
+        look_from: center + dir * distance * 1.1,
+        look_at: center,
+        up: DVec3::Y,
+        ..d
+    }
+}
+
+/// A punctual light (KHR_lights_punctual) as the model has lights: a directional light is
+/// the sun (the first one; MODEL.md has one), a point or spot light a small emitting sphere
+/// of the same intensity (a spot's cone is not modelled: it shines every way).
+fn add_light(
+    light: &gltf::khr_lights_punctual::Light,
+    world: DMat4,
+    diagonal: f64,
+    out: &mut Imported,
+) {
+    use gltf::khr_lights_punctual::Kind;
+    let color = Vec3::from(light.color()).max(Vec3::ZERO);
+    let intensity = light.intensity().max(0.0) as f64;
+    match light.kind() {
+        Kind::Directional => {
+            if out.sun.is_some() {
+                out.skipped
+                    .push("a second directional light (the model has one sun)".into());
+                return;
+            }
+            // The light shines down the node's −Z; the sun's direction points toward it.
+            let toward = -world.transform_vector3(DVec3::NEG_Z).normalize_or_zero();
+            if toward != DVec3::ZERO {
+                out.sun = Some(Sun {
+                    direction: toward,
+                    color,
+                    intensity: (intensity * (SUN_SIZE as f64 + 2.0) / std::f64::consts::TAU) as f32,
+                    size: SUN_SIZE,
+                });
+            }
+        }
+        Kind::Point | Kind::Spot { .. } => {
+            let radius = (POINT_LIGHT_RADIUS * diagonal).max(1e-4);
+            let center = world.transform_point3(DVec3::ZERO);
+            // Intensity I (candela) from a sphere of radiance L: I = L·π r².
+            let strength = (intensity / CANDELA_PER_UNIT / (radius * radius)) as f32;
+            if strength > 0.0 && strength.is_finite() {
+                out.objects.push(Object {
+                    name: Some(
+                        light
+                            .name()
+                            .map_or_else(|| format!("light{}", light.index()), str::to_string),
+                    ),
+                    shape: Shape::Sphere { center, radius },
+                    material: Material {
+                        color,
+                        light: strength,
+                        ..Material::default()
+                    },
+                    material_name: None,
+                    gltf: None,
+                });
+            }
+        }
+    }
+}
