@@ -4,6 +4,7 @@
 // #include "common/intersect.wgsl"
 // #include "common/material.wgsl"
 // #include "common/fixed.wgsl"
+// #include "common/texture.wgsl"
 // The path tracer: one invocation traces its share of a round's `sample_count` paths through
 // one pixel and adds them to that pixel's running sums (src/gpu/trace.rs drives it).
 
@@ -17,6 +18,9 @@ override HAS_EMITTERS: bool = true;
 override HAS_NEE: bool = true;
 override HAS_DOF: bool = true;
 override HAS_SUN: bool = true;
+// glTF materials with maps (base colour, metallic-roughness, emissive), and alpha cut-outs.
+override HAS_TEXTURES: bool = true;
+override HAS_CUTOUTS: bool = true;
 // Counting path segments costs an atomic per workgroup; only `bench` turns it on.
 override COUNT_SEGMENTS: bool = false;
 // Walk the BVH, or test every primitive in turn (tests compare the two; see src/common/features.rs).
@@ -45,6 +49,8 @@ var<private> tests: u32;
 @group(0) @binding(12) var<storage, read> lights: array<Light>;
 // Per-lane sums when a pixel's samples are traced by several lanes (see fn trace).
 @group(0) @binding(13) var<storage, read_write> scratch: array<u32>;
+// Texture words (src/common/textures.rs; one word when the scene has none).
+@group(0) @binding(14) var<storage, read> tex: array<u32>;
 
 const KIND_NONE: u32 = 0u;
 const KIND_SPHERE: u32 = 1u;
@@ -88,7 +94,12 @@ fn hit_primitive(r: u32, ray: Ray, t_max: f32) -> f32 {
         }
         default: {
             if HAS_TRIANGLES {
-                return hit_triangle(triangles[index], ray, t_max);
+                let tri = triangles[index];
+                let t = hit_triangle(tri, ray, t_max);
+                if HAS_CUTOUTS && t > 0.0 && tex_cut_out(index, tri.material, ray, t) {
+                    return NO_HIT;
+                }
+                return t;
             }
         }
     }
@@ -590,7 +601,13 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         return true;
     }
     let surf = surface_at(hit, ray);
-    let m = materials[surf.material];
+    var m = materials[surf.material];
+    if HAS_TEXTURES && hit.kind == KIND_TRIANGLE {
+        let rec = tex_record(surf.material);
+        if rec != TEX_NONE {
+            m = tex_material(m, rec, tex_uv(hit.index, surf.point.position));
+        }
+    }
     if HAS_EMITTERS && m.light > 0.0 {
         var w = 1.0;
         if nee && (*path).prev_pdf > 0.0 && m.light_slot > 0u {

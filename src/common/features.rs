@@ -21,6 +21,10 @@ pub struct Features {
     pub nee: bool,
     pub dof: bool,
     pub sun: bool,
+    /// glTF materials with texture maps.
+    pub textures: bool,
+    /// Alpha cut-outs (glTF's MASK and BLEND).
+    pub cutouts: bool,
     /// Counts path segments (benchmarks only); not a scene feature.
     pub count_segments: bool,
     /// Walk the BVH (true) or test every primitive (false: for tests and scaling benchmarks).
@@ -40,6 +44,8 @@ impl Features {
             nee: true,
             dof: true,
             sun: true,
+            textures: true,
+            cutouts: true,
             count_segments: false,
             bvh: true,
         }
@@ -57,6 +63,8 @@ impl Features {
             nee: false,
             dof: false,
             sun: false,
+            textures: false,
+            cutouts: false,
             count_segments: false,
             bvh: false,
         }
@@ -77,10 +85,12 @@ impl Features {
                 "nee" => &mut f.nee,
                 "dof" => &mut f.dof,
                 "sun" => &mut f.sun,
+                "textures" => &mut f.textures,
+                "cutouts" => &mut f.cutouts,
                 _ => {
                     return Err(format!(
                         "unknown feature `{name}` (expected spheres, quads, boxes, triangles, \
-                         dielectrics, emitters, nee, dof or sun)"
+                         dielectrics, emitters, nee, dof, sun, textures or cutouts)"
                     ));
                 }
             };
@@ -106,6 +116,13 @@ impl Features {
             }
             f.dielectrics |= o.material.is_dielectric();
             f.emitters |= o.material.is_emitter();
+            if let Some(t) = &o.material.textured
+                && !o.material.is_dielectric()
+                && matches!(o.shape, Shape::Mesh { .. })
+            {
+                f.textures = true;
+                f.cutouts |= t.0.cuts_out();
+            }
             f.nee |= o.material.is_emitter()
                 && matches!(o.shape, Shape::Sphere { .. } | Shape::Quad { .. });
         }
@@ -124,6 +141,8 @@ impl Features {
             nee: self.nee | other.nee,
             dof: self.dof | other.dof,
             sun: self.sun | other.sun,
+            textures: self.textures | other.textures,
+            cutouts: self.cutouts | other.cutouts,
             count_segments: self.count_segments | other.count_segments,
             bvh: self.bvh | other.bvh,
         }
@@ -147,6 +166,8 @@ impl Features {
             ("HAS_NEE", b(self.nee)),
             ("HAS_DOF", b(self.dof)),
             ("HAS_SUN", b(self.sun)),
+            ("HAS_TEXTURES", b(self.textures)),
+            ("HAS_CUTOUTS", b(self.cutouts)),
             ("COUNT_SEGMENTS", b(self.count_segments)),
             ("USE_BVH", b(self.bvh)),
         ]
@@ -164,6 +185,8 @@ impl Features {
             (self.nee, "nee"),
             (self.dof, "dof"),
             (self.sun, "sun"),
+            (self.textures, "textures"),
+            (self.cutouts, "cutouts"),
         ];
         let on: Vec<&str> = names.iter().filter(|(b, _)| *b).map(|(_, n)| *n).collect();
         if on.is_empty() {

@@ -9,6 +9,7 @@ pub mod arrays;
 pub mod features;
 pub mod layout;
 pub mod resolved;
+pub mod textures;
 pub mod wgsl;
 
 pub use accum::AccumData;

@@ -31,6 +31,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         "common/material.wgsl",
         include_str!("../../shaders/common/material.wgsl"),
     ),
+    (
+        "common/texture.wgsl",
+        include_str!("../../shaders/common/texture.wgsl"),
+    ),
 ];
 
 /// The source of one file compiled into the binary, by path relative to `shaders/`.

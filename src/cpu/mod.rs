@@ -23,6 +23,7 @@ mod packet;
 pub mod rng;
 pub mod sampling;
 pub mod scene;
+pub mod texture;
 pub mod trace;
 
 use crate::common::Resolved;

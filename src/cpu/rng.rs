@@ -35,7 +35,7 @@ fn pcg3d(v: [u32; 3]) -> [u32; 3] {
 }
 
 #[inline(always)]
-fn hash3(v: [u32; 3]) -> u32 {
+pub(super) fn hash3(v: [u32; 3]) -> u32 {
     let h = pcg3d(v);
     h[0] ^ h[1] ^ h[2]
 }
@@ -96,7 +96,7 @@ pub fn pascal(mut y: u32) -> u32 {
 /// A 32-bit fraction (its digits most significant first in the bits from 31 down) as a
 /// float in [0, 1) with 24 of them.
 #[inline(always)]
-fn unit(x: u32) -> f32 {
+pub(super) fn unit(x: u32) -> f32 {
     (x >> 8) as f32 * (1.0 / 16777216.0)
 }
 

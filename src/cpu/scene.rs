@@ -104,6 +104,10 @@ pub struct CpuScene {
     /// The BVH collapsed to eight-wide nodes, for the single-ray walk on a CPU with AVX.
     #[cfg(target_arch = "x86_64")]
     pub bvh8: Option<Bvh8>,
+    /// The texture words (`common::textures`; empty when no material has maps), and whether
+    /// any material cuts out.
+    pub tex: Vec<u32>,
+    pub cutouts: bool,
     /// Nodes of the BVH, and the seconds its build took.
     pub node_count: usize,
     pub build_seconds: f64,
@@ -132,6 +136,8 @@ impl CpuScene {
             boxes: Vec::new(),
             triangles: Vec::new(),
             lights: Vec::new(),
+            tex: Vec::new(),
+            cutouts: false,
             bvh,
             #[cfg(target_arch = "x86_64")]
             bvh8,
@@ -142,7 +148,14 @@ impl CpuScene {
             nee: s.nee,
         };
         c.take(&p);
+        c.take_textures(scene);
         c
+    }
+
+    /// The texture words, as the GPU gets them.
+    fn take_textures(&mut self, scene: &Scene) {
+        self.tex = crate::common::textures::words(scene).unwrap_or_default();
+        self.cutouts = crate::common::Features::of(scene).cutouts;
     }
 
     /// Brings the scene up to date; the BVH is kept when the geometry is unchanged (as the
@@ -155,6 +168,7 @@ impl CpuScene {
         let p = Primitives::of(scene, self.origin, s.nee);
         self.u = Uniforms::of(&scene_uniforms(scene, s, self.origin));
         self.take(&p);
+        self.take_textures(scene);
     }
 
     fn take(&mut self, p: &Primitives) {

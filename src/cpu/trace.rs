@@ -56,7 +56,14 @@ pub(super) fn hit_primitive<const P: u32>(s: &CpuScene, r: u32, ray: &Ray, t_max
         0 => hit_sphere(&s.spheres[i], ray, t_max),
         1 => hit_quad(&s.quads[i], ray, t_max),
         2 => hit_box(&s.boxes[i], ray, t_max),
-        _ => hit_triangle(&s.triangles[i], ray, t_max),
+        _ => {
+            let tri = &s.triangles[i];
+            let t = hit_triangle(tri, ray, t_max);
+            if s.cutouts && t > 0.0 && super::texture::cut_out(&s.tex, tri, i as u32, ray, t) {
+                return NO_HIT;
+            }
+            t
+        }
     }
 }
 
@@ -485,7 +492,22 @@ impl<'a> Tracer<'a> {
                 break;
             };
             let (point, material) = self.surface_at(hit, &ray);
-            let m = &self.s.materials[material as usize];
+            let mut m = &self.s.materials[material as usize];
+            let textured;
+            if !self.s.tex.is_empty()
+                && hit.r >> 30 == 3
+                && let Some(rec) = super::texture::record(&self.s.tex, material)
+            {
+                let i = hit.r & INDEX;
+                let uv = super::texture::uv(
+                    &self.s.tex,
+                    &self.s.triangles[i as usize],
+                    i,
+                    point.position,
+                );
+                textured = super::texture::material(&self.s.tex, m, rec, uv);
+                m = &textured;
+            }
             if self.f.emitters && m.light > 0.0 {
                 let mut w = 1.0;
                 if nee && prev_pdf > 0.0 && m.light_slot > 0 {

@@ -3,6 +3,7 @@
 
 use crate::common::arrays::{FrameSettings, Primitives, geometry_hash, gpu_bvh, scene_uniforms};
 use crate::common::layout::GpuLight;
+use crate::common::textures;
 use crate::scene::Scene;
 use glam::DVec3;
 use wgpu::util::DeviceExt;
@@ -32,6 +33,11 @@ pub struct SceneBuffers {
     pub nodes: wgpu::Buffer,
     pub refs: wgpu::Buffer,
     pub lights: wgpu::Buffer,
+    /// The texture words (`common::textures`; one word when the scene has none).
+    pub tex: wgpu::Buffer,
+    /// What the texture words were made from: per object, its textured material's address
+    /// (0: none), and the geometry (the triangles' coordinates are in them).
+    tex_key: Vec<usize>,
     geometry: u64,
     anchor_target: DVec3,
     /// The point every position is taken relative to on the GPU (a floating origin): the
@@ -60,7 +66,14 @@ impl SceneBuffers {
             build_seconds * 1e3
         );
         let u = scene_uniforms(scene, s, origin);
+        let tex = textures::words(scene).unwrap_or_else(|| vec![0]);
+        tracing::info!(
+            "texture words: {:.1} MiB",
+            tex.len() as f64 * 4.0 / (1 << 20) as f64
+        );
         SceneBuffers {
+            tex: storage(device, "scene.tex", &tex),
+            tex_key: tex_key(scene),
             origin,
             uniforms: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("scene.uniforms"),
@@ -98,6 +111,7 @@ impl SceneBuffers {
         let light_count = |l: &[GpuLight]| l.len().max(1);
         if geometry_hash(scene) != self.geometry
             || s.nee != self.nee
+            || tex_key(scene) != self.tex_key
             || light_count(&p.lights) * std::mem::size_of::<GpuLight>()
                 > self.lights.size() as usize
         {
@@ -121,4 +135,16 @@ impl SceneBuffers {
         }
         false
     }
+}
+
+/// Per object, the address of its textured material as the texture words use it (0: none).
+fn tex_key(scene: &Scene) -> Vec<usize> {
+    scene
+        .objects
+        .iter()
+        .map(|o| match &o.material.textured {
+            Some(t) if !o.material.is_dielectric() => std::sync::Arc::as_ptr(&t.0) as usize,
+            _ => 0,
+        })
+        .collect()
 }

@@ -116,6 +116,7 @@ impl TracePass {
                 entry(11, ro),
                 entry(12, ro),
                 entry(13, rw),
+                entry(14, ro),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -213,6 +214,7 @@ impl TracePass {
                 &scene.triangles,
                 &scene.lights,
                 &accum.scratch,
+                &scene.tex,
             ],
         )
     }

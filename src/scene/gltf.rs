@@ -97,6 +97,16 @@ pub fn import_slice(
     let buffers = gltf::import_buffers(&gltf.document, base, gltf.blob.clone())
         .map_err(|e| err(format!("cannot read its buffers: {e}")))?;
     let doc = &gltf.document;
+    let textures = super::gltf_textures::decode(doc, base, &buffers).map_err(err)?;
+    let mut skipped = Vec::new();
+    // Every material mapped once, so that the objects sharing one share its textures.
+    let materials: Vec<Material> = doc
+        .materials()
+        .map(|m| Material {
+            textured: super::gltf_textures::textured(&m, &textures, &mut skipped),
+            ..material(&m)
+        })
+        .collect();
     let scene = doc
         .default_scene()
         .or_else(|| doc.scenes().next())
@@ -105,7 +115,7 @@ pub fn import_slice(
         objects: Vec::new(),
         camera: None,
         sun: None,
-        skipped: Vec::new(),
+        skipped,
         bounds: (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
         materials: Vec::new(),
     };
@@ -123,7 +133,7 @@ pub fn import_slice(
             )));
         }
         if let Some(mesh) = node.mesh() {
-            import_mesh(&mesh, world, &buffers, &mut out).map_err(err)?;
+            import_mesh(&mesh, world, &buffers, &materials, &mut out).map_err(err)?;
         }
         if let Some(cam) = node.camera() {
             cameras.push((cam, world));
@@ -163,6 +173,7 @@ fn import_mesh(
     mesh: &gltf::Mesh,
     world: DMat4,
     buffers: &[gltf::buffer::Data],
+    materials: &[Material],
     out: &mut Imported,
 ) -> Result<(), String> {
     let mesh_name = mesh
@@ -174,7 +185,20 @@ fn import_mesh(
             out.skipped.push(format!("{what}: no positions"));
             continue;
         };
-        for a in std::iter::once(pos).chain(prim.indices()) {
+        let gm = prim.material();
+        // glTF's default material (no index) has no maps.
+        let mapped = &match gm.index() {
+            Some(i) => materials[i].clone(),
+            None => material(&gm),
+        };
+        let uv_accessor = mapped
+            .textured
+            .as_ref()
+            .and_then(|_| prim.get(&gltf::Semantic::TexCoords(0)));
+        for a in std::iter::once(pos)
+            .chain(prim.indices())
+            .chain(uv_accessor.clone())
+        {
             accessor_fits(&a, buffers).map_err(|e| format!("{what}: {e}"))?;
         }
         let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
@@ -182,6 +206,12 @@ fn import_mesh(
             out.skipped.push(format!("{what}: no positions"));
             continue;
         };
+        // Texture coordinates, for a textured material (missing ones read as (0, 0)).
+        let uvs: Vec<[f32; 2]> = match (&uv_accessor, reader.read_tex_coords(0)) {
+            (Some(_), Some(t)) => t.into_f32().collect(),
+            _ => Vec::new(),
+        };
+        let uv = |i: u32| uvs.get(i as usize).copied().unwrap_or([0.0; 2]);
         let points: Vec<DVec3> = positions
             .map(|p| world.transform_point3(DVec3::from(p.map(f64::from))))
             .collect();
@@ -219,6 +249,7 @@ fn import_mesh(
         let mut m = Mesh {
             triangles: Vec::with_capacity(triangles.len()),
             skipped: 0,
+            uvs: Vec::new(),
         };
         for t in triangles {
             let v = t.map(|i| points.get(i as usize).copied());
@@ -237,6 +268,11 @@ fn import_mesh(
                 }
                 m.triangles
                     .push(if mirrored { [a, c, b] } else { [a, b, c] });
+                if mapped.textured.is_some() {
+                    let [ua, ub, uc] = t.map(uv);
+                    m.uvs
+                        .push(if mirrored { [ua, uc, ub] } else { [ua, ub, uc] });
+                }
             } else {
                 m.skipped += 1;
             }
@@ -245,9 +281,8 @@ fn import_mesh(
             out.skipped.push(format!("{what}: no triangle with area"));
             continue;
         }
-        let gm = prim.material();
         let key = material_key(&gm);
-        let mapped = material(&gm);
+        let mapped = mapped.clone();
         if !out.materials.iter().any(|(k, _)| *k == key) {
             out.materials.push((key.clone(), mapped.clone()));
         }
@@ -335,6 +370,7 @@ pub fn material(m: &gltf::Material) -> Material {
             light,
             ior: 1.5,
             specular_color: None,
+            textured: None,
         };
     }
     if transmission > 0.5 {
@@ -350,6 +386,7 @@ pub fn material(m: &gltf::Material) -> Material {
                 1.5
             },
             specular_color: None,
+            textured: None,
         };
     }
     let specular = metallic + (1.0 - metallic) * DIELECTRIC_F0;
@@ -363,6 +400,7 @@ pub fn material(m: &gltf::Material) -> Material {
         light: 0.0,
         ior: 1.5,
         specular_color: Some(tint),
+        textured: None,
     }
 }
 

@@ -10,6 +10,9 @@ pub struct Mesh {
     pub triangles: Vec<[DVec3; 3]>,
     /// Triangles dropped because they had no area or non-finite vertices.
     pub skipped: usize,
+    /// Each triangle's texture coordinates at its three corners (glTF's `TEXCOORD_0`);
+    /// empty when the mesh has none.
+    pub uvs: Vec<[[f32; 2]; 3]>,
 }
 
 /// Parses OBJ text (faces triangulated; materials, normals and texture coordinates ignored).
@@ -26,6 +29,7 @@ pub fn parse_obj(text: &str) -> Result<Mesh, String> {
     let mut mesh = Mesh {
         triangles: Vec::new(),
         skipped: 0,
+        uvs: Vec::new(),
     };
     for m in &models {
         let p = &m.mesh.positions;

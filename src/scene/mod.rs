@@ -9,10 +9,12 @@ pub mod color;
 mod error;
 pub mod generate;
 pub mod gltf;
+mod gltf_textures;
 pub mod mesh;
 mod model;
 mod parse;
 mod reader;
+pub mod texture;
 mod write;
 
 pub use builtin::{BUILTIN_FILES, BUILTIN_SCENES, DEFAULT_SCENE, EXTREME_SCENES, builtin_source};

@@ -2,6 +2,7 @@
 //! validation.
 
 use super::mesh::Mesh;
+use super::texture::TexturedRef;
 use glam::{DMat3, DVec3, Vec3};
 use std::path::Path;
 use std::sync::Arc;
@@ -143,6 +144,9 @@ pub struct Material {
     pub ior: f32,
     /// Tint of specular bounces; `None` means the same as `color`.
     pub specular_color: Option<Vec3>,
+    /// A glTF material's texture maps, mapped onto the other fields at each hit (`None`: the
+    /// fields as they are).
+    pub textured: Option<TexturedRef>,
 }
 
 /// Default albedo of MODEL.md for non-dielectrics.
@@ -160,6 +164,7 @@ impl Default for Material {
             light: 0.0,
             ior: 1.5,
             specular_color: None,
+            textured: None,
         }
     }
 }

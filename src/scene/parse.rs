@@ -310,6 +310,7 @@ impl MaterialPatch {
             light: self.light.unwrap_or(d.light),
             ior: self.ior.unwrap_or(d.ior),
             specular_color: self.specular_color,
+            textured: None,
         }
     }
 }
@@ -496,7 +497,10 @@ fn read_gltf(
     }
     let apply = |key: &str, m: &Material| -> Material {
         match overrides.iter().find(|(n, _)| n == key) {
-            Some((_, o)) => MaterialPatch::read(o).over(&MaterialPatch::of(m)).resolve(),
+            Some((_, o)) => Material {
+                textured: m.textured.clone(),
+                ..MaterialPatch::read(o).over(&MaterialPatch::of(m)).resolve()
+            },
             None => m.clone(),
         }
     };

@@ -1,0 +1,175 @@
+// Textures (src/common/textures.rs lays out the words, src/cpu/texture.rs reads them the same
+// way): glTF's base colour, metallic-roughness and emissive maps, sampled bilinearly with
+// their wrap modes, mapped onto the model's material at each hit; and alpha cut-outs. Every
+// function here is called only under HAS_TEXTURES or HAS_CUTOUTS.
+// Needs `tex: array<u32>` and `triangles: array<Triangle>` (trace.wgsl binds them).
+
+const TEX_SRGB_LUT: u32 = 0u;
+const TEX_UV_BASE: u32 = 256u;
+const TEX_MATERIALS: u32 = 257u;
+const TEX_NONE: u32 = 0xffffffffu;
+const TEX_FLAG_BASE: u32 = 1u;
+const TEX_FLAG_MR: u32 = 2u;
+const TEX_FLAG_EMISSIVE: u32 = 4u;
+const TEX_ALPHA_SHIFT: u32 = 8u;
+// Texture coordinates are clamped to this before texel arithmetic (a wrap mode maps any
+// coordinate into the image; this only keeps the integer conversion in range).
+const TEX_UV_LIMIT: f32 = 1048576.0;
+// The reflectance of a dielectric at normal incidence in glTF's model (Appendix B).
+const DIELECTRIC_F0: f32 = 0.04;
+
+fn tex_f32(i: u32) -> f32 {
+    return bitcast<f32>(tex[i]);
+}
+
+// A texel index brought into [0, n) by a wrap mode: 0 repeat, 1 clamp, 2 mirrored repeat.
+fn tex_wrap(i: i32, n: i32, mode: u32) -> i32 {
+    if mode == 1u {
+        return clamp(i, 0, n - 1);
+    }
+    if mode == 2u {
+        let p = 2 * n;
+        var k = i % p;
+        if k < 0 {
+            k += p;
+        }
+        return select(k, p - 1 - k, k >= n);
+    }
+    var k = i % n;
+    if k < 0 {
+        k += n;
+    }
+    return k;
+}
+
+// One texel of the texture whose header is at `h`, as [0, 1] values, its colour sRGB-decoded
+// when `srgb` (alpha is always linear).
+fn tex_texel(h: u32, x: i32, y: i32, srgb: bool) -> vec4f {
+    let w = i32(tex[h]);
+    let xi = tex_wrap(x, w, tex[h + 2u]);
+    let yi = tex_wrap(y, i32(tex[h + 1u]), tex[h + 3u]);
+    let word = tex[tex[h + 4u] + u32(yi * w + xi)];
+    let b = vec4u(word & 0xffu, (word >> 8u) & 0xffu, (word >> 16u) & 0xffu, word >> 24u);
+    if srgb {
+        return vec4f(tex_f32(TEX_SRGB_LUT + b.x), tex_f32(TEX_SRGB_LUT + b.y), tex_f32(TEX_SRGB_LUT + b.z), f32(b.w) / 255.0);
+    }
+    return vec4f(b) / 255.0;
+}
+
+// Bilinear filtering with texel centres at half-integers (glTF's LINEAR), in linear values.
+fn tex_sample(h: u32, uv_in: vec2f, srgb: bool) -> vec4f {
+    let uv = clamp(uv_in, vec2f(-TEX_UV_LIMIT), vec2f(TEX_UV_LIMIT));
+    let x = uv.x * f32(tex[h]) - 0.5;
+    let y = uv.y * f32(tex[h + 1u]) - 0.5;
+    let x0 = floor(x);
+    let y0 = floor(y);
+    let fx = x - x0;
+    let fy = y - y0;
+    let ix = i32(x0);
+    let iy = i32(y0);
+    let t00 = tex_texel(h, ix, iy, srgb);
+    let t10 = tex_texel(h, ix + 1, iy, srgb);
+    let t01 = tex_texel(h, ix, iy + 1, srgb);
+    let t11 = tex_texel(h, ix + 1, iy + 1, srgb);
+    let top = t00 + (t10 - t00) * fx;
+    let bottom = t01 + (t11 - t01) * fx;
+    return top + (bottom - top) * fy;
+}
+
+// The record of material `material`, or TEX_NONE (also for a scene without textures, whose
+// one-word buffer a generic pipeline still reads).
+fn tex_record(material: u32) -> u32 {
+    let at = TEX_MATERIALS + 1u + material;
+    if at >= arrayLength(&tex) {
+        return TEX_NONE;
+    }
+    return tex[at];
+}
+
+// The texture coordinates at point p (relative to the origin, as the triangles are) on
+// triangle `index`: its corners' coordinates by p's barycentrics (least squares in the plane,
+// as triangle_surface finds them).
+fn tex_uv(index: u32, p_world: vec3f) -> vec2f {
+    let tri = triangles[index];
+    let p = p_world - tri.v0;
+    let d00 = dot(tri.e1, tri.e1);
+    let d01 = dot(tri.e1, tri.e2);
+    let d11 = dot(tri.e2, tri.e2);
+    let d20 = dot(p, tri.e1);
+    let d21 = dot(p, tri.e2);
+    let denom = d00 * d11 - d01 * d01;
+    let b1 = (d11 * d20 - d01 * d21) / denom;
+    let b2 = (d00 * d21 - d01 * d20) / denom;
+    let at = tex[TEX_UV_BASE] + 6u * index;
+    let uv0 = vec2f(tex_f32(at), tex_f32(at + 1u));
+    let uv1 = vec2f(tex_f32(at + 2u), tex_f32(at + 3u));
+    let uv2 = vec2f(tex_f32(at + 4u), tex_f32(at + 5u));
+    let uv = uv0 + b1 * (uv1 - uv0) + b2 * (uv2 - uv0);
+    // A degenerate triangle's NaN coordinates read as (0, 0) (by the exponent bits: WGSL may
+    // assume floats are finite, so `uv != uv` could be folded away).
+    let inf = (bitcast<vec2u>(uv) & vec2u(0x7f800000u)) == vec2u(0x7f800000u);
+    return select(uv, vec2f(0.0), inf);
+}
+
+// A glTF material's maps at `uv` mapped onto the model's material (docs/MODEL-NOTES.md):
+// emission where the emissive map is lit, else metallic-roughness as the specular share, its
+// tint, and the fuzz.
+fn tex_material(m: Material, rec: u32, uv: vec2f) -> Material {
+    let flags = tex[rec];
+    var base = vec4f(tex_f32(rec + 4u), tex_f32(rec + 5u), tex_f32(rec + 6u), tex_f32(rec + 7u));
+    if (flags & TEX_FLAG_BASE) != 0u {
+        base *= tex_sample(tex[rec + 1u], uv, true);
+    }
+    var metallic = tex_f32(rec + 8u);
+    var roughness = tex_f32(rec + 9u);
+    if (flags & TEX_FLAG_MR) != 0u {
+        let mr = tex_sample(tex[rec + 2u], uv, false);
+        roughness *= mr.y;
+        metallic *= mr.z;
+    }
+    var e = vec3f(tex_f32(rec + 10u), tex_f32(rec + 11u), tex_f32(rec + 12u));
+    if (flags & TEX_FLAG_EMISSIVE) != 0u {
+        e *= tex_sample(tex[rec + 3u], uv, true).xyz;
+    }
+    var out = m;
+    let light = max(max(e.x, e.y), e.z);
+    if light > 0.0 {
+        out.color = e / light;
+        out.light = light;
+        return out;
+    }
+    out.light = 0.0;
+    let specular = metallic + (1.0 - metallic) * DIELECTRIC_F0;
+    out.color = base.xyz;
+    out.smoothness = 1.0;
+    out.absorption = roughness;
+    out.specular = specular;
+    out.specular_color = (metallic * base.xyz + vec3f((1.0 - metallic) * DIELECTRIC_F0)) / specular;
+    return out;
+}
+
+// Whether a ray's hit at distance t on triangle `index` (material `material`) falls through
+// a cut-out: alpha below the cutoff (MASK), or, for BLEND, a hashed uniform draw of the ray and
+// triangle at or above alpha (a stochastic cut-out: over many rays, a share alpha is hit).
+fn tex_cut_out(index: u32, material: u32, ray: Ray, t: f32) -> bool {
+    let rec = tex_record(material);
+    if rec == TEX_NONE {
+        return false;
+    }
+    let flags = tex[rec];
+    let mode = (flags >> TEX_ALPHA_SHIFT) & 3u;
+    if mode == 0u {
+        return false;
+    }
+    var alpha = tex_f32(rec + 7u);
+    if (flags & TEX_FLAG_BASE) != 0u {
+        alpha *= tex_sample(tex[rec + 1u], tex_uv(index, ray.origin + t * ray.dir), false).w;
+    }
+    if mode == 1u {
+        return alpha < tex_f32(rec + 13u);
+    }
+    let o = bitcast<vec3u>(ray.origin);
+    let d = bitcast<vec3u>(ray.dir);
+    let u = unit_float(hash3(vec3u(o.x ^ d.x, o.y ^ d.y, (o.z ^ d.z) + index)));
+    return u >= alpha;
+}

@@ -1,0 +1,168 @@
+//! Textures on the CPU: shaders/common/texture.wgsl in Rust, term for term, reading the same
+//! words (`common::textures`): bilinear sampling with wrap modes, the glTF material mapped
+//! onto the model's at a hit, and alpha cut-outs.
+
+use super::intersect::{Ray, Triangle};
+use super::scene::Material;
+use crate::common::textures::{
+    ALPHA_SHIFT, FLAG_BASE, FLAG_EMISSIVE, FLAG_MR, MATERIALS, NONE, SRGB_LUT, UV_BASE,
+};
+use glam::{Vec2, Vec3A, Vec4};
+
+/// Coordinates are clamped to this before texel arithmetic (texture.wgsl: TEX_UV_LIMIT).
+const UV_LIMIT: f32 = 1048576.0;
+/// glTF's dielectric reflectance at normal incidence (texture.wgsl: DIELECTRIC_F0).
+const DIELECTRIC_F0: f32 = 0.04;
+
+#[inline(always)]
+fn f(tex: &[u32], i: u32) -> f32 {
+    f32::from_bits(tex[i as usize])
+}
+
+fn wrap(i: i32, n: i32, mode: u32) -> i32 {
+    match mode {
+        1 => i.clamp(0, n - 1),
+        2 => {
+            let p = 2 * n;
+            let k = i.rem_euclid(p);
+            if k >= n { p - 1 - k } else { k }
+        }
+        _ => i.rem_euclid(n),
+    }
+}
+
+fn texel(tex: &[u32], h: u32, x: i32, y: i32, srgb: bool) -> Vec4 {
+    let h = h as usize;
+    let w = tex[h] as i32;
+    let xi = wrap(x, w, tex[h + 2]);
+    let yi = wrap(y, tex[h + 1] as i32, tex[h + 3]);
+    let word = tex[tex[h + 4] as usize + (yi * w + xi) as usize];
+    let b = [
+        word & 0xff,
+        (word >> 8) & 0xff,
+        (word >> 16) & 0xff,
+        word >> 24,
+    ];
+    if srgb {
+        let d = |c: u32| f(tex, SRGB_LUT as u32 + c);
+        Vec4::new(d(b[0]), d(b[1]), d(b[2]), b[3] as f32 / 255.0)
+    } else {
+        Vec4::new(b[0] as f32, b[1] as f32, b[2] as f32, b[3] as f32) / 255.0
+    }
+}
+
+/// Bilinear filtering, texel centres at half-integers (texture.wgsl: tex_sample).
+pub fn sample(tex: &[u32], h: u32, uv: Vec2, srgb: bool) -> Vec4 {
+    let uv = uv.clamp(Vec2::splat(-UV_LIMIT), Vec2::splat(UV_LIMIT));
+    let x = uv.x * tex[h as usize] as f32 - 0.5;
+    let y = uv.y * tex[h as usize + 1] as f32 - 0.5;
+    let (x0, y0) = (x.floor(), y.floor());
+    let (fx, fy) = (x - x0, y - y0);
+    let (ix, iy) = (x0 as i32, y0 as i32);
+    let t00 = texel(tex, h, ix, iy, srgb);
+    let t10 = texel(tex, h, ix + 1, iy, srgb);
+    let t01 = texel(tex, h, ix, iy + 1, srgb);
+    let t11 = texel(tex, h, ix + 1, iy + 1, srgb);
+    let top = t00 + (t10 - t00) * fx;
+    let bottom = t01 + (t11 - t01) * fx;
+    top + (bottom - top) * fy
+}
+
+/// The record of material `material`, or `None`.
+#[inline(always)]
+pub fn record(tex: &[u32], material: u32) -> Option<u32> {
+    let r = tex[MATERIALS + 1 + material as usize];
+    (r != NONE).then_some(r)
+}
+
+/// The texture coordinates at `p` on triangle `index` (texture.wgsl: tex_uv).
+pub fn uv(tex: &[u32], tri: &Triangle, index: u32, p_world: Vec3A) -> Vec2 {
+    let p = p_world - tri.v0;
+    let d00 = tri.e1.dot(tri.e1);
+    let d01 = tri.e1.dot(tri.e2);
+    let d11 = tri.e2.dot(tri.e2);
+    let d20 = p.dot(tri.e1);
+    let d21 = p.dot(tri.e2);
+    let denom = d00 * d11 - d01 * d01;
+    let b1 = (d11 * d20 - d01 * d21) / denom;
+    let b2 = (d00 * d21 - d01 * d20) / denom;
+    let at = tex[UV_BASE] + 6 * index;
+    let c = |k: u32| Vec2::new(f(tex, at + k), f(tex, at + k + 1));
+    let (uv0, uv1, uv2) = (c(0), c(2), c(4));
+    let uv = uv0 + b1 * (uv1 - uv0) + b2 * (uv2 - uv0);
+    Vec2::new(
+        if uv.x.is_finite() { uv.x } else { 0.0 },
+        if uv.y.is_finite() { uv.y } else { 0.0 },
+    )
+}
+
+/// The material at a hit (texture.wgsl: tex_material).
+pub fn material(tex: &[u32], m: &Material, rec: u32, uv: Vec2) -> Material {
+    let flags = tex[rec as usize];
+    let mut base = Vec4::new(
+        f(tex, rec + 4),
+        f(tex, rec + 5),
+        f(tex, rec + 6),
+        f(tex, rec + 7),
+    );
+    if flags & FLAG_BASE != 0 {
+        base *= sample(tex, tex[rec as usize + 1], uv, true);
+    }
+    let mut metallic = f(tex, rec + 8);
+    let mut roughness = f(tex, rec + 9);
+    if flags & FLAG_MR != 0 {
+        let mr = sample(tex, tex[rec as usize + 2], uv, false);
+        roughness *= mr.y;
+        metallic *= mr.z;
+    }
+    let mut e = Vec3A::new(f(tex, rec + 10), f(tex, rec + 11), f(tex, rec + 12));
+    if flags & FLAG_EMISSIVE != 0 {
+        e *= Vec3A::from(sample(tex, tex[rec as usize + 3], uv, true).truncate());
+    }
+    let mut out = *m;
+    let light = e.x.max(e.y).max(e.z);
+    if light > 0.0 {
+        out.color = e / light;
+        out.light = light;
+        return out;
+    }
+    out.light = 0.0;
+    let base = Vec3A::from(base.truncate());
+    let specular = metallic + (1.0 - metallic) * DIELECTRIC_F0;
+    out.color = base;
+    out.smoothness = 1.0;
+    out.absorption = roughness;
+    out.specular = specular;
+    out.specular_color =
+        (metallic * base + Vec3A::splat((1.0 - metallic) * DIELECTRIC_F0)) / specular;
+    out
+}
+
+/// Whether a hit at `t` on triangle `index` falls through a cut-out (texture.wgsl:
+/// tex_cut_out).
+pub fn cut_out(tex: &[u32], tri: &Triangle, index: u32, ray: &Ray, t: f32) -> bool {
+    let Some(rec) = record(tex, tri.material) else {
+        return false;
+    };
+    let flags = tex[rec as usize];
+    let mode = (flags >> ALPHA_SHIFT) & 3;
+    if mode == 0 {
+        return false;
+    }
+    let mut alpha = f(tex, rec + 7);
+    if flags & FLAG_BASE != 0 {
+        let uv = uv(tex, tri, index, ray.origin + t * ray.dir);
+        alpha *= sample(tex, tex[rec as usize + 1], uv, false).w;
+    }
+    if mode == 1 {
+        return alpha < f(tex, rec + 13);
+    }
+    let (o, d) = (ray.origin.to_array(), ray.dir.to_array());
+    let bits = |a: f32, b: f32| a.to_bits() ^ b.to_bits();
+    let h = super::rng::hash3([
+        bits(o[0], d[0]),
+        bits(o[1], d[1]),
+        bits(o[2], d[2]).wrapping_add(index),
+    ]);
+    super::rng::unit(h) >= alpha
+}

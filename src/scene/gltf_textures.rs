@@ -1,0 +1,185 @@
+//! The textures of a glTF file: the images its materials use, decoded in parallel (PNG and
+//! JPEG through `image`) into the model's RGBA8 textures with their samplers' wrap modes, and
+//! each textured material as the model's [`Textured`].
+
+use super::texture::{AlphaMode, Texture, Textured, TexturedRef, Wrap};
+use base64::Engine;
+use rayon::prelude::*;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Each glTF texture a material uses, decoded (`None`: unused).
+pub type Textures = Vec<Option<Arc<Texture>>>;
+
+/// Decodes every image that a material's base colour, metallic-roughness or emissive map
+/// uses, each once, in parallel.
+pub fn decode(
+    doc: &gltf::Document,
+    base: Option<&Path>,
+    buffers: &[gltf::buffer::Data],
+) -> Result<Textures, String> {
+    let mut used = vec![false; doc.textures().len()];
+    for m in doc.materials() {
+        let pbr = m.pbr_metallic_roughness();
+        for info in [
+            pbr.base_color_texture(),
+            pbr.metallic_roughness_texture(),
+            m.emissive_texture(),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            used[info.texture().index()] = true;
+        }
+    }
+    let mut images: Vec<usize> = doc
+        .textures()
+        .filter(|t| used[t.index()])
+        .map(|t| t.source().index())
+        .collect();
+    images.sort_unstable();
+    images.dedup();
+    let decoded: Vec<(usize, Result<Arc<image::RgbaImage>, String>)> = images
+        .par_iter()
+        .map(|&i| {
+            let image = doc.images().nth(i).expect("an image index of the document");
+            let what = match image.name() {
+                Some(n) => format!("image {i} (`{n}`)"),
+                None => format!("image {i}"),
+            };
+            let pixels = encoded(&image, base, buffers)
+                .and_then(|bytes| {
+                    image::load_from_memory(&bytes).map_err(|e| format!("cannot decode it: {e}"))
+                })
+                .map(|img| Arc::new(img.to_rgba8()))
+                .map_err(|e| format!("{what}: {e}"));
+            (i, pixels)
+        })
+        .collect();
+    let mut by_image = std::collections::HashMap::new();
+    for (i, d) in decoded {
+        by_image.insert(i, d?);
+    }
+    Ok(doc
+        .textures()
+        .map(|t| {
+            let img = by_image.get(&t.source().index())?;
+            let wrap = |w: gltf::texture::WrappingMode| match w {
+                gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
+                gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
+                gltf::texture::WrappingMode::MirroredRepeat => Wrap::Mirror,
+            };
+            let s = t.sampler();
+            Some(Arc::new(Texture {
+                width: img.width(),
+                height: img.height(),
+                texels: img.pixels().map(|p| u32::from_le_bytes(p.0)).collect(),
+                wrap: [wrap(s.wrap_s()), wrap(s.wrap_t())],
+            }))
+        })
+        .collect())
+}
+
+/// The encoded bytes of an image: from a buffer view, a `data:` URI, or a file beside the
+/// glTF file.
+fn encoded(
+    image: &gltf::Image,
+    base: Option<&Path>,
+    buffers: &[gltf::buffer::Data],
+) -> Result<Vec<u8>, String> {
+    match image.source() {
+        gltf::image::Source::View { view, .. } => {
+            let data = buffers
+                .get(view.buffer().index())
+                .ok_or("its buffer is missing")?;
+            let end = view.offset().checked_add(view.length());
+            match end {
+                Some(end) if end <= data.len() => Ok(data[view.offset()..end].to_vec()),
+                _ => Err("its buffer view reaches past the end of its buffer".into()),
+            }
+        }
+        gltf::image::Source::Uri { uri, .. } => {
+            if let Some(rest) = uri.strip_prefix("data:") {
+                let (_, b64) = rest
+                    .split_once(";base64,")
+                    .ok_or("a data URI that is not base64")?;
+                return base64::engine::general_purpose::STANDARD
+                    .decode(b64)
+                    .map_err(|e| format!("its data URI is not valid base64: {e}"));
+            }
+            let base = base.ok_or("an image in another file, and no folder to read it from")?;
+            let path = base.join(percent_decode(uri));
+            std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))
+        }
+    }
+}
+
+/// A relative URI's `%XX` escapes decoded (glTF URIs are percent-encoded: `my%20file.png`).
+fn percent_decode(uri: &str) -> String {
+    let b = uri.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let hex = |c: u8| (c as char).to_digit(16);
+        if b[i] == b'%'
+            && i + 2 < b.len()
+            && let (Some(h), Some(l)) = (hex(b[i + 1]), hex(b[i + 2]))
+        {
+            out.push((h * 16 + l) as u8);
+            i += 3;
+        } else {
+            out.push(b[i]);
+            i += 1;
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+/// `m` as the model's textured material, when it has a map the tracers read or is not
+/// opaque; `None` otherwise (its factors alone are the whole material). Maps on a texture
+/// coordinate set other than 0 are left out and named in `skipped`.
+pub fn textured(
+    m: &gltf::Material,
+    textures: &Textures,
+    skipped: &mut Vec<String>,
+) -> Option<TexturedRef> {
+    let pbr = m.pbr_metallic_roughness();
+    let mut map = |info: Option<gltf::texture::Info>, what: &str| {
+        let info = info?;
+        if info.tex_coord() != 0 {
+            skipped.push(format!(
+                "the {what} map of material {}: TEXCOORD_{} (only TEXCOORD_0 is read)",
+                m.index().map_or("default".into(), |i| i.to_string()),
+                info.tex_coord()
+            ));
+            return None;
+        }
+        textures.get(info.texture().index()).cloned().flatten()
+    };
+    let base_color = map(pbr.base_color_texture(), "base colour");
+    let metallic_roughness = map(pbr.metallic_roughness_texture(), "metallic-roughness");
+    let emissive = map(m.emissive_texture(), "emissive");
+    let alpha = match m.alpha_mode() {
+        gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+        gltf::material::AlphaMode::Mask => AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5)),
+        gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+    };
+    if base_color.is_none()
+        && metallic_roughness.is_none()
+        && emissive.is_none()
+        && alpha == AlphaMode::Opaque
+    {
+        return None;
+    }
+    let strength = m.emissive_strength().unwrap_or(1.0).max(0.0);
+    Some(TexturedRef(Arc::new(Textured {
+        base_color,
+        metallic_roughness,
+        emissive,
+        base_factor: pbr.base_color_factor().map(|x| x.max(0.0)),
+        metallic: pbr.metallic_factor().clamp(0.0, 1.0),
+        roughness: pbr.roughness_factor().clamp(0.0, 1.0),
+        emissive_factor: m.emissive_factor().map(|x| x.max(0.0) * strength),
+        alpha,
+    })))
+}

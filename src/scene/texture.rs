@@ -1,0 +1,76 @@
+//! Textures as the render model holds them: 8-bit RGBA images with a wrap mode per axis, and
+//! the textured form of a glTF material (its maps and factors), which both tracers map onto
+//! MODEL.md's material at each hit (`shaders/common/texture.wgsl`, `cpu::texture`).
+
+use std::sync::Arc;
+
+/// How a texture coordinate outside [0, 1] is brought back (glTF's sampler wrap modes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Wrap {
+    Repeat = 0,
+    Clamp = 1,
+    Mirror = 2,
+}
+
+/// An image: `width × height` texels, rows from the top (glTF's UV origin is the image's
+/// upper-left corner), each packed `r | g << 8 | b << 16 | a << 24`, as stored (colour maps
+/// are sRGB-decoded when sampled).
+#[derive(Debug, PartialEq)]
+pub struct Texture {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<u32>,
+    /// The wrap mode along u and along v.
+    pub wrap: [Wrap; 2],
+}
+
+impl Texture {
+    /// Bytes the texels take.
+    pub fn bytes(&self) -> usize {
+        self.texels.len() * 4
+    }
+}
+
+/// glTF's `alphaMode`: opaque, a cut-out at `alphaCutoff` (leaves, fences), or blended,
+/// which the tracers treat as a stochastic cut-out (a ray passes with probability 1 − alpha).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AlphaMode {
+    Opaque,
+    Mask(f32),
+    Blend,
+}
+
+/// A glTF material with texture maps: what each hit maps onto the model's material (base
+/// colour = factor × map, metallic and roughness = factors × the map's blue and green,
+/// emission = factor × strength × map; docs/MODEL-NOTES.md, "glTF materials").
+#[derive(Debug, PartialEq)]
+pub struct Textured {
+    pub base_color: Option<Arc<Texture>>,
+    pub metallic_roughness: Option<Arc<Texture>>,
+    pub emissive: Option<Arc<Texture>>,
+    pub base_factor: [f32; 4],
+    pub metallic: f32,
+    pub roughness: f32,
+    /// `emissiveFactor × emissiveStrength`.
+    pub emissive_factor: [f32; 3],
+    pub alpha: AlphaMode,
+}
+
+impl Textured {
+    /// Whether some hits on it are not hits (a cut-out).
+    pub fn cuts_out(&self) -> bool {
+        self.alpha != AlphaMode::Opaque
+    }
+}
+
+/// A material's textures, shared by every object that uses them; two are the same when they
+/// are the same allocation (comparing texels on every edit would cost a frame).
+#[derive(Clone, Debug)]
+pub struct TexturedRef(pub Arc<Textured>);
+
+impl PartialEq for TexturedRef {
+    fn eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.0, &other.0)
+    }
+}

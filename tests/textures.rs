@@ -1,0 +1,339 @@
+//! glTF texture maps on both tracers: emissive maps as exact known answers (a 1×1 map, and the
+//! orientation of a 2×2 one), alpha cut-outs (MASK exact away from the edge, BLEND converging
+//! to its share), the sampler's wrap modes and bilinear weights on the host, and the CPU and
+//! GPU tracers agreeing on a scene with every map.
+
+mod common;
+use base64::Engine;
+use common::*;
+use std::io::Write;
+use termtrace::common::textures::{self, srgb_decode};
+use termtrace::scene::Scene;
+
+/// A PNG of `w × h` RGBA texels, as a data URI.
+fn png_uri(w: u32, h: u32, rgba: &[[u8; 4]]) -> String {
+    let img = image::RgbaImage::from_fn(w, h, |x, y| image::Rgba(rgba[(y * w + x) as usize]));
+    let mut png = Vec::new();
+    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+        .unwrap();
+    format!(
+        "data:image/png;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&png)
+    )
+}
+
+/// A square of side 2 at z = 0 facing +z, with UVs (0,0) at its upper-left corner, one
+/// material (`material` JSON), `images`, `textures` and `samplers` JSON arrays.
+fn square_gltf(material: &str, images: &str, textures: &str, samplers: &str) -> Vec<u8> {
+    let pos: [[f32; 3]; 4] = [[-1., 1., 0.], [1., 1., 0.], [-1., -1., 0.], [1., -1., 0.]];
+    let uv: [[f32; 2]; 4] = [[0., 0.], [1., 0.], [0., 1.], [1., 1.]];
+    let idx: [u16; 6] = [0, 2, 1, 1, 2, 3];
+    let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+    bin.extend(uv.iter().flatten().flat_map(|x| x.to_le_bytes()));
+    bin.extend(idx.iter().flat_map(|x| x.to_le_bytes()));
+    let uri = base64::engine::general_purpose::STANDARD.encode(&bin);
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
+        "materials":[{material}],"images":{images},"textures":{textures},"samplers":{samplers},
+        "accessors":[
+          {{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,-1,0],"max":[1,1,0]}},
+          {{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},
+          {{"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},
+          {{"buffer":0,"byteOffset":80,"byteLength":12}}],
+        "buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{uri}"}}]}}"#,
+        bin.len()
+    )
+    .into_bytes()
+}
+
+/// A scene placing `gltf` (written to a temporary folder) in front of a camera that sees
+/// the square as the middle half of the frame each way (at distance 2/tan 30°, the frame is
+/// 4 wide: pixels 8…24 of 32), under a uniform sky.
+fn scene_with(gltf: &[u8], sky: f32) -> (tempfile::TempDir, Scene) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("square.gltf");
+    std::fs::File::create(&path)
+        .unwrap()
+        .write_all(gltf)
+        .unwrap();
+    let toml = format!(
+        "[camera]\nlook_from = [0, 0, 3.4641016]\nlook_at = [0, 0, 0]\nvfov = 60\n\
+         [sky]\nuniform = [{sky}, {sky}, {sky}]\n[[gltf]]\nfile = \"square.gltf\"\n"
+    );
+    let origin = dir.path().join("scene.toml");
+    let s = Scene::from_toml(&toml, &origin.display().to_string()).unwrap();
+    (dir, s)
+}
+
+const W: u32 = 32;
+
+#[test]
+fn a_one_texel_emissive_map_is_exact_on_both_tracers() {
+    let texel = [200u8, 100, 50, 255];
+    let gltf = square_gltf(
+        r#"{"emissiveFactor":[1,1,1],"emissiveTexture":{"index":0},
+            "extensions":{"KHR_materials_emissive_strength":{"emissiveStrength":2}}}"#,
+        &format!(r#"[{{"uri":"{}"}}]"#, png_uri(1, 1, &[texel])),
+        r#"[{"source":0}]"#,
+        "[]",
+    );
+    let (_dir, s) = scene_with(&gltf, 0.25);
+    let want = [0, 1, 2].map(|k| 2.0 * srgb_decode(texel[k]));
+    on_both(|| {
+        let img = snapshot(&s, settings(W, W, 4), 4).image();
+        // The square spans pixels 8…24 each way: pixels 9…22 see it whatever their jitter,
+        // 0…6 and 25…31 see only the sky.
+        let (mut n_in, mut n_out) = (0, 0);
+        for y in 0..W {
+            for x in 0..W {
+                let p = img.get(x, y);
+                let inside = (9..23).contains(&x) && (9..23).contains(&y);
+                let outside = !(7..=24).contains(&x) || !(7..=24).contains(&y);
+                if inside {
+                    assert!(
+                        rel_err(p, want) <= 4.0 * f32::EPSILON as f64,
+                        "({x},{y}) {p:?} != {want:?}"
+                    );
+                    n_in += 1;
+                } else if outside {
+                    assert_eq!(p, [0.25; 3], "({x},{y})");
+                    n_out += 1;
+                }
+            }
+        }
+        assert!(n_in == 14 * 14 && n_out > 400, "{n_in} {n_out}");
+    });
+}
+
+#[test]
+fn a_two_by_two_map_keeps_its_orientation() {
+    // Upper-left red, upper-right green, lower-left blue, lower-right white; clamped, so
+    // each quarter of the square near its corner shows its texel's colour alone.
+    let texels = [
+        [255u8, 0, 0, 255],
+        [0, 255, 0, 255],
+        [0, 0, 255, 255],
+        [255, 255, 255, 255],
+    ];
+    let gltf = square_gltf(
+        r#"{"emissiveFactor":[1,1,1],"emissiveTexture":{"index":0}}"#,
+        &format!(r#"[{{"uri":"{}"}}]"#, png_uri(2, 2, &texels)),
+        r#"[{"source":0,"sampler":0}]"#,
+        r#"[{"wrapS":33071,"wrapT":33071}]"#,
+    );
+    let (_dir, s) = scene_with(&gltf, 0.0);
+    on_both(|| {
+        let img = snapshot(&s, settings(W, W, 4), 4).image();
+        // Within a quarter of the square from each corner the clamped bilinear weights give
+        // that texel alone: pixels 9…11 and 20…22 each way.
+        for (x, y, t) in [(10, 10, 0), (21, 10, 1), (10, 21, 2), (21, 21, 3)] {
+            let want = [0, 1, 2].map(|k| srgb_decode(texels[t][k]));
+            let p = img.get(x, y);
+            assert!(
+                rel_err(p, want) <= 4.0 * f32::EPSILON as f64,
+                "({x},{y}) {p:?}, texel {t}"
+            );
+        }
+    });
+}
+
+#[test]
+fn a_masked_cut_out_shows_the_sky_where_alpha_is_below_the_cutoff() {
+    // Left texel opaque, right texel transparent, clamped: alpha falls from 1 at u = ¼ to 0
+    // at u = ¾, so the cut-off 0.5 is at the middle. The material emits 1 (no map): a pixel
+    // is exactly 1 where every sample hits, the sky where every sample passes.
+    let gltf = square_gltf(
+        r#"{"emissiveFactor":[1,1,1],"alphaMode":"MASK","alphaCutoff":0.5,
+            "pbrMetallicRoughness":{"baseColorTexture":{"index":0}}}"#,
+        &format!(
+            r#"[{{"uri":"{}"}}]"#,
+            png_uri(2, 1, &[[255, 255, 255, 255], [255, 255, 255, 0]])
+        ),
+        r#"[{"source":0,"sampler":0}]"#,
+        r#"[{"wrapS":33071,"wrapT":33071}]"#,
+    );
+    let (_dir, s) = scene_with(&gltf, 0.25);
+    on_both(|| {
+        let img = snapshot(&s, settings(W, W, 4), 8).image();
+        for y in 10..22 {
+            for x in 9..14 {
+                assert_eq!(img.get(x, y), [1.0; 3], "opaque ({x},{y})");
+            }
+            for x in 18..23 {
+                assert_eq!(img.get(x, y), [0.25; 3], "cut out ({x},{y})");
+            }
+        }
+    });
+}
+
+#[test]
+fn a_blended_surface_is_hit_in_the_share_of_its_alpha() {
+    // BLEND with alpha 0.25 everywhere: a stochastic cut-out, so the square's pixels converge
+    // to 0.25·1 + 0.75·sky. 256 samples: each pixel's share has a standard deviation of
+    // sqrt(0.25·0.75/256) = 0.027, so the mean over 144 pixels is within 0.01 (4.4 sigma).
+    let gltf = square_gltf(
+        r#"{"emissiveFactor":[1,1,1],"alphaMode":"BLEND",
+            "pbrMetallicRoughness":{"baseColorFactor":[1,1,1,0.25]}}"#,
+        "[]",
+        "[]",
+        "[]",
+    );
+    let (_dir, s) = scene_with(&gltf, 0.0);
+    on_both(|| {
+        let img = snapshot(&s, settings(W, W, 4), 256).image();
+        let mut sum = 0.0f64;
+        for y in 10..22 {
+            for x in 10..22 {
+                sum += img.get(x, y)[0] as f64;
+            }
+        }
+        let mean = sum / 144.0;
+        assert!((mean - 0.25).abs() < 0.01, "mean {mean}");
+    });
+}
+
+#[test]
+fn wrap_modes_and_bilinear_weights_on_the_host() {
+    use termtrace::scene::texture::{Texture, Wrap};
+    // A 4×1 ramp, read through the texture words the tracers read.
+    for (wrap, u, want) in [
+        (Wrap::Repeat, 0.125, 0.0),  // texel 0's centre
+        (Wrap::Repeat, 1.125, 0.0),  // one period on
+        (Wrap::Repeat, 0.0, 1.5),    // between texel 3 (wrapped) and texel 0
+        (Wrap::Clamp, -3.0, 0.0),    // clamped to texel 0
+        (Wrap::Clamp, 0.9375, 3.0),  // beyond the last centre: texel 3
+        (Wrap::Mirror, -0.125, 0.0), // mirrored back onto texel 0
+        (Wrap::Mirror, 1.125, 3.0),  // mirrored onto texel 3
+        (Wrap::Repeat, 0.25, 0.5),   // halfway between texels 0 and 1
+    ] {
+        let t = Texture {
+            width: 4,
+            height: 1,
+            texels: (0..4u32).map(|i| (i * 85) | 0xff00_0000).collect(),
+            wrap: [wrap, Wrap::Clamp],
+        };
+        let got = sample_one(&t, u);
+        assert!(
+            (got - want * 85.0 / 255.0).abs() < 1e-6,
+            "{wrap:?} u={u}: {got} != {want}·85/255"
+        );
+    }
+}
+
+/// Samples `t` at (u, 0.5) through a scene's texture words.
+fn sample_one(t: &termtrace::scene::texture::Texture, u: f32) -> f32 {
+    use std::sync::Arc;
+    use termtrace::scene::texture::{AlphaMode, Texture, Textured, TexturedRef};
+    let mut s = Scene::load("mesh").unwrap();
+    let tex = Arc::new(Texture {
+        width: t.width,
+        height: t.height,
+        texels: t.texels.clone(),
+        wrap: t.wrap,
+    });
+    let obj = s
+        .objects
+        .iter_mut()
+        .find(|o| matches!(o.shape, termtrace::scene::Shape::Mesh { .. }))
+        .expect("a mesh");
+    obj.material.smoothness = 0.0;
+    obj.material.textured = Some(TexturedRef(Arc::new(Textured {
+        base_color: None,
+        metallic_roughness: Some(tex),
+        emissive: None,
+        base_factor: [1.0; 4],
+        metallic: 1.0,
+        roughness: 1.0,
+        emissive_factor: [0.0; 3],
+        alpha: AlphaMode::Opaque,
+    })));
+    let words = textures::words(&s).unwrap();
+    let header = (textures::MATERIALS + 1 + s.objects.len()) as u32;
+    termtrace::cpu::texture::sample(&words, header, glam::Vec2::new(u, 0.5), false).x
+}
+
+#[test]
+fn both_tracers_agree_on_a_scene_with_every_map() {
+    // Base colour, metallic-roughness and emissive maps (4×4 of varied texels, repeated
+    // twice across the square) lit by a sky: the two tracers' images of 256 samples must
+    // agree to their noise: the means within 1 %, and each 4×4 block's mean within 5 % (the
+    // blocks' own noise at 256 samples is about 1 %).
+    let varied: Vec<[u8; 4]> = (0..16u32)
+        .map(|i| [i * 16, 255 - i * 13, (i * 37) % 255, 255].map(|c| c as u8))
+        .collect();
+    let dim: Vec<[u8; 4]> = (0..16u8)
+        .map(|i| {
+            if i % 5 == 0 {
+                [90, 40, 10, 255]
+            } else {
+                [0, 0, 0, 255]
+            }
+        })
+        .collect();
+    let uri = png_uri(4, 4, &varied);
+    let dim_uri = png_uri(4, 4, &dim);
+    let gltf = String::from_utf8(square_gltf(
+        r#"{"pbrMetallicRoughness":{"baseColorTexture":{"index":0},"metallicRoughnessTexture":{"index":0}},
+            "emissiveFactor":[1,1,1],"emissiveTexture":{"index":1}}"#,
+        &format!(r#"[{{"uri":"{uri}"}},{{"uri":"{dim_uri}"}}]"#),
+        r#"[{"source":0},{"source":1}]"#,
+        "[]",
+    ))
+    .unwrap()
+    // UVs 0…2: the maps repeat twice.
+    .into_bytes();
+    let (_dir, mut s) = scene_with(&gltf, 0.7);
+    if let termtrace::scene::Shape::Mesh { mesh, .. } = &mut s.objects[0].shape {
+        let m = std::sync::Arc::get_mut(mesh).unwrap();
+        for t in &mut m.uvs {
+            for c in t.iter_mut() {
+                c[0] *= 2.0;
+                c[1] *= 2.0;
+            }
+        }
+    }
+    let st = settings(24, 24, 6);
+    let gpu = snapshot_on(
+        termtrace::render::Backend::Gpu(ctx()),
+        &s,
+        st,
+        256,
+        Default::default(),
+    );
+    let cpu = cpu_snapshot(&s, st, 256);
+    let (a, b) = (gpu.image(), cpu.image());
+    let mean = |i: &termtrace::output::LinearImage| {
+        i.pixels
+            .iter()
+            .map(|p| (p[0] + p[1] + p[2]) as f64)
+            .sum::<f64>()
+            / i.pixels.len() as f64
+    };
+    let (ma, mb) = (mean(&a), mean(&b));
+    assert!(
+        (ma - mb).abs() <= 0.01 * ma.max(mb),
+        "means {ma} (GPU) and {mb} (CPU)"
+    );
+    assert!(ma > 0.1, "the scene is dark: {ma}");
+    let block = |i: &termtrace::output::LinearImage, bx: u32, by: u32| {
+        let mut sum = 0.0f64;
+        for y in by * 4..by * 4 + 4 {
+            for x in bx * 4..bx * 4 + 4 {
+                let p = i.get(x, y);
+                sum += (p[0] + p[1] + p[2]) as f64;
+            }
+        }
+        sum / 16.0
+    };
+    for by in 0..6 {
+        for bx in 0..6 {
+            let (x, y) = (block(&a, bx, by), block(&b, bx, by));
+            assert!(
+                (x - y).abs() <= 0.05 * x.max(y),
+                "block ({bx},{by}): {x} and {y}"
+            );
+        }
+    }
+}
