@@ -96,12 +96,18 @@ pub fn summary(s: &Scene) -> String {
             )
         })
         .collect();
+    let tex = crate::common::textures::words(s).map_or(String::new(), |w| {
+        format!(
+            "\n  textures   {:.1} MiB of texture words (texels and coordinates)",
+            w.len() as f64 * 4.0 / (1 << 20) as f64
+        )
+    });
     format!(
         "{}: ok\n  camera     from {} to {}, vfov {}°, aperture {}, focus distance {}\n  \
          render     {}x{}, {} spp, max_bounces {}, seed {}\n  sky        {}\n  \
          objects    {} ({} spheres, {} quads, {} boxes, {} meshes of {} triangles)\n  \
          materials  {} Lambertian, {} glossy/metal, {} dielectric, {} emitters; {} named\n  \
-         tracer     {}{gltf}",
+         tracer     {}{gltf}{tex}",
         s.origin,
         v3(c.look_from),
         v3(c.look_at),

@@ -5,7 +5,7 @@
 //! without textures uploads one word and compiles none of the code that reads them.
 
 use crate::scene::texture::{AlphaMode, Texture, Textured};
-use crate::scene::{Scene, Shape};
+use crate::scene::{Material, Scene, Shape};
 use std::sync::Arc;
 
 /// Word 0…255: an 8-bit sRGB value's linear value, as f32 bits (IEC 61966-2-1).
@@ -42,56 +42,157 @@ pub fn srgb_decode(v: u8) -> f32 {
     }) as f32
 }
 
+/// Where things go in the words of a scene with textures.
+struct Layout<'a> {
+    /// Each distinct textured material, with the first object's material that uses it (the
+    /// preview edits a glTF material as one, so every object using it has the same).
+    records: Vec<(&'a Arc<Textured>, &'a Material)>,
+    textures: Vec<&'a Arc<Texture>>,
+    headers_at: usize,
+    records_at: usize,
+    texels_at: usize,
+}
+
+fn textured(m: &Material) -> Option<&Arc<Textured>> {
+    m.textured
+        .as_ref()
+        .filter(|_| !m.is_dielectric())
+        .map(|t| &t.0)
+}
+
+impl<'a> Layout<'a> {
+    fn of(scene: &'a Scene) -> Option<Layout<'a>> {
+        let mut records: Vec<(&Arc<Textured>, &Material)> = Vec::new();
+        let mut textures: Vec<&Arc<Texture>> = Vec::new();
+        for o in &scene.objects {
+            let Some(t) = textured(&o.material) else {
+                continue;
+            };
+            if records.iter().any(|(r, _)| Arc::ptr_eq(r, t)) {
+                continue;
+            }
+            records.push((t, &o.material));
+            for tex in [&t.base_color, &t.metallic_roughness, &t.emissive]
+                .into_iter()
+                .flatten()
+            {
+                if !textures.iter().any(|x| Arc::ptr_eq(x, tex)) {
+                    textures.push(tex);
+                }
+            }
+        }
+        if records.is_empty() {
+            return None;
+        }
+        let headers_at = MATERIALS + 1 + scene.objects.len();
+        let records_at = headers_at + TEXTURE_WORDS * textures.len();
+        Some(Layout {
+            texels_at: records_at + RECORD_WORDS * records.len(),
+            records,
+            textures,
+            headers_at,
+            records_at,
+        })
+    }
+
+    fn header(&self, tex: &Arc<Texture>) -> u32 {
+        let k = self
+            .textures
+            .iter()
+            .position(|x| Arc::ptr_eq(x, tex))
+            .unwrap();
+        (self.headers_at + TEXTURE_WORDS * k) as u32
+    }
+
+    /// The records: each glTF material's maps and factors, the factors taken from the
+    /// model's material as it is now (so that the preview's keys edit a textured material
+    /// too: colour keys tint its base colour map, `specular` is the metallic share, fuzz the
+    /// roughness, light the emission), the inverse of `scene::gltf::material`.
+    fn records(&self) -> Vec<u32> {
+        let mut w = Vec::with_capacity(RECORD_WORDS * self.records.len());
+        for (t, m) in &self.records {
+            let mut flags = match t.alpha {
+                AlphaMode::Opaque => 0,
+                AlphaMode::Mask(_) => ALPHA_MASK << ALPHA_SHIFT,
+                AlphaMode::Blend => ALPHA_BLEND << ALPHA_SHIFT,
+            };
+            let mut maps = [NONE; 3];
+            for (k, (map, flag)) in [
+                (&t.base_color, FLAG_BASE),
+                (&t.metallic_roughness, FLAG_MR),
+                (&t.emissive, FLAG_EMISSIVE),
+            ]
+            .into_iter()
+            .enumerate()
+            {
+                if let Some(tex) = map {
+                    flags |= flag;
+                    maps[k] = self.header(tex);
+                }
+            }
+            let (base, metallic, roughness, emissive) = if m.light > 0.0 {
+                let e = m.color * m.light;
+                (t.base_factor, t.metallic, t.roughness, e.to_array())
+            } else {
+                let c = m.color;
+                let metallic =
+                    ((m.specular - DIELECTRIC_F0) / (1.0 - DIELECTRIC_F0)).clamp(0.0, 1.0);
+                (
+                    [c.x, c.y, c.z, t.base_factor[3]],
+                    metallic,
+                    m.absorption,
+                    t.emissive_factor,
+                )
+            };
+            w.push(flags);
+            w.extend(maps);
+            w.extend(base.map(f32::to_bits));
+            w.push(metallic.to_bits());
+            w.push(roughness.to_bits());
+            w.extend(emissive.map(f32::to_bits));
+            let cutoff = match t.alpha {
+                AlphaMode::Mask(c) => c,
+                _ => 0.0,
+            };
+            w.extend([cutoff.to_bits(), 0, 0]);
+        }
+        w
+    }
+}
+
+/// glTF's dielectric reflectance at normal incidence (`scene::gltf`'s mapping).
+const DIELECTRIC_F0: f32 = 0.04;
+
+/// The record words alone and the word they start at: what an edit of a material changes
+/// (the rest stays while the textured materials and the geometry do).
+pub fn record_words(scene: &Scene) -> Option<(usize, Vec<u32>)> {
+    let l = Layout::of(scene)?;
+    Some((l.records_at, l.records()))
+}
+
 /// The scene's texture words, or `None` when no material has maps or a cut-out. Layout:
 /// the sRGB table, `UV_BASE`, the material count and record offsets, the texture headers,
 /// the records, the texels, and the triangles' texture coordinates.
 pub fn words(scene: &Scene) -> Option<Vec<u32>> {
-    fn textured(m: &crate::scene::Material) -> Option<&Arc<Textured>> {
-        m.textured
-            .as_ref()
-            .filter(|_| !m.is_dielectric())
-            .map(|t| &t.0)
-    }
-    // The distinct textured materials and textures, in order of first use.
-    let mut records: Vec<&Arc<Textured>> = Vec::new();
-    let mut textures: Vec<&Arc<Texture>> = Vec::new();
-    for o in &scene.objects {
-        let Some(t) = textured(&o.material) else {
-            continue;
-        };
-        if records.iter().any(|r| Arc::ptr_eq(r, t)) {
-            continue;
-        }
-        records.push(t);
-        for tex in [&t.base_color, &t.metallic_roughness, &t.emissive]
-            .into_iter()
-            .flatten()
-        {
-            if !textures.iter().any(|x| Arc::ptr_eq(x, tex)) {
-                textures.push(tex);
-            }
-        }
-    }
-    if records.is_empty() {
-        return None;
-    }
-    let headers_at = MATERIALS + 1 + scene.objects.len();
-    let records_at = headers_at + TEXTURE_WORDS * textures.len();
-    let texels_at = records_at + RECORD_WORDS * records.len();
+    let l = Layout::of(scene)?;
     let mut w: Vec<u32> = (0..=255u8).map(|v| srgb_decode(v).to_bits()).collect();
     w.push(0); // UV_BASE, set below
     w.push(scene.objects.len() as u32);
     for o in &scene.objects {
         w.push(match textured(&o.material) {
             Some(t) => {
-                let k = records.iter().position(|r| Arc::ptr_eq(r, t)).unwrap();
-                (records_at + RECORD_WORDS * k) as u32
+                let k = l
+                    .records
+                    .iter()
+                    .position(|(r, _)| Arc::ptr_eq(r, t))
+                    .unwrap();
+                (l.records_at + RECORD_WORDS * k) as u32
             }
             None => NONE,
         });
     }
-    let mut next_texel = texels_at;
-    for tex in &textures {
+    let mut next_texel = l.texels_at;
+    for tex in &l.textures {
         w.extend([
             tex.width,
             tex.height,
@@ -101,44 +202,9 @@ pub fn words(scene: &Scene) -> Option<Vec<u32>> {
         ]);
         next_texel += tex.texels.len();
     }
-    let header = |tex: &Arc<Texture>| {
-        let k = textures.iter().position(|x| Arc::ptr_eq(x, tex)).unwrap();
-        (headers_at + TEXTURE_WORDS * k) as u32
-    };
-    for t in &records {
-        let mut flags = match t.alpha {
-            AlphaMode::Opaque => 0,
-            AlphaMode::Mask(_) => ALPHA_MASK << ALPHA_SHIFT,
-            AlphaMode::Blend => ALPHA_BLEND << ALPHA_SHIFT,
-        };
-        let mut maps = [NONE; 3];
-        for (k, (map, flag)) in [
-            (&t.base_color, FLAG_BASE),
-            (&t.metallic_roughness, FLAG_MR),
-            (&t.emissive, FLAG_EMISSIVE),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            if let Some(tex) = map {
-                flags |= flag;
-                maps[k] = header(tex);
-            }
-        }
-        w.push(flags);
-        w.extend(maps);
-        w.extend(t.base_factor.map(f32::to_bits));
-        w.push(t.metallic.to_bits());
-        w.push(t.roughness.to_bits());
-        w.extend(t.emissive_factor.map(f32::to_bits));
-        let cutoff = match t.alpha {
-            AlphaMode::Mask(c) => c,
-            _ => 0.0,
-        };
-        w.extend([cutoff.to_bits(), 0, 0]);
-    }
-    debug_assert_eq!(w.len(), texels_at);
-    for tex in &textures {
+    w.extend(l.records());
+    debug_assert_eq!(w.len(), l.texels_at);
+    for tex in &l.textures {
         w.extend_from_slice(&tex.texels);
     }
     w[UV_BASE] = w.len() as u32;
@@ -151,4 +217,14 @@ pub fn words(scene: &Scene) -> Option<Vec<u32>> {
         }
     }
     Some(w)
+}
+
+/// Per object, the address of its textured material as the words use it (0: none): while
+/// it is the same (and the geometry), only the records can have changed.
+pub fn material_key(scene: &Scene) -> Vec<usize> {
+    scene
+        .objects
+        .iter()
+        .map(|o| textured(&o.material).map_or(0, |t| Arc::as_ptr(t) as usize))
+        .collect()
 }

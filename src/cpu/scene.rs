@@ -108,6 +108,7 @@ pub struct CpuScene {
     /// any material cuts out.
     pub tex: Vec<u32>,
     pub cutouts: bool,
+    tex_key: Vec<usize>,
     /// Nodes of the BVH, and the seconds its build took.
     pub node_count: usize,
     pub build_seconds: f64,
@@ -138,6 +139,7 @@ impl CpuScene {
             lights: Vec::new(),
             tex: Vec::new(),
             cutouts: false,
+            tex_key: Vec::new(),
             bvh,
             #[cfg(target_arch = "x86_64")]
             bvh8,
@@ -155,6 +157,7 @@ impl CpuScene {
     /// The texture words, as the GPU gets them.
     fn take_textures(&mut self, scene: &Scene) {
         self.tex = crate::common::textures::words(scene).unwrap_or_default();
+        self.tex_key = tex_key(scene);
         self.cutouts = crate::common::Features::of(scene).cutouts;
     }
 
@@ -168,7 +171,14 @@ impl CpuScene {
         let p = Primitives::of(scene, self.origin, s.nee);
         self.u = Uniforms::of(&scene_uniforms(scene, s, self.origin));
         self.take(&p);
-        self.take_textures(scene);
+        // The texture words are made again only when the textured materials changed; an edit
+        // of their factors rewrites the records alone (as `SceneBuffers::update` does).
+        let key = tex_key(scene);
+        if key != self.tex_key {
+            self.take_textures(scene);
+        } else if let Some((at, records)) = crate::common::textures::record_words(scene) {
+            self.tex[at..at + records.len()].copy_from_slice(&records);
+        }
     }
 
     fn take(&mut self, p: &Primitives) {
@@ -217,4 +227,9 @@ impl CpuScene {
             .collect();
         self.lights = p.lights.clone();
     }
+}
+
+/// Per object, the address of its textured material as the texture words use it (0: none).
+fn tex_key(scene: &Scene) -> Vec<usize> {
+    crate::common::textures::material_key(scene)
 }

@@ -121,6 +121,10 @@ impl SceneBuffers {
         if !p.lights.is_empty() {
             queue.write_buffer(&self.lights, 0, bytemuck::cast_slice(&p.lights));
         }
+        // A textured material's factors (the texels and coordinates are unchanged).
+        if let Some((at, records)) = textures::record_words(scene) {
+            queue.write_buffer(&self.tex, 4 * at as u64, bytemuck::cast_slice(&records));
+        }
         queue.write_buffer(
             &self.uniforms,
             0,
@@ -137,14 +141,6 @@ impl SceneBuffers {
     }
 }
 
-/// Per object, the address of its textured material as the texture words use it (0: none).
 fn tex_key(scene: &Scene) -> Vec<usize> {
-    scene
-        .objects
-        .iter()
-        .map(|o| match &o.material.textured {
-            Some(t) if !o.material.is_dielectric() => std::sync::Arc::as_ptr(&t.0) as usize,
-            _ => 0,
-        })
-        .collect()
+    textures::material_key(scene)
 }
