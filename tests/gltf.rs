@@ -488,3 +488,75 @@ fn toml_mistakes_in_a_placement_are_located() {
         .to_string();
     assert!(e.contains("no camera `main`"), "{e}");
 }
+
+#[test]
+fn missing_files_and_required_extensions_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    // The Box with its buffer moved out to a file that is not there.
+    let text = std::fs::read_to_string(BOX).unwrap();
+    let start = text.find("data:application").unwrap();
+    let end = start + text[start..].find('"').unwrap();
+    let missing_bin = format!("{}box.bin{}", &text[..start], &text[end..]);
+    let path = dir.path().join("nobin.gltf");
+    std::fs::write(&path, &missing_bin).unwrap();
+    let e = Scene::load(path.to_str().unwrap()).unwrap_err().to_string();
+    assert!(
+        e.contains("nobin.gltf") && e.contains("buffers[0] (`box.bin`)"),
+        "{e}"
+    );
+    // A missing image.
+    let with_image = text.replacen(
+        "\"materials\": [",
+        "\"images\": [{\"uri\": \"gone.png\"}], \"textures\": [{\"source\": 0}], \"materials\": [",
+        1,
+    )
+    .replacen(
+        "\"baseColorFactor\"",
+        "\"baseColorTexture\": {\"index\": 0}, \"baseColorFactor\"",
+        1,
+    );
+    let path = dir.path().join("noimage.gltf");
+    std::fs::write(&path, &with_image).unwrap();
+    let e = Scene::load(path.to_str().unwrap()).unwrap_err().to_string();
+    assert!(
+        e.contains("images[0] (`gone.png`)") && e.contains("cannot read"),
+        "{e}"
+    );
+    // A required extension termtrace does not read; an optional one is only logged.
+    let required = text.replacen(
+        "\"asset\"",
+        "\"extensionsUsed\": [\"KHR_draco_mesh_compression\"], \"extensionsRequired\": [\"KHR_draco_mesh_compression\"], \"asset\"",
+        1,
+    );
+    let e = import(required.as_bytes()).unwrap_err().to_string();
+    assert!(
+        e.contains("extensionsRequired[0]") && e.contains("KHR_draco_mesh_compression"),
+        "{e}"
+    );
+    // One the glTF crate knows but termtrace does not apply yet.
+    let required = text.replacen(
+        "\"asset\"",
+        "\"extensionsUsed\": [\"KHR_texture_transform\"], \"extensionsRequired\": [\"KHR_texture_transform\"], \"asset\"",
+        1,
+    );
+    let e = import(required.as_bytes()).unwrap_err().to_string();
+    assert!(
+        e.contains("requires the extension KHR_texture_transform"),
+        "{e}"
+    );
+    let optional = text.replacen(
+        "\"asset\"",
+        "\"extensionsUsed\": [\"EXT_example\"], \"asset\"",
+        1,
+    );
+    let imp = import(optional.as_bytes()).unwrap();
+    assert!(
+        imp.skipped.iter().any(|s| s.contains("EXT_example")),
+        "{:?}",
+        imp.skipped
+    );
+    // The element of a broken accessor is named by its JSON path.
+    let nodes = r#"[{"mesh":0}]"#;
+    let e = import(&gltf(&TRIANGLE, Some(&[0, 1, 9]), 4, nodes, PLAIN, "")).unwrap_err();
+    assert!(e.message.contains("meshes[0].primitives[0]"), "{e}");
+}

@@ -412,3 +412,85 @@ fn an_edit_of_a_textured_material_reaches_both_tracers() {
         );
     });
 }
+
+/// A metal square (metallic 1: every bounce specular, tinted by the base colour) whose base
+/// colour is `base` JSON, under a uniform sky of 1: a convex surface, so every pixel that
+/// sees it is exactly its tint.
+fn metal_square(base: &str, images: &str, textures: &str) -> (tempfile::TempDir, Scene) {
+    let gltf = square_gltf(
+        &format!(r#"{{"pbrMetallicRoughness":{{"metallicFactor":1,"roughnessFactor":0,{base}}}}}"#),
+        images,
+        textures,
+        "[]",
+    );
+    scene_with(&gltf, 1.0)
+}
+
+#[test]
+fn a_white_map_is_a_white_constant_bit_for_bit_and_a_grey_one_its_value() {
+    let white_map = png_uri(2, 2, &[[255, 255, 255, 255]; 4]);
+    let (_d1, textured) = metal_square(
+        r#""baseColorTexture":{"index":0}"#,
+        &format!(r#"[{{"uri":"{white_map}"}}]"#),
+        r#"[{"source":0}]"#,
+    );
+    let (_d2, constant) = metal_square(r#""baseColorFactor":[1,1,1,1]"#, "[]", "[]");
+    let grey_map = png_uri(2, 2, &[[188, 188, 188, 255]; 4]);
+    let (_d3, grey) = metal_square(
+        r#""baseColorTexture":{"index":0}"#,
+        &format!(r#"[{{"uri":"{grey_map}"}}]"#),
+        r#"[{"source":0}]"#,
+    );
+    on_both(|| {
+        let st = settings(W, W, 4);
+        let a = snapshot(&textured, st, 4).image();
+        let b = snapshot(&constant, st, 4).image();
+        assert_eq!(
+            a.pixels, b.pixels,
+            "a white map differs from a white constant"
+        );
+        // A furnace: the white square is the sky, exactly.
+        assert!(a.pixels.iter().all(|p| *p == [1.0; 3]));
+        let g = snapshot(&grey, st, 4).image();
+        let want = srgb_decode(188);
+        for y in 9..23 {
+            for x in 9..23 {
+                let p = g.get(x, y);
+                assert!(
+                    rel_err(p, [want; 3]) <= 4.0 * f32::EPSILON as f64,
+                    "({x},{y}) {p:?}"
+                );
+            }
+        }
+        assert_eq!(g.get(2, 2), [1.0; 3]);
+    });
+}
+
+#[test]
+fn a_cut_out_of_alpha_zero_vanishes_exactly() {
+    // A MASK square of alpha 0 in front of a lit sphere: the image is the sphere's alone,
+    // bit for bit (a rejected hit draws no random number).
+    let gltf = square_gltf(
+        r#"{"alphaMode":"MASK","pbrMetallicRoughness":{"baseColorFactor":[1,0,0,0]}}"#,
+        "[]",
+        "[]",
+        "[]",
+    );
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("square.gltf"), gltf).unwrap();
+    let base = "[camera]\nlook_from = [0, 0, 3.4641016]\nlook_at = [0, 0, 0]\nvfov = 60\n\
+                [[sphere]]\ncenter = [0, 0, -1.5]\nradius = 1\ncolor = [0.7, 0.5, 0.3]\n";
+    let origin = dir.path().join("scene.toml").display().to_string();
+    let with = Scene::from_toml(
+        &format!("{base}[[gltf]]\nfile = \"square.gltf\"\n"),
+        &origin,
+    )
+    .unwrap();
+    let without = Scene::from_toml(base, &origin).unwrap();
+    on_both(|| {
+        let st = settings(W, W, 6);
+        let a = snapshot(&with, st, 8).image();
+        let b = snapshot(&without, st, 8).image();
+        assert_eq!(a.pixels, b.pixels);
+    });
+}

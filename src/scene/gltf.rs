@@ -29,6 +29,15 @@ const CANDELA_PER_UNIT: f64 = std::f64::consts::PI;
 /// maximum, a sharp sun that light sampling finds.
 const SUN_SIZE: f32 = 1000.0;
 
+/// The extensions read (`KHR_texture_transform` is not yet: a file that requires it is
+/// refused, one that only uses it renders its maps untransformed, and the log says so).
+pub const SUPPORTED_EXTENSIONS: &[&str] = &[
+    "KHR_materials_emissive_strength",
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+    "KHR_lights_punctual",
+];
+
 /// What one glTF file adds to a scene.
 #[derive(Debug)]
 pub struct Imported {
@@ -94,11 +103,23 @@ pub fn import_slice(
     };
     let gltf =
         gltf::Gltf::from_slice(bytes).map_err(|e| err(format!("not a valid glTF file: {e}")))?;
-    let buffers = gltf::import_buffers(&gltf.document, base, gltf.blob.clone())
-        .map_err(|e| err(format!("cannot read its buffers: {e}")))?;
+    let buffers = read_buffers(&gltf, base).map_err(err)?;
     let doc = &gltf.document;
-    let textures = super::gltf_textures::decode(doc, base, &buffers).map_err(err)?;
     let mut skipped = Vec::new();
+    for ext in doc.extensions_required() {
+        if !SUPPORTED_EXTENSIONS.contains(&ext) {
+            return Err(err(format!(
+                "it requires the extension {ext}, which termtrace does not read (it reads {})",
+                SUPPORTED_EXTENSIONS.join(", ")
+            )));
+        }
+    }
+    for ext in doc.extensions_used() {
+        if !SUPPORTED_EXTENSIONS.contains(&ext) {
+            skipped.push(format!("the extension {ext} (optional; not read)"));
+        }
+    }
+    let textures = super::gltf_textures::decode(doc, base, &buffers).map_err(err)?;
     // Every material mapped once, so that the objects sharing one share its textures.
     let materials: Vec<Material> = doc
         .materials()
@@ -162,6 +183,32 @@ pub fn import_slice(
     Ok(out)
 }
 
+/// The file's buffers (the GLB's binary chunk, `data:` URIs, files beside it), each checked
+/// against its declared length; an error names the buffer.
+fn read_buffers(gltf: &gltf::Gltf, base: Option<&Path>) -> Result<Vec<gltf::buffer::Data>, String> {
+    let mut blob = gltf.blob.clone();
+    let mut out = Vec::new();
+    for b in gltf.document.buffers() {
+        let what = match b.source() {
+            gltf::buffer::Source::Uri(u) if !u.starts_with("data:") => {
+                format!("buffers[{}] (`{u}`)", b.index())
+            }
+            _ => format!("buffers[{}]", b.index()),
+        };
+        let data = gltf::buffer::Data::from_source_and_blob(b.source(), base, &mut blob)
+            .map_err(|e| format!("{what}: cannot read it: {e}"))?;
+        if data.len() < b.length() {
+            return Err(format!(
+                "{what}: {} bytes, but it declares {}",
+                data.len(),
+                b.length()
+            ));
+        }
+        out.push(data);
+    }
+    Ok(out)
+}
+
 fn label(node: &gltf::Node) -> String {
     match node.name() {
         Some(n) => format!("`{n}`"),
@@ -180,7 +227,11 @@ fn import_mesh(
         .name()
         .map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
     for prim in mesh.primitives() {
-        let what = format!("mesh `{mesh_name}` primitive {}", prim.index());
+        let what = format!(
+            "meshes[{}].primitives[{}] (mesh `{mesh_name}`)",
+            mesh.index(),
+            prim.index()
+        );
         let Some(pos) = prim.get(&gltf::Semantic::Positions) else {
             out.skipped.push(format!("{what}: no positions"));
             continue;

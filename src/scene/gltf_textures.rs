@@ -43,9 +43,12 @@ pub fn decode(
         .par_iter()
         .map(|&i| {
             let image = doc.images().nth(i).expect("an image index of the document");
-            let what = match image.name() {
-                Some(n) => format!("image {i} (`{n}`)"),
-                None => format!("image {i}"),
+            let what = match (image.name(), image.source()) {
+                (Some(n), _) => format!("images[{i}] (`{n}`)"),
+                (None, gltf::image::Source::Uri { uri, .. }) if !uri.starts_with("data:") => {
+                    format!("images[{i}] (`{uri}`)")
+                }
+                _ => format!("images[{i}]"),
             };
             let pixels = encoded(&image, base, buffers)
                 .and_then(|bytes| {
