@@ -49,6 +49,11 @@ pub struct BenchArgs {
     /// what each costs.
     #[arg(long, value_name = "LIST", value_parser = crate::common::Features::parse_list)]
     pub with: Option<crate::common::Features>,
+    /// Replace the base colour and metallic-roughness maps by one texel of their mean (the
+    /// same code, no texel traffic): what those maps cost. Emissive maps stay (their mean
+    /// would make the whole surface a lamp).
+    #[arg(long)]
+    pub mean_textures: bool,
     /// Measure the live preview instead: run it in a pseudo-terminal of --cols × --rows,
     /// type an edit key --presses times and time each until the screen shows the edit.
     #[arg(long)]
@@ -108,6 +113,11 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let scene = match a.spheres {
         Some(n) => crate::scene::generate::sphere_field(n, 2024),
         None => load_scene(&a.scene, g.camera.as_deref())?,
+    };
+    let scene = if a.mean_textures {
+        crate::scene::texture::with_mean_textures(&scene)
+    } else {
+        scene
     };
     let settings = crate::common::FrameSettings {
         nee: !a.no_nee,
