@@ -49,8 +49,7 @@ var<private> tests: u32;
 @group(0) @binding(12) var<storage, read> lights: array<Light>;
 // Per-lane sums when a pixel's samples are traced by several lanes (see fn trace).
 @group(0) @binding(13) var<storage, read_write> scratch: array<u32>;
-// Texture words (src/common/textures.rs; one word when the scene has none).
-@group(0) @binding(14) var<storage, read> tex: array<u32>;
+// Binding 14, the texture words, is declared in common/texture.wgsl.
 
 const KIND_NONE: u32 = 0u;
 const KIND_SPHERE: u32 = 1u;
@@ -96,7 +95,7 @@ fn hit_primitive(r: u32, ray: Ray, t_max: f32) -> f32 {
             if HAS_TRIANGLES {
                 let tri = triangles[index];
                 let t = hit_triangle(tri, ray, t_max);
-                if HAS_CUTOUTS && t > 0.0 && tex_cut_out(index, tri.material, ray, t) {
+                if HAS_CUTOUTS && t > 0.0 && tex_cut_out(tri, index, ray, t) {
                     return NO_HIT;
                 }
                 return t;
@@ -605,7 +604,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     if HAS_TEXTURES && hit.kind == KIND_TRIANGLE {
         let rec = tex_record(surf.material);
         if rec != TEX_NONE {
-            m = tex_material(m, rec, tex_uv(hit.index, surf.point.position));
+            m = tex_material(m, rec, tex_uv(triangles[hit.index], hit.index, surf.point.position));
         }
     }
     if HAS_EMITTERS && m.light > 0.0 {

@@ -248,6 +248,7 @@ fn sample_one(t: &termtrace::scene::texture::Texture, u: f32) -> f32 {
         roughness: 1.0,
         emissive_factor: [0.0; 3],
         alpha: AlphaMode::Opaque,
+        transforms: [termtrace::scene::texture::IDENTITY_TRANSFORM; 3],
     })));
     let words = textures::words(&s).unwrap();
     let header = (textures::MATERIALS + 1 + s.objects.len()) as u32;
@@ -493,4 +494,43 @@ fn a_cut_out_of_alpha_zero_vanishes_exactly() {
         let b = snapshot(&without, st, 8).image();
         assert_eq!(a.pixels, b.pixels);
     });
+}
+
+#[test]
+fn a_texture_transform_moves_the_map() {
+    // A 2×1 map, red left and green right, clamped: without a transform the pixel at
+    // u ≈ 0.34 blends the two; KHR_texture_transform's offset of 0.5 moves it to u' ≈ 0.84,
+    // past the green texel's centre: green alone, exactly.
+    let gltf = square_gltf(
+        r#"{"emissiveFactor":[1,1,1],"emissiveTexture":{"index":0,
+            "extensions":{"KHR_texture_transform":{"offset":[0.5,0]}}}}"#,
+        &format!(
+            r#"[{{"uri":"{}"}}]"#,
+            png_uri(2, 1, &[[255, 0, 0, 255], [0, 255, 0, 255]])
+        ),
+        r#"[{"source":0,"sampler":0}]"#,
+        r#"[{"wrapS":33071,"wrapT":33071}]"#,
+    );
+    let (_dir, s) = scene_with(&gltf, 0.0);
+    on_both(|| {
+        let img = snapshot(&s, settings(W, W, 4), 4).image();
+        // Pixel 13 covers u in [0.3125, 0.375]: u' in [0.8125, 0.875].
+        assert_eq!(img.get(13, 16), [0.0, 1.0, 0.0]);
+        // Pixel 9 covers u in [0.0625, 0.125]: u' in [0.5625, 0.625], a blend.
+        let p = img.get(9, 16);
+        assert!(p[0] > 0.05 && p[1] > 0.05, "{p:?}");
+    });
+    // The matrix: translation × rotation × scale, as the extension specifies.
+    let m = termtrace::scene::gltf::texture_transform_of(
+        [0.5, 0.25],
+        std::f32::consts::FRAC_PI_2,
+        [2.0, 3.0],
+    );
+    let (u, v) = (0.1f32, 0.2f32);
+    // scale (0.2, 0.6), rotate by 90° (u' = v, v' = −u): (0.6, −0.2), translate: (1.1, 0.05).
+    let got = [m[0] * u + m[1] * v + m[2], m[3] * u + m[4] * v + m[5]];
+    assert!(
+        (got[0] - 1.1).abs() < 1e-6 && (got[1] - 0.05).abs() < 1e-6,
+        "{got:?}"
+    );
 }

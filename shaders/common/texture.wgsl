@@ -1,8 +1,13 @@
+// #include "common/types.wgsl"
+// #include "common/rng.wgsl"
+// #include "common/intersect.wgsl"
 // Textures (src/common/textures.rs lays out the words, src/cpu/texture.rs reads them the same
 // way): glTF's base colour, metallic-roughness and emissive maps, sampled bilinearly with
 // their wrap modes, mapped onto the model's material at each hit; and alpha cut-outs. Every
 // function here is called only under HAS_TEXTURES or HAS_CUTOUTS.
-// Needs `tex: array<u32>` and `triangles: array<Triangle>` (trace.wgsl binds them).
+
+// The texture words (one word when the scene has none); the trace pass binds them.
+@group(0) @binding(14) var<storage, read> tex: array<u32>;
 
 const TEX_SRGB_LUT: u32 = 0u;
 const TEX_UV_BASE: u32 = 256u;
@@ -12,6 +17,8 @@ const TEX_FLAG_BASE: u32 = 1u;
 const TEX_FLAG_MR: u32 = 2u;
 const TEX_FLAG_EMISSIVE: u32 = 4u;
 const TEX_ALPHA_SHIFT: u32 = 8u;
+// Record word where the maps' texture transforms start (six words each: two rows of a 2×3).
+const TEX_TRANSFORMS: u32 = 16u;
 // Texture coordinates are clamped to this before texel arithmetic (a wrap mode maps any
 // coordinate into the image; this only keeps the integer conversion in range).
 const TEX_UV_LIMIT: f32 = 1048576.0;
@@ -89,8 +96,7 @@ fn tex_record(material: u32) -> u32 {
 // The texture coordinates at point p (relative to the origin, as the triangles are) on
 // triangle `index`: its corners' coordinates by p's barycentrics (least squares in the plane,
 // as triangle_surface finds them).
-fn tex_uv(index: u32, p_world: vec3f) -> vec2f {
-    let tri = triangles[index];
+fn tex_uv(tri: Triangle, index: u32, p_world: vec3f) -> vec2f {
     let p = p_world - tri.v0;
     let d00 = dot(tri.e1, tri.e1);
     let d01 = dot(tri.e1, tri.e2);
@@ -111,6 +117,15 @@ fn tex_uv(index: u32, p_world: vec3f) -> vec2f {
     return select(uv, vec2f(0.0), inf);
 }
 
+// Map k's texture coordinates: `uv` through its KHR_texture_transform.
+fn tex_xform(rec: u32, k: u32, uv: vec2f) -> vec2f {
+    let m = rec + TEX_TRANSFORMS + 6u * k;
+    return vec2f(
+        tex_f32(m) * uv.x + tex_f32(m + 1u) * uv.y + tex_f32(m + 2u),
+        tex_f32(m + 3u) * uv.x + tex_f32(m + 4u) * uv.y + tex_f32(m + 5u),
+    );
+}
+
 // A glTF material's maps at `uv` mapped onto the model's material (docs/MODEL-NOTES.md):
 // emission where the emissive map is lit, else metallic-roughness as the specular share, its
 // tint, and the fuzz.
@@ -118,18 +133,18 @@ fn tex_material(m: Material, rec: u32, uv: vec2f) -> Material {
     let flags = tex[rec];
     var base = vec4f(tex_f32(rec + 4u), tex_f32(rec + 5u), tex_f32(rec + 6u), tex_f32(rec + 7u));
     if (flags & TEX_FLAG_BASE) != 0u {
-        base *= tex_sample(tex[rec + 1u], uv, true);
+        base *= tex_sample(tex[rec + 1u], tex_xform(rec, 0u, uv), true);
     }
     var metallic = tex_f32(rec + 8u);
     var roughness = tex_f32(rec + 9u);
     if (flags & TEX_FLAG_MR) != 0u {
-        let mr = tex_sample(tex[rec + 2u], uv, false);
+        let mr = tex_sample(tex[rec + 2u], tex_xform(rec, 1u, uv), false);
         roughness *= mr.y;
         metallic *= mr.z;
     }
     var e = vec3f(tex_f32(rec + 10u), tex_f32(rec + 11u), tex_f32(rec + 12u));
     if (flags & TEX_FLAG_EMISSIVE) != 0u {
-        e *= tex_sample(tex[rec + 3u], uv, true).xyz;
+        e *= tex_sample(tex[rec + 3u], tex_xform(rec, 2u, uv), true).xyz;
     }
     var out = m;
     let light = max(max(e.x, e.y), e.z);
@@ -148,11 +163,11 @@ fn tex_material(m: Material, rec: u32, uv: vec2f) -> Material {
     return out;
 }
 
-// Whether a ray's hit at distance t on triangle `index` (material `material`) falls through
+// Whether a ray's hit at distance t on triangle `tri` (number `index`) falls through
 // a cut-out: alpha below the cutoff (MASK), or, for BLEND, a hashed uniform draw of the ray and
 // triangle at or above alpha (a stochastic cut-out: over many rays, a share alpha is hit).
-fn tex_cut_out(index: u32, material: u32, ray: Ray, t: f32) -> bool {
-    let rec = tex_record(material);
+fn tex_cut_out(tri: Triangle, index: u32, ray: Ray, t: f32) -> bool {
+    let rec = tex_record(tri.material);
     if rec == TEX_NONE {
         return false;
     }
@@ -163,7 +178,8 @@ fn tex_cut_out(index: u32, material: u32, ray: Ray, t: f32) -> bool {
     }
     var alpha = tex_f32(rec + 7u);
     if (flags & TEX_FLAG_BASE) != 0u {
-        alpha *= tex_sample(tex[rec + 1u], tex_uv(index, ray.origin + t * ray.dir), false).w;
+        let uv = tex_xform(rec, 0u, tex_uv(tri, index, ray.origin + t * ray.dir));
+        alpha *= tex_sample(tex[rec + 1u], uv, false).w;
     }
     if mode == 1u {
         return alpha < tex_f32(rec + 13u);

@@ -19,8 +19,11 @@ pub const MATERIALS: usize = 257;
 pub const NONE: u32 = u32::MAX;
 
 /// Record words: flags, the three maps' texture headers, base factor (4), metallic,
-/// roughness, emissive factor (3), alpha cutoff, and two words of padding.
-pub const RECORD_WORDS: usize = 16;
+/// roughness, emissive factor (3), alpha cutoff, two words of padding, then each map's
+/// texture transform (six words from [`TRANSFORMS`]).
+pub const RECORD_WORDS: usize = 34;
+/// The record word where the maps' texture transforms start.
+pub const TRANSFORMS: usize = 16;
 pub const FLAG_BASE: u32 = 1;
 pub const FLAG_MR: u32 = 2;
 pub const FLAG_EMISSIVE: u32 = 4;
@@ -155,6 +158,9 @@ impl<'a> Layout<'a> {
                 _ => 0.0,
             };
             w.extend([cutoff.to_bits(), 0, 0]);
+            for t in &t.transforms {
+                w.extend(t.map(f32::to_bits));
+            }
         }
         w
     }

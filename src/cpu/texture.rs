@@ -5,7 +5,7 @@
 use super::intersect::{Ray, Triangle};
 use super::scene::Material;
 use crate::common::textures::{
-    ALPHA_SHIFT, FLAG_BASE, FLAG_EMISSIVE, FLAG_MR, MATERIALS, NONE, SRGB_LUT, UV_BASE,
+    ALPHA_SHIFT, FLAG_BASE, FLAG_EMISSIVE, FLAG_MR, MATERIALS, NONE, SRGB_LUT, TRANSFORMS, UV_BASE,
 };
 use glam::{Vec2, Vec3A, Vec4};
 
@@ -96,6 +96,15 @@ pub fn uv(tex: &[u32], tri: &Triangle, index: u32, p_world: Vec3A) -> Vec2 {
     )
 }
 
+/// Map k's coordinates through its texture transform (texture.wgsl: tex_xform).
+fn xform(tex: &[u32], rec: u32, k: u32, uv: Vec2) -> Vec2 {
+    let m = rec + TRANSFORMS as u32 + 6 * k;
+    Vec2::new(
+        f(tex, m) * uv.x + f(tex, m + 1) * uv.y + f(tex, m + 2),
+        f(tex, m + 3) * uv.x + f(tex, m + 4) * uv.y + f(tex, m + 5),
+    )
+}
+
 /// The material at a hit (texture.wgsl: tex_material).
 pub fn material(tex: &[u32], m: &Material, rec: u32, uv: Vec2) -> Material {
     let flags = tex[rec as usize];
@@ -106,18 +115,20 @@ pub fn material(tex: &[u32], m: &Material, rec: u32, uv: Vec2) -> Material {
         f(tex, rec + 7),
     );
     if flags & FLAG_BASE != 0 {
-        base *= sample(tex, tex[rec as usize + 1], uv, true);
+        base *= sample(tex, tex[rec as usize + 1], xform(tex, rec, 0, uv), true);
     }
     let mut metallic = f(tex, rec + 8);
     let mut roughness = f(tex, rec + 9);
     if flags & FLAG_MR != 0 {
-        let mr = sample(tex, tex[rec as usize + 2], uv, false);
+        let mr = sample(tex, tex[rec as usize + 2], xform(tex, rec, 1, uv), false);
         roughness *= mr.y;
         metallic *= mr.z;
     }
     let mut e = Vec3A::new(f(tex, rec + 10), f(tex, rec + 11), f(tex, rec + 12));
     if flags & FLAG_EMISSIVE != 0 {
-        e *= Vec3A::from(sample(tex, tex[rec as usize + 3], uv, true).truncate());
+        e *= Vec3A::from(
+            sample(tex, tex[rec as usize + 3], xform(tex, rec, 2, uv), true).truncate(),
+        );
     }
     let mut out = *m;
     let light = e.x.max(e.y).max(e.z);
@@ -151,7 +162,7 @@ pub fn cut_out(tex: &[u32], tri: &Triangle, index: u32, ray: &Ray, t: f32) -> bo
     }
     let mut alpha = f(tex, rec + 7);
     if flags & FLAG_BASE != 0 {
-        let uv = uv(tex, tri, index, ray.origin + t * ray.dir);
+        let uv = xform(tex, rec, 0, uv(tex, tri, index, ray.origin + t * ray.dir));
         alpha *= sample(tex, tex[rec as usize + 1], uv, false).w;
     }
     if mode == 1 {

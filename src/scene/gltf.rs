@@ -29,9 +29,12 @@ const CANDELA_PER_UNIT: f64 = std::f64::consts::PI;
 /// maximum, a sharp sun that light sampling finds.
 const SUN_SIZE: f32 = 1000.0;
 
-/// The extensions read (`KHR_texture_transform` is not yet: a file that requires it is
-/// refused, one that only uses it renders its maps untransformed, and the log says so).
+pub use super::gltf_textures::texture_transform as texture_transform_of;
+
+/// The extensions read; a file that requires another is refused, one that only uses another
+/// is opened without it, and the log names it.
 pub const SUPPORTED_EXTENSIONS: &[&str] = &[
+    "KHR_texture_transform",
     "KHR_materials_emissive_strength",
     "KHR_materials_transmission",
     "KHR_materials_ior",

@@ -2,7 +2,7 @@
 //! JPEG through `image`) into the model's RGBA8 textures with their samplers' wrap modes, and
 //! each textured material as the model's [`Textured`].
 
-use super::texture::{AlphaMode, Texture, Textured, TexturedRef, Wrap};
+use super::texture::{AlphaMode, IDENTITY_TRANSFORM, Texture, Textured, TexturedRef, Wrap};
 use base64::Engine;
 use rayon::prelude::*;
 use std::path::Path;
@@ -149,19 +149,36 @@ pub fn textured(
     let pbr = m.pbr_metallic_roughness();
     let mut map = |info: Option<gltf::texture::Info>, what: &str| {
         let info = info?;
-        if info.tex_coord() != 0 {
+        let transform = info.texture_transform();
+        let set = transform
+            .as_ref()
+            .and_then(|t| t.tex_coord())
+            .unwrap_or(info.tex_coord());
+        if set != 0 {
             skipped.push(format!(
-                "the {what} map of material {}: TEXCOORD_{} (only TEXCOORD_0 is read)",
+                "the {what} map of materials[{}]: TEXCOORD_{set} (only TEXCOORD_0 is read)",
                 m.index().map_or("default".into(), |i| i.to_string()),
-                info.tex_coord()
             ));
             return None;
         }
-        textures.get(info.texture().index()).cloned().flatten()
+        let tex = textures.get(info.texture().index()).cloned().flatten()?;
+        Some((
+            tex,
+            transform.map_or(IDENTITY_TRANSFORM, |t| {
+                texture_transform(t.offset(), t.rotation(), t.scale())
+            }),
+        ))
     };
     let base_color = map(pbr.base_color_texture(), "base colour");
     let metallic_roughness = map(pbr.metallic_roughness_texture(), "metallic-roughness");
     let emissive = map(m.emissive_texture(), "emissive");
+    let transforms = [&base_color, &metallic_roughness, &emissive]
+        .map(|x| x.as_ref().map_or(IDENTITY_TRANSFORM, |(_, t)| *t));
+    let (base_color, metallic_roughness, emissive) = (
+        base_color.map(|(t, _)| t),
+        metallic_roughness.map(|(t, _)| t),
+        emissive.map(|(t, _)| t),
+    );
     let alpha = match m.alpha_mode() {
         gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
         gltf::material::AlphaMode::Mask => AlphaMode::Mask(m.alpha_cutoff().unwrap_or(0.5)),
@@ -184,5 +201,20 @@ pub fn textured(
         roughness: pbr.roughness_factor().clamp(0.0, 1.0),
         emissive_factor: m.emissive_factor().map(|x| x.max(0.0) * strength),
         alpha,
+        transforms,
     })))
+}
+
+/// `KHR_texture_transform`'s matrix, translation × rotation × scale (the extension's
+/// specification), as the rows [a, b, c, d, e, f] of u' = a·u + b·v + c, v' = d·u + e·v + f.
+pub fn texture_transform(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> [f32; 6] {
+    let (s, c) = rotation.sin_cos();
+    [
+        c * scale[0],
+        s * scale[1],
+        offset[0],
+        -s * scale[0],
+        c * scale[1],
+        offset[1],
+    ]
 }

@@ -55,7 +55,13 @@ pub struct Textured {
     /// `emissiveFactor × emissiveStrength`.
     pub emissive_factor: [f32; 3],
     pub alpha: AlphaMode,
+    /// Each map's `KHR_texture_transform` (base colour, metallic-roughness, emissive), as
+    /// the rows of a 2×3 matrix: u' = m[0]·u + m[1]·v + m[2], v' = m[3]·u + m[4]·v + m[5].
+    pub transforms: [[f32; 6]; 3],
 }
+
+/// The identity texture transform.
+pub const IDENTITY_TRANSFORM: [f32; 6] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0];
 
 impl Textured {
     /// Whether some hits on it are not hits (a cut-out).
