@@ -115,7 +115,7 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         None => load_scene(&a.scene, g.camera.as_deref())?,
     };
     let scene = if a.mean_textures {
-        crate::scene::texture::with_mean_textures(&scene)
+        with_mean_textures(&scene)
     } else {
         scene
     };
@@ -327,4 +327,38 @@ fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let report = b.run()?;
     crate::measure::preview::print(&b, &report);
     Ok(ExitCode::SUCCESS)
+}
+
+/// `scene` with its base colour and metallic-roughness maps replaced by one texel of their
+/// mean (`bench --mean-textures`): the same materials and code, without those texel fetches.
+fn with_mean_textures(scene: &crate::scene::Scene) -> crate::scene::Scene {
+    use crate::scene::texture::{Texture, Textured, TexturedRef};
+    use std::sync::Arc;
+    let mut out = scene.clone();
+    let mut done: Vec<(*const Textured, TexturedRef)> = Vec::new();
+    for o in &mut out.objects {
+        let Some(t) = &o.material.textured else {
+            continue;
+        };
+        let key = Arc::as_ptr(&t.0);
+        let new = match done.iter().find(|(k, _)| *k == key) {
+            Some((_, n)) => n.clone(),
+            None => {
+                let mean = |m: &Option<Arc<Texture>>| m.as_ref().map(|t| Arc::new(t.mean()));
+                let n = TexturedRef(Arc::new(Textured {
+                    base_color: mean(&t.0.base_color),
+                    metallic_roughness: mean(&t.0.metallic_roughness),
+                    // The emissive map stays: under the model's rule it decides where the
+                    // surface emits (an emitter ends a path), and its mean would make the whole
+                    // surface a lamp, another scene.
+                    emissive: t.0.emissive.clone(),
+                    ..*t.0
+                }));
+                done.push((key, n.clone()));
+                n
+            }
+        };
+        o.material.textured = Some(new);
+    }
+    out
 }
