@@ -31,12 +31,20 @@ fn wrap(i: i32, n: i32, mode: u32) -> i32 {
     }
 }
 
-fn texel(tex: &[u32], h: u32, x: i32, y: i32, srgb: bool) -> Vec4 {
-    let h = h as usize;
-    let w = tex[h] as i32;
-    let xi = wrap(x, w, tex[h + 2]);
-    let yi = wrap(y, tex[h + 1] as i32, tex[h + 3]);
-    let word = tex[tex[h + 4] as usize + (yi * w + xi) as usize];
+/// Index `i` brought into [0, n): itself when it is already there (most lookups), else by
+/// the wrap mode.
+#[inline(always)]
+fn wrapped(i: i32, n: i32, mode: u32) -> i32 {
+    if (0..n).contains(&i) {
+        i
+    } else {
+        wrap(i, n, mode)
+    }
+}
+
+/// One texel's value (texture.wgsl: tex_texel), by its word.
+#[inline(always)]
+fn decode(tex: &[u32], word: u32, srgb: bool) -> Vec4 {
     let b = [
         word & 0xff,
         (word >> 8) & 0xff,
@@ -51,18 +59,24 @@ fn texel(tex: &[u32], h: u32, x: i32, y: i32, srgb: bool) -> Vec4 {
     }
 }
 
-/// Bilinear filtering, texel centres at half-integers (texture.wgsl: tex_sample).
+/// Bilinear filtering, texel centres at half-integers (texture.wgsl: tex_sample); the four
+/// texels' indices are wrapped once per axis (the same indices texture.wgsl computes per
+/// texel).
 pub fn sample(tex: &[u32], h: u32, uv: Vec2, srgb: bool) -> Vec4 {
+    let h = h as usize;
+    let (w, ht) = (tex[h] as i32, tex[h + 1] as i32);
     let uv = uv.clamp(Vec2::splat(-UV_LIMIT), Vec2::splat(UV_LIMIT));
-    let x = uv.x * tex[h as usize] as f32 - 0.5;
-    let y = uv.y * tex[h as usize + 1] as f32 - 0.5;
+    let x = uv.x * w as f32 - 0.5;
+    let y = uv.y * ht as f32 - 0.5;
     let (x0, y0) = (x.floor(), y.floor());
     let (fx, fy) = (x - x0, y - y0);
     let (ix, iy) = (x0 as i32, y0 as i32);
-    let t00 = texel(tex, h, ix, iy, srgb);
-    let t10 = texel(tex, h, ix + 1, iy, srgb);
-    let t01 = texel(tex, h, ix, iy + 1, srgb);
-    let t11 = texel(tex, h, ix + 1, iy + 1, srgb);
+    let (mu, mv) = (tex[h + 2], tex[h + 3]);
+    let (xa, xb) = (wrapped(ix, w, mu), wrapped(ix + 1, w, mu));
+    let (ya, yb) = (wrapped(iy, ht, mv), wrapped(iy + 1, ht, mv));
+    let base = tex[h + 4] as usize;
+    let at = |x: i32, y: i32| decode(tex, tex[base + (y * w + x) as usize], srgb);
+    let (t00, t10, t01, t11) = (at(xa, ya), at(xb, ya), at(xa, yb), at(xb, yb));
     let top = t00 + (t10 - t00) * fx;
     let bottom = t01 + (t11 - t01) * fx;
     top + (bottom - top) * fy
