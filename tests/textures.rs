@@ -534,3 +534,36 @@ fn a_texture_transform_moves_the_map() {
         "{got:?}"
     );
 }
+
+#[test]
+fn wild_texture_coordinates_give_no_invalid_sample() {
+    // Coordinates of 1e30, −1e30 and NaN at the corners (as broken exports write them), on a
+    // repeated map and a cut-out: every sample is finite on both tracers (NaN coordinates read
+    // as 0, the others are clamped to ±2^20 before the texel arithmetic).
+    let map = png_uri(
+        2,
+        2,
+        &[[255, 0, 0, 255], [0, 255, 0, 128], [0, 0, 255, 0], [255; 4]],
+    );
+    let gltf = String::from_utf8(square_gltf(
+        r#"{"emissiveFactor":[1,1,1],"emissiveTexture":{"index":0},"alphaMode":"MASK",
+            "pbrMetallicRoughness":{"baseColorTexture":{"index":0}}}"#,
+        &format!(r#"[{{"uri":"{map}"}}]"#),
+        r#"[{"source":0}]"#,
+        "[]",
+    ))
+    .unwrap()
+    .into_bytes();
+    let (_dir, mut s) = scene_with(&gltf, 0.5);
+    if let termtrace::scene::Shape::Mesh { mesh, .. } = &mut s.objects[0].shape {
+        let m = std::sync::Arc::get_mut(mesh).unwrap();
+        m.uvs[0] = [[1e30, -1e30], [f32::NAN, 0.5], [-1e30, f32::INFINITY]];
+        m.uvs[1] = [[3.7e9, -2.5e9], [0.25, 0.25], [f32::NEG_INFINITY, 1e-30]];
+    }
+    on_both(|| {
+        let snap = snapshot(&s, settings(W, W, 4), 4);
+        assert_eq!(snap.invalid_samples(), 0);
+        let img = snap.image();
+        assert!(img.pixels.iter().all(|p| p.iter().all(|c| c.is_finite())));
+    });
+}
