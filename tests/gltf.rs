@@ -549,3 +549,16 @@ fn missing_files_and_required_extensions_are_named() {
     let e = import(&gltf(&TRIANGLE, Some(&[0, 1, 9]), 4, nodes, PLAIN, "")).unwrap_err();
     assert!(e.message.contains("meshes[0].primitives[0]"), "{e}");
 }
+
+/// Files `fuzz/` found crashing the import, kept as cases: each is refused with a message.
+#[test]
+fn fuzzer_crashes_are_refused() {
+    for (file, want) in [(
+        "tests/gltf/fuzz/position-accessor-out-of-range.gltf",
+        "names accessor",
+    )] {
+        let bytes = std::fs::read(file).unwrap();
+        let e = import(&bytes).expect_err(file);
+        assert!(e.message.contains(want), "{file}: {e}");
+    }
+}

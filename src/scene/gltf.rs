@@ -104,8 +104,7 @@ pub fn import_slice(
         path: name.to_string(),
         message,
     };
-    let gltf =
-        gltf::Gltf::from_slice(bytes).map_err(|e| err(format!("not a valid glTF file: {e}")))?;
+    let gltf = parse(bytes).map_err(err)?;
     let buffers = read_buffers(&gltf, base).map_err(err)?;
     let doc = &gltf.document;
     let mut skipped = Vec::new();
@@ -184,6 +183,28 @@ pub fn import_slice(
         add_light(&light, world, diagonal, &mut out);
     }
     Ok(out)
+}
+
+/// The file parsed and validated. gltf-json 1.4.1 indexes the accessors without a check
+/// while it validates a primitive's POSITION (its mesh.rs:151), so a file whose attribute
+/// names an accessor it does not have would panic there (found by `fuzz/`): the references
+/// are checked first, and the validation runs only on a file that passes.
+fn parse(bytes: &[u8]) -> Result<gltf::Gltf, String> {
+    let unchecked = gltf::Gltf::from_slice_without_validation(bytes)
+        .map_err(|e| format!("not a valid glTF file: {e}"))?;
+    let root = unchecked.document.as_json();
+    let n = root.accessors.len();
+    for (mi, m) in root.meshes.iter().enumerate() {
+        for (pi, p) in m.primitives.iter().enumerate() {
+            let named = p.attributes.values().chain(p.indices.as_ref());
+            if let Some(bad) = named.map(|a| a.value()).find(|&a| a >= n) {
+                return Err(format!(
+                    "meshes[{mi}].primitives[{pi}] names accessor {bad}, and the file has {n}"
+                ));
+            }
+        }
+    }
+    gltf::Gltf::from_slice(bytes).map_err(|e| format!("not a valid glTF file: {e}"))
 }
 
 /// The file's buffers (the GLB's binary chunk, `data:` URIs, files beside it), each checked
