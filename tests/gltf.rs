@@ -551,10 +551,16 @@ fn missing_files_and_required_extensions_are_named() {
 }
 
 /// Files `fuzz/` found crashing the import, each with what its refusal must say.
-const FUZZ_CRASHES: &[(&str, &str)] = &[(
-    "tests/gltf/fuzz/position-accessor-out-of-range.gltf",
-    "names accessor",
-)];
+const FUZZ_CRASHES: &[(&str, &str)] = &[
+    (
+        "tests/gltf/fuzz/position-accessor-out-of-range.gltf",
+        "names accessor",
+    ),
+    (
+        "tests/gltf/fuzz/glb-length-below-header.glb",
+        "less than the header",
+    ),
+];
 
 /// The fuzzer's crashes, kept as cases: each is refused with a message.
 #[test]

@@ -185,11 +185,27 @@ pub fn import_slice(
     Ok(out)
 }
 
+/// Bytes of a GLB file's header (magic, version, length).
+const GLB_HEADER: u32 = 12;
+
 /// The file parsed and validated. gltf-json 1.4.1 indexes the accessors without a check
 /// while it validates a primitive's POSITION (its mesh.rs:151), so a file whose attribute
 /// names an accessor it does not have would panic there (found by `fuzz/`): the references
 /// are checked first, and the validation runs only on a file that passes.
 fn parse(bytes: &[u8]) -> Result<gltf::Gltf, String> {
+    // The crate subtracts the header's size from the GLB's stated length unchecked (its
+    // binary.rs:252, also found by `fuzz/`).
+    if let Some(len) = bytes
+        .strip_prefix(b"glTF")
+        .and_then(|rest| rest.get(4..8))
+        .map(|l| u32::from_le_bytes([l[0], l[1], l[2], l[3]]))
+        && len < GLB_HEADER
+    {
+        return Err(format!(
+            "not a valid GLB file: its header gives a length of {len} bytes, less than the \
+             header's own {GLB_HEADER}"
+        ));
+    }
     let unchecked = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| format!("not a valid glTF file: {e}"))?;
     let root = unchecked.document.as_json();
