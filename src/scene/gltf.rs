@@ -235,8 +235,16 @@ fn read_buffers(gltf: &gltf::Gltf, base: Option<&Path>) -> Result<Vec<gltf::buff
             }
             _ => format!("buffers[{}]", b.index()),
         };
-        let data = gltf::buffer::Data::from_source_and_blob(b.source(), base, &mut blob)
-            .map_err(|e| format!("{what}: cannot read it: {e}"))?;
+        let mut bytes = match b.source() {
+            gltf::buffer::Source::Bin => blob
+                .take()
+                .ok_or_else(|| format!("{what}: the GLB file has no binary chunk"))?,
+            gltf::buffer::Source::Uri(uri) => super::gltf_textures::read_uri(uri, base)
+                .map_err(|e| format!("{what}: cannot read it: {e}"))?,
+        };
+        // Padded to whole words, as the crate's reader pads them.
+        bytes.resize(bytes.len().next_multiple_of(4), 0);
+        let data = gltf::buffer::Data(bytes);
         if data.len() < b.length() {
             return Err(format!(
                 "{what}: {} bytes, but it declares {}",

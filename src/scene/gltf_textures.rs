@@ -101,20 +101,25 @@ fn encoded(
                 _ => Err("its buffer view reaches past the end of its buffer".into()),
             }
         }
-        gltf::image::Source::Uri { uri, .. } => {
-            if let Some(rest) = uri.strip_prefix("data:") {
-                let (_, b64) = rest
-                    .split_once(";base64,")
-                    .ok_or("a data URI that is not base64")?;
-                return base64::engine::general_purpose::STANDARD
-                    .decode(b64)
-                    .map_err(|e| format!("its data URI is not valid base64: {e}"));
-            }
-            let base = base.ok_or("an image in another file, and no folder to read it from")?;
-            let path = base.join(percent_decode(uri));
-            std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))
-        }
+        gltf::image::Source::Uri { uri, .. } => read_uri(uri, base),
     }
+}
+
+/// The bytes a URI names: a `data:` URI's (base64), or a file's beside the glTF file (its
+/// `%XX` escapes decoded; not the crate's reader, which panics on an escape that is not
+/// UTF-8, as `fuzz/` found).
+pub(super) fn read_uri(uri: &str, base: Option<&Path>) -> Result<Vec<u8>, String> {
+    if let Some(rest) = uri.strip_prefix("data:") {
+        let (_, b64) = rest
+            .split_once(";base64,")
+            .ok_or("a data URI that is not base64")?;
+        return base64::engine::general_purpose::STANDARD
+            .decode(b64)
+            .map_err(|e| format!("its data URI is not valid base64: {e}"));
+    }
+    let base = base.ok_or("data in another file, and no folder to read it from")?;
+    let path = base.join(percent_decode(uri.strip_prefix("file://").unwrap_or(uri)));
+    std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))
 }
 
 /// A relative URI's `%XX` escapes decoded (glTF URIs are percent-encoded: `my%20file.png`).
