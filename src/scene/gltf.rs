@@ -146,7 +146,18 @@ pub fn import_slice(
     let mut lights = Vec::new();
     let mut stack: Vec<(gltf::Node, DMat4)> = scene.nodes().map(|n| (n, place)).collect();
     stack.reverse();
+    // glTF's nodes form disjoint trees (specification §3.5.2): a node reached twice is a cycle
+    // or a node with two parents, which would walk forever or import twice (`fuzz/` found a
+    // cycle).
+    let mut reached = vec![false; doc.nodes().len()];
     while let Some((node, parent)) = stack.pop() {
+        if std::mem::replace(&mut reached[node.index()], true) {
+            return Err(err(format!(
+                "nodes[{}] is reached twice in the scene's hierarchy (a cycle, or a node with \
+                 two parents)",
+                node.index()
+            )));
+        }
         let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
         let world = parent * local;
         if !world.is_finite() {
