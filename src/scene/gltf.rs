@@ -305,11 +305,31 @@ fn import_mesh(
             .textured
             .as_ref()
             .and_then(|_| prim.get(&gltf::Semantic::TexCoords(0)));
-        for a in std::iter::once(pos)
-            .chain(prim.indices())
-            .chain(uv_accessor.clone())
         {
-            accessor_fits(&a, buffers).map_err(|e| format!("{what}: {e}"))?;
+            use gltf::accessor::{DataType as T, Dimensions as D};
+            let checks = std::iter::once((pos, D::Vec3, &[T::F32][..]))
+                .chain(
+                    prim.indices()
+                        .map(|a| (a, D::Scalar, &[T::U8, T::U16, T::U32][..])),
+                )
+                .chain(
+                    uv_accessor
+                        .clone()
+                        .map(|a| (a, D::Vec2, &[T::F32, T::U8, T::U16][..])),
+                );
+            for (a, dims, types) in checks {
+                // The crate's reader assumes the element type its caller asks for (a debug
+                // assertion, found by `fuzz/`; garbage without it).
+                if a.dimensions() != dims || !types.contains(&a.data_type()) {
+                    return Err(format!(
+                        "{what}: accessor {} holds {:?} of {:?}, where {dims:?} of {types:?} belong",
+                        a.index(),
+                        a.dimensions(),
+                        a.data_type()
+                    ));
+                }
+                accessor_fits(&a, buffers).map_err(|e| format!("{what}: {e}"))?;
+            }
         }
         let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
         let Some(positions) = reader.read_positions() else {
