@@ -69,6 +69,15 @@ fn scene_with(gltf: &[u8], sky: f32) -> (tempfile::TempDir, Scene) {
 
 const W: u32 = 32;
 
+/// The mean over an image's pixels of r + g + b.
+fn mean(i: &termtrace::output::LinearImage) -> f64 {
+    i.pixels
+        .iter()
+        .map(|p| (p[0] + p[1] + p[2]) as f64)
+        .sum::<f64>()
+        / i.pixels.len() as f64
+}
+
 #[test]
 fn a_one_texel_emissive_map_is_exact_on_both_tracers() {
     let texel = [200u8, 100, 50, 255];
@@ -305,13 +314,6 @@ fn both_tracers_agree_on_a_scene_with_every_map() {
     );
     let cpu = cpu_snapshot(&s, st, 256);
     let (a, b) = (gpu.image(), cpu.image());
-    let mean = |i: &termtrace::output::LinearImage| {
-        i.pixels
-            .iter()
-            .map(|p| (p[0] + p[1] + p[2]) as f64)
-            .sum::<f64>()
-            / i.pixels.len() as f64
-    };
     let (ma, mb) = (mean(&a), mean(&b));
     assert!(
         (ma - mb).abs() <= 0.01 * ma.max(mb),
@@ -369,13 +371,6 @@ fn the_public_textured_box_renders_the_same_on_both_tracers() {
         Default::default(),
     );
     let cpu = cpu_snapshot(&s, st, 128);
-    let mean = |i: &termtrace::output::LinearImage| {
-        i.pixels
-            .iter()
-            .map(|p| (p[0] + p[1] + p[2]) as f64)
-            .sum::<f64>()
-            / i.pixels.len() as f64
-    };
     let (a, b) = (mean(&gpu.image()), mean(&cpu.image()));
     assert!(
         (a - b).abs() <= 0.01 * a.max(b),

@@ -177,18 +177,21 @@ fn hit_triangle(tri: Triangle, ray: Ray, t_max: f32) -> f32 {
 
 // On a triangle: the point from its barycentric coordinates (relative to v0, not to the ray
 // origin), and the normal of its winding.
-fn triangle_surface(tri: Triangle, ray: Ray, t: f32) -> SurfacePoint {
-    let p = ray.origin + t * ray.dir - tri.v0;
-    // Barycentrics of p by least squares in the triangle's plane.
+// The barycentric coordinates (along e1, along e2) of p, taken relative to v0, by least
+// squares in the triangle's plane.
+fn triangle_barycentrics(tri: Triangle, p: vec3f) -> vec2f {
     let d00 = dot(tri.e1, tri.e1);
     let d01 = dot(tri.e1, tri.e2);
     let d11 = dot(tri.e2, tri.e2);
     let d20 = dot(p, tri.e1);
     let d21 = dot(p, tri.e2);
     let denom = d00 * d11 - d01 * d01;
-    let v = (d11 * d20 - d01 * d21) / denom;
-    let w = (d00 * d21 - d01 * d20) / denom;
-    return SurfacePoint(tri.v0 + v * tri.e1 + w * tri.e2, normalize(cross(tri.e1, tri.e2)));
+    return vec2f((d11 * d20 - d01 * d21) / denom, (d00 * d21 - d01 * d20) / denom);
+}
+
+fn triangle_surface(tri: Triangle, ray: Ray, t: f32) -> SurfacePoint {
+    let b = triangle_barycentrics(tri, ray.origin + t * ray.dir - tri.v0);
+    return SurfacePoint(tri.v0 + b.x * tri.e1 + b.y * tri.e2, normalize(cross(tri.e1, tri.e2)));
 }
 
 // 1 / dir with components too small to invert replaced by a tiny positive number: the slab

@@ -94,23 +94,15 @@ fn tex_record(material: u32) -> u32 {
 }
 
 // The texture coordinates at point p (relative to the origin, as the triangles are) on
-// triangle `index`: its corners' coordinates by p's barycentrics (least squares in the plane,
-// as triangle_surface finds them).
+// triangle `index`: its corners' coordinates by p's barycentrics (triangle_barycentrics, as
+// triangle_surface finds them).
 fn tex_uv(tri: Triangle, index: u32, p_world: vec3f) -> vec2f {
-    let p = p_world - tri.v0;
-    let d00 = dot(tri.e1, tri.e1);
-    let d01 = dot(tri.e1, tri.e2);
-    let d11 = dot(tri.e2, tri.e2);
-    let d20 = dot(p, tri.e1);
-    let d21 = dot(p, tri.e2);
-    let denom = d00 * d11 - d01 * d01;
-    let b1 = (d11 * d20 - d01 * d21) / denom;
-    let b2 = (d00 * d21 - d01 * d20) / denom;
+    let b = triangle_barycentrics(tri, p_world - tri.v0);
     let at = tex[TEX_UV_BASE] + 6u * index;
     let uv0 = vec2f(tex_f32(at), tex_f32(at + 1u));
     let uv1 = vec2f(tex_f32(at + 2u), tex_f32(at + 3u));
     let uv2 = vec2f(tex_f32(at + 4u), tex_f32(at + 5u));
-    let uv = uv0 + b1 * (uv1 - uv0) + b2 * (uv2 - uv0);
+    let uv = uv0 + b.x * (uv1 - uv0) + b.y * (uv2 - uv0);
     // A degenerate triangle's NaN coordinates read as (0, 0) (by the exponent bits: WGSL may
     // assume floats are finite, so `uv != uv` could be folded away).
     let inf = (bitcast<vec2u>(uv) & vec2u(0x7f800000u)) == vec2u(0x7f800000u);

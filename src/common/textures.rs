@@ -4,6 +4,7 @@
 //! storage buffer, so that every adapter binds it (lavapipe and llvmpipe included); a scene
 //! without textures uploads one word and compiles none of the code that reads them.
 
+use crate::scene::gltf::DIELECTRIC_F0;
 use crate::scene::texture::{AlphaMode, Texture, Textured};
 use crate::scene::{Material, Scene, Shape};
 use std::sync::Arc;
@@ -165,9 +166,6 @@ impl<'a> Layout<'a> {
         w
     }
 }
-
-/// glTF's dielectric reflectance at normal incidence (`scene::gltf`'s mapping).
-const DIELECTRIC_F0: f32 = 0.04;
 
 /// The record words alone and the word they start at: what an edit of a material changes
 /// (the rest stays while the textured materials and the geometry do).

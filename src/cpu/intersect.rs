@@ -219,8 +219,10 @@ pub fn hit_triangle(tri: &Triangle, ray: &Ray, t_max: f32) -> f32 {
     t
 }
 
-pub fn triangle_surface(tri: &Triangle, ray: &Ray, t: f32) -> SurfacePoint {
-    let p = ray.origin + t * ray.dir - tri.v0;
+/// The barycentric coordinates (along e1, along e2) of `p`, taken relative to v0, by least
+/// squares in the triangle's plane (intersect.wgsl: triangle_barycentrics).
+#[inline(always)]
+pub fn triangle_barycentrics(tri: &Triangle, p: Vec3A) -> (f32, f32) {
     let d00 = tri.e1.dot(tri.e1);
     let d01 = tri.e1.dot(tri.e2);
     let d11 = tri.e2.dot(tri.e2);
@@ -229,6 +231,11 @@ pub fn triangle_surface(tri: &Triangle, ray: &Ray, t: f32) -> SurfacePoint {
     let denom = d00 * d11 - d01 * d01;
     let v = (d11 * d20 - d01 * d21) / denom;
     let w = (d00 * d21 - d01 * d20) / denom;
+    (v, w)
+}
+
+pub fn triangle_surface(tri: &Triangle, ray: &Ray, t: f32) -> SurfacePoint {
+    let (v, w) = triangle_barycentrics(tri, ray.origin + t * ray.dir - tri.v0);
     SurfacePoint {
         position: tri.v0 + v * tri.e1 + w * tri.e2,
         normal: tri.e1.cross(tri.e2).normalize(),

@@ -157,7 +157,7 @@ impl CpuScene {
     /// The texture words, as the GPU gets them.
     fn take_textures(&mut self, scene: &Scene) {
         self.tex = crate::common::textures::words(scene).unwrap_or_default();
-        self.tex_key = tex_key(scene);
+        self.tex_key = crate::common::textures::material_key(scene);
         self.cutouts = crate::common::Features::of(scene).cutouts;
     }
 
@@ -173,7 +173,7 @@ impl CpuScene {
         self.take(&p);
         // The texture words are made again only when the textured materials changed; an edit
         // of their factors rewrites the records alone (as `SceneBuffers::update` does).
-        let key = tex_key(scene);
+        let key = crate::common::textures::material_key(scene);
         if key != self.tex_key {
             self.take_textures(scene);
         } else if let Some((at, records)) = crate::common::textures::record_words(scene) {
@@ -227,9 +227,4 @@ impl CpuScene {
             .collect();
         self.lights = p.lights.clone();
     }
-}
-
-/// Per object, the address of its textured material as the texture words use it (0: none).
-fn tex_key(scene: &Scene) -> Vec<usize> {
-    crate::common::textures::material_key(scene)
 }

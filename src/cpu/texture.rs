@@ -2,17 +2,16 @@
 //! words (`common::textures`): bilinear sampling with wrap modes, the glTF material mapped
 //! onto the model's at a hit, and alpha cut-outs.
 
-use super::intersect::{Ray, Triangle};
+use super::intersect::{Ray, Triangle, triangle_barycentrics};
 use super::scene::Material;
 use crate::common::textures::{
     ALPHA_SHIFT, FLAG_BASE, FLAG_EMISSIVE, FLAG_MR, MATERIALS, NONE, SRGB_LUT, TRANSFORMS, UV_BASE,
 };
+use crate::scene::gltf::DIELECTRIC_F0;
 use glam::{Vec2, Vec3A, Vec4};
 
 /// Coordinates are clamped to this before texel arithmetic (texture.wgsl: TEX_UV_LIMIT).
 const UV_LIMIT: f32 = 1048576.0;
-/// glTF's dielectric reflectance at normal incidence (texture.wgsl: DIELECTRIC_F0).
-const DIELECTRIC_F0: f32 = 0.04;
 
 #[inline(always)]
 fn f(tex: &[u32], i: u32) -> f32 {
@@ -91,15 +90,7 @@ pub fn record(tex: &[u32], material: u32) -> Option<u32> {
 
 /// The texture coordinates at `p` on triangle `index` (texture.wgsl: tex_uv).
 pub fn uv(tex: &[u32], tri: &Triangle, index: u32, p_world: Vec3A) -> Vec2 {
-    let p = p_world - tri.v0;
-    let d00 = tri.e1.dot(tri.e1);
-    let d01 = tri.e1.dot(tri.e2);
-    let d11 = tri.e2.dot(tri.e2);
-    let d20 = p.dot(tri.e1);
-    let d21 = p.dot(tri.e2);
-    let denom = d00 * d11 - d01 * d01;
-    let b1 = (d11 * d20 - d01 * d21) / denom;
-    let b2 = (d00 * d21 - d01 * d20) / denom;
+    let (b1, b2) = triangle_barycentrics(tri, p_world - tri.v0);
     let at = tex[UV_BASE] + 6 * index;
     let c = |k: u32| Vec2::new(f(tex, at + k), f(tex, at + k + 1));
     let (uv0, uv1, uv2) = (c(0), c(2), c(4));

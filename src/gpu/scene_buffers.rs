@@ -73,7 +73,7 @@ impl SceneBuffers {
         );
         SceneBuffers {
             tex: storage(device, "scene.tex", &tex),
-            tex_key: tex_key(scene),
+            tex_key: textures::material_key(scene),
             origin,
             uniforms: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("scene.uniforms"),
@@ -111,7 +111,7 @@ impl SceneBuffers {
         let light_count = |l: &[GpuLight]| l.len().max(1);
         if geometry_hash(scene) != self.geometry
             || s.nee != self.nee
-            || tex_key(scene) != self.tex_key
+            || textures::material_key(scene) != self.tex_key
             || light_count(&p.lights) * std::mem::size_of::<GpuLight>()
                 > self.lights.size() as usize
         {
@@ -139,8 +139,4 @@ impl SceneBuffers {
         }
         false
     }
-}
-
-fn tex_key(scene: &Scene) -> Vec<usize> {
-    textures::material_key(scene)
 }

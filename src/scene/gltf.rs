@@ -14,7 +14,7 @@ use std::sync::Arc;
 
 /// The reflectance of a dielectric at normal incidence that glTF's metallic-roughness model
 /// assumes (glTF 2.0 specification, Appendix B: `F0 = 0.04`).
-const DIELECTRIC_F0: f32 = 0.04;
+pub const DIELECTRIC_F0: f32 = 0.04;
 /// The radius of the sphere a point or spot light becomes, as a fraction of the scene's
 /// bounding-box diagonal: small enough to read as a point, large enough to be found by
 /// paths that do not sample it.
