@@ -21,6 +21,7 @@ override HAS_SUN: bool = true;
 // glTF materials with maps (base colour, metallic-roughness, emissive), and alpha cut-outs.
 override HAS_TEXTURES: bool = true;
 override HAS_CUTOUTS: bool = true;
+override HAS_NORMAL_MAPS: bool = true;
 // Counting path segments costs an atomic per workgroup; only `bench` turns it on.
 override COUNT_SEGMENTS: bool = false;
 // Walk the BVH, or test every primitive in turn (tests compare the two; see src/common/features.rs).
@@ -501,9 +502,10 @@ fn light_choice_pmf(i: u32, p: vec3f, n: vec3f) -> f32 {
     return light_weight(lights[i], p, n) / total;
 }
 
-// The light-sampled estimate at point p with facing normal n, for the Lambertian lobe
-// (its 1/π included, its tint not): emitted radiance × cos / π / pdf, MIS-weighted.
-fn sample_light(p: vec3f, n: vec3f, state: ptr<function, Rng>) -> vec3f {
+// The light-sampled estimate at point p with facing (shading) normal n, for the Lambertian
+// lobe (its 1/π included, its tint not): emitted radiance × cos / π / pdf, MIS-weighted.
+// n_geo: the facing geometric normal; the shadow ray leaves on its side, never into it.
+fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, state: ptr<function, Rng>) -> vec3f {
     // One light is chosen without a draw.
     var pick = 0.0;
     if scene.n_lights > 1u {
@@ -552,12 +554,12 @@ fn sample_light(p: vec3f, n: vec3f, state: ptr<function, Rng>) -> vec3f {
         material = q.material;
     }
     let cos_s = dot(n, dir);
-    if cos_s <= 0.0 {
+    if cos_s <= 0.0 || (HAS_NORMAL_MAPS && dot(n_geo, dir) <= 0.0) {
         return vec3f(0.0);
     }
     // Visible if nothing but the light lies between p and the light's own hit along dir (no
     // distance epsilon: the light is skipped by identity, not by distance).
-    let shadow = Ray(offset_ray(p, n), dir);
+    let shadow = Ray(offset_ray(p, n_geo), dir);
     let t_light = hit_primitive(light.prim, shadow, T_FAR);
     if t_light <= 0.0 || occluded(shadow, t_light, light.prim) {
         return vec3f(0.0);
@@ -601,10 +603,13 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     }
     let surf = surface_at(hit, ray);
     var m = materials[surf.material];
+    var rec = TEX_NONE;
+    var uv = vec2f(0.0);
     if HAS_TEXTURES && hit.kind == KIND_TRIANGLE {
-        let rec = tex_record(surf.material);
+        rec = tex_record(surf.material);
         if rec != TEX_NONE {
-            m = tex_material(m, rec, tex_uv(triangles[hit.index], hit.index, surf.point.position));
+            uv = tex_uv(triangles[hit.index], hit.index, surf.point.position);
+            m = tex_material(m, rec, uv);
         }
     }
     if HAS_EMITTERS && m.light > 0.0 {
@@ -629,17 +634,29 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         // A certain lobe takes no draw.
         let is_spec = m.specular >= 1.0 || (m.specular > 0.0 && rand(state) < m.specular);
         let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);
+        // The shading normal, on the side of n: a normal map's where there is one
+        // (docs/MODEL-NOTES.md, "Normal maps"), else n.
+        var ns = n;
+        if HAS_NORMAL_MAPS && hit.kind == KIND_TRIANGLE && tex_has_normal_map(rec) {
+            ns = tex_shading_normal(rec, triangles[hit.index], hit.index, surf.point.position, uv, n_out);
+            ns = select(-ns, ns, dot(ns, n) >= 0.0);
+        }
         // A lobe with the cosine density: the Lambertian one, or the specular one at
         // smoothness 0 (the same distribution, its own tint).
         let cosine_lobe = !is_spec || m.smoothness == 0.0;
         if nee && cosine_lobe {
             let tint = select(m.color, m.specular_color, is_spec);
-            (*path).radiance += (*path).throughput * tint * sample_light(surf.point.position, n, state);
+            (*path).radiance += (*path).throughput * tint * sample_light(surf.point.position, ns, n, state);
         }
-        sc = scatter_surface(m, ray.dir, n_out, is_spec, state);
+        sc = scatter_surface(m, ray.dir, ns, is_spec, state);
+        // A direction that the shading normal allows but that enters the surface ends the
+        // path (the light a normal map cannot send there is lost, not leaked).
+        if HAS_NORMAL_MAPS && dot(sc.dir, n) <= 0.0 {
+            sc.absorbed = true;
+        }
         if cosine_lobe {
-            (*path).prev_pdf = max(dot(sc.dir, n), 0.0) / PI;
-            (*path).prev_normal = n;
+            (*path).prev_pdf = max(dot(sc.dir, ns), 0.0) / PI;
+            (*path).prev_normal = ns;
         }
     }
     if sc.absorbed {

@@ -252,16 +252,24 @@ fn sample_one(t: &termtrace::scene::texture::Texture, u: f32) -> f32 {
         base_color: None,
         metallic_roughness: Some(tex),
         emissive: None,
+        normal: None,
+        normal_scale: 1.0,
         base_factor: [1.0; 4],
         metallic: 1.0,
         roughness: 1.0,
         emissive_factor: [0.0; 3],
         alpha: AlphaMode::Opaque,
-        transforms: [termtrace::scene::texture::IDENTITY_TRANSFORM; 3],
+        transforms: [termtrace::scene::texture::IDENTITY_TRANSFORM; 4],
     })));
     let words = textures::words(&s).unwrap();
     let header = (textures::MATERIALS + 1 + s.objects.len()) as u32;
-    termtrace::cpu::texture::sample(&words, header, glam::Vec2::new(u, 0.5), false).x
+    termtrace::cpu::texture::sample(
+        &words,
+        header,
+        glam::Vec2::new(u, 0.5),
+        termtrace::cpu::texture::Decode::Unorm,
+    )
+    .x
 }
 
 #[test]

@@ -53,9 +53,8 @@ fn scatter_dielectric(m: Material, d: vec3f, n_out: vec3f, state: ptr<function, 
 
 // Lambertian, smoothness blend, fuzz and the specular-probability lobe of the lecture; the
 // lobe is chosen by the caller (`is_spec`: rand() < specular) so that light sampling can
-// happen between the choice and the bounce.
-fn scatter_surface(m: Material, d: vec3f, n_out: vec3f, is_spec: bool, state: ptr<function, Rng>) -> Scatter {
-    let n = select(-n_out, n_out, dot(d, n_out) < 0.0);
+// happen between the choice and the bounce. `n`: the (shading) normal on the side d comes from.
+fn scatter_surface(m: Material, d: vec3f, n: vec3f, is_spec: bool, state: ptr<function, Rng>) -> Scatter {
     let diffuse = normalize_or(n + random_unit_vector(state), n);
     var dir = diffuse;
     var tint = m.color;

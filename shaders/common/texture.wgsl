@@ -3,19 +3,31 @@
 // #include "common/intersect.wgsl"
 // Textures (src/common/textures.rs lays out the words, src/cpu/texture.rs reads them the same
 // way): glTF's base colour, metallic-roughness and emissive maps, sampled bilinearly with
-// their wrap modes, mapped onto the model's material at each hit; and alpha cut-outs. Every
-// function here is called only under HAS_TEXTURES or HAS_CUTOUTS.
+// their wrap modes, mapped onto the model's material at each hit; tangent-space normal maps;
+// and alpha cut-outs. Every function here is called only under HAS_TEXTURES or HAS_CUTOUTS.
 
 // The texture words (one word when the scene has none); the trace pass binds them.
 @group(0) @binding(14) var<storage, read> tex: array<u32>;
 
 const TEX_SRGB_LUT: u32 = 0u;
 const TEX_UV_BASE: u32 = 256u;
-const TEX_MATERIALS: u32 = 257u;
+const TEX_FRAMES: u32 = 257u;
+const TEX_FRAME_WORDS: u32 = 21u;
+const TEX_MATERIALS: u32 = 258u;
 const TEX_NONE: u32 = 0xffffffffu;
 const TEX_FLAG_BASE: u32 = 1u;
 const TEX_FLAG_MR: u32 = 2u;
 const TEX_FLAG_EMISSIVE: u32 = 4u;
+const TEX_FLAG_NORMAL: u32 = 8u;
+// Record word of the normal map's texture header (its scale follows).
+const TEX_NORMAL_MAP: u32 = 14u;
+// How a texel's 8-bit values are read: as [0, 1], sRGB-decoded colour, or signed with 128 as
+// zero (max((b − 128) / 127, −1), as GPUs read signed-normalised bytes), for normal maps.
+const TEX_UNORM: u32 = 0u;
+const TEX_SRGB: u32 = 1u;
+const TEX_SNORM: u32 = 2u;
+// The least tangent-space z a normal map's normal keeps (about 89.4° from the surface's).
+const TEX_NORMAL_MIN_Z: f32 = 0.01;
 const TEX_ALPHA_SHIFT: u32 = 8u;
 // Record word where the maps' texture transforms start (six words each: two rows of a 2×3).
 const TEX_TRANSFORMS: u32 = 16u;
@@ -49,22 +61,25 @@ fn tex_wrap(i: i32, n: i32, mode: u32) -> i32 {
     return k;
 }
 
-// One texel of the texture whose header is at `h`, as [0, 1] values, its colour sRGB-decoded
-// when `srgb` (alpha is always linear).
-fn tex_texel(h: u32, x: i32, y: i32, srgb: bool) -> vec4f {
+// One texel of the texture whose header is at `h`, read by `mode` (TEX_UNORM, TEX_SRGB: the
+// colour decoded, alpha linear; TEX_SNORM).
+fn tex_texel(h: u32, x: i32, y: i32, mode: u32) -> vec4f {
     let w = i32(tex[h]);
     let xi = tex_wrap(x, w, tex[h + 2u]);
     let yi = tex_wrap(y, i32(tex[h + 1u]), tex[h + 3u]);
     let word = tex[tex[h + 4u] + u32(yi * w + xi)];
     let b = vec4u(word & 0xffu, (word >> 8u) & 0xffu, (word >> 16u) & 0xffu, word >> 24u);
-    if srgb {
+    if mode == TEX_SRGB {
         return vec4f(tex_f32(TEX_SRGB_LUT + b.x), tex_f32(TEX_SRGB_LUT + b.y), tex_f32(TEX_SRGB_LUT + b.z), f32(b.w) / 255.0);
+    }
+    if mode == TEX_SNORM {
+        return max(vec4f(vec4i(b) - vec4i(128)) / 127.0, vec4f(-1.0));
     }
     return vec4f(b) / 255.0;
 }
 
 // Bilinear filtering with texel centres at half-integers (glTF's LINEAR), in linear values.
-fn tex_sample(h: u32, uv_in: vec2f, srgb: bool) -> vec4f {
+fn tex_sample(h: u32, uv_in: vec2f, mode: u32) -> vec4f {
     let uv = clamp(uv_in, vec2f(-TEX_UV_LIMIT), vec2f(TEX_UV_LIMIT));
     let x = uv.x * f32(tex[h]) - 0.5;
     let y = uv.y * f32(tex[h + 1u]) - 0.5;
@@ -74,10 +89,10 @@ fn tex_sample(h: u32, uv_in: vec2f, srgb: bool) -> vec4f {
     let fy = y - y0;
     let ix = i32(x0);
     let iy = i32(y0);
-    let t00 = tex_texel(h, ix, iy, srgb);
-    let t10 = tex_texel(h, ix + 1, iy, srgb);
-    let t01 = tex_texel(h, ix, iy + 1, srgb);
-    let t11 = tex_texel(h, ix + 1, iy + 1, srgb);
+    let t00 = tex_texel(h, ix, iy, mode);
+    let t10 = tex_texel(h, ix + 1, iy, mode);
+    let t01 = tex_texel(h, ix, iy + 1, mode);
+    let t11 = tex_texel(h, ix + 1, iy + 1, mode);
     let top = t00 + (t10 - t00) * fx;
     let bottom = t01 + (t11 - t01) * fx;
     return top + (bottom - top) * fy;
@@ -125,18 +140,18 @@ fn tex_material(m: Material, rec: u32, uv: vec2f) -> Material {
     let flags = tex[rec];
     var base = vec4f(tex_f32(rec + 4u), tex_f32(rec + 5u), tex_f32(rec + 6u), tex_f32(rec + 7u));
     if (flags & TEX_FLAG_BASE) != 0u {
-        base *= tex_sample(tex[rec + 1u], tex_xform(rec, 0u, uv), true);
+        base *= tex_sample(tex[rec + 1u], tex_xform(rec, 0u, uv), TEX_SRGB);
     }
     var metallic = tex_f32(rec + 8u);
     var roughness = tex_f32(rec + 9u);
     if (flags & TEX_FLAG_MR) != 0u {
-        let mr = tex_sample(tex[rec + 2u], tex_xform(rec, 1u, uv), false);
+        let mr = tex_sample(tex[rec + 2u], tex_xform(rec, 1u, uv), TEX_UNORM);
         roughness *= mr.y;
         metallic *= mr.z;
     }
     var e = vec3f(tex_f32(rec + 10u), tex_f32(rec + 11u), tex_f32(rec + 12u));
     if (flags & TEX_FLAG_EMISSIVE) != 0u {
-        e *= tex_sample(tex[rec + 3u], tex_xform(rec, 2u, uv), true).xyz;
+        e *= tex_sample(tex[rec + 3u], tex_xform(rec, 2u, uv), TEX_SRGB).xyz;
     }
     var out = m;
     let light = max(max(e.x, e.y), e.z);
@@ -171,7 +186,7 @@ fn tex_cut_out(tri: Triangle, index: u32, ray: Ray, t: f32) -> bool {
     var alpha = tex_f32(rec + 7u);
     if (flags & TEX_FLAG_BASE) != 0u {
         let uv = tex_xform(rec, 0u, tex_uv(tri, index, ray.origin + t * ray.dir));
-        alpha *= tex_sample(tex[rec + 1u], uv, false).w;
+        alpha *= tex_sample(tex[rec + 1u], uv, TEX_UNORM).w;
     }
     if mode == 1u {
         return alpha < tex_f32(rec + 13u);
@@ -180,4 +195,42 @@ fn tex_cut_out(tri: Triangle, index: u32, ray: Ray, t: f32) -> bool {
     let d = bitcast<vec3u>(ray.dir);
     let u = unit_float(hash3(vec3u(o.x ^ d.x, o.y ^ d.y, (o.z ^ d.z) + index)));
     return u >= alpha;
+}
+
+fn tex_vec3(at: u32) -> vec3f {
+    return vec3f(tex_f32(at), tex_f32(at + 1u), tex_f32(at + 2u));
+}
+
+// Whether the material of record `rec` has a normal map.
+fn tex_has_normal_map(rec: u32) -> bool {
+    return rec != TEX_NONE && (tex[rec] & TEX_FLAG_NORMAL) != 0u;
+}
+
+// The shading normal at p on triangle `index`, whose material's record `rec` has a normal map
+// (docs/MODEL-NOTES.md, "Normal maps"): the corners' normals and tangents interpolated by p's
+// barycentrics (the geometric normal `n_geo` where the file gives no normals; any tangent
+// where it is degenerate), the tangent frame made orthonormal (Gram-Schmidt), and the map's
+// tangent-space normal (x, y scaled by the map's scale, z at least TEX_NORMAL_MIN_Z) taken
+// into it: N + (x·T + y·B) / z, normalised, B = N × T · w. A texel of (128, 128) leaves N as
+// it is. The caller turns the result to the side it needs.
+fn tex_shading_normal(rec: u32, tri: Triangle, index: u32, p_world: vec3f, uv: vec2f, n_geo: vec3f) -> vec3f {
+    let b = triangle_barycentrics(tri, p_world - tri.v0);
+    let at = tex[TEX_FRAMES] + TEX_FRAME_WORDS * index;
+    let n0 = tex_vec3(at);
+    let n = normalize_or(n0 + b.x * (tex_vec3(at + 3u) - n0) + b.y * (tex_vec3(at + 6u) - n0), n_geo);
+    let t0 = tex_vec3(at + 9u);
+    var t = t0 + b.x * (tex_vec3(at + 13u) - t0) + b.y * (tex_vec3(at + 17u) - t0);
+    t -= n * dot(n, t);
+    // A perpendicular of n when the tangent is missing or parallel to it.
+    let other = select(vec3f(1.0, 0.0, 0.0), vec3f(0.0, 1.0, 0.0), abs(n.x) > 0.9);
+    t = normalize_or(t, normalize(cross(other, n)));
+    let w = select(1.0, -1.0, tex_f32(at + 12u) < 0.0);
+    let bt = cross(n, t) * w;
+    let s = tex_sample(tex[rec + TEX_NORMAL_MAP], tex_xform(rec, 3u, uv), TEX_SNORM);
+    let scale = tex_f32(rec + TEX_NORMAL_MAP + 1u);
+    let d = (s.x * scale * t + s.y * scale * bt) / max(s.z, TEX_NORMAL_MIN_Z);
+    if all(d == vec3f(0.0)) {
+        return n;
+    }
+    return normalize_or(n + d, n);
 }

@@ -352,6 +352,7 @@ fn with_mean_textures(scene: &crate::scene::Scene) -> crate::scene::Scene {
                     // surface emits (an emitter ends a path), and its mean would make the whole
                     // surface a lamp, another scene.
                     emissive: t.0.emissive.clone(),
+                    normal: mean(&t.0.normal),
                     ..*t.0
                 }));
                 done.push((key, n.clone()));

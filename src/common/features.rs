@@ -25,6 +25,8 @@ pub struct Features {
     pub textures: bool,
     /// Alpha cut-outs (glTF's MASK and BLEND).
     pub cutouts: bool,
+    /// Tangent-space normal maps (shading normals).
+    pub normal_maps: bool,
     /// Counts path segments (benchmarks only); not a scene feature.
     pub count_segments: bool,
     /// Walk the BVH (true) or test every primitive (false: for tests and scaling benchmarks).
@@ -46,6 +48,7 @@ impl Features {
             sun: true,
             textures: true,
             cutouts: true,
+            normal_maps: true,
             count_segments: false,
             bvh: true,
         }
@@ -65,6 +68,7 @@ impl Features {
             sun: false,
             textures: false,
             cutouts: false,
+            normal_maps: false,
             count_segments: false,
             bvh: false,
         }
@@ -87,10 +91,11 @@ impl Features {
                 "sun" => &mut f.sun,
                 "textures" => &mut f.textures,
                 "cutouts" => &mut f.cutouts,
+                "normal_maps" => &mut f.normal_maps,
                 _ => {
                     return Err(format!(
                         "unknown feature `{name}` (expected spheres, quads, boxes, triangles, \
-                         dielectrics, emitters, nee, dof, sun, textures or cutouts)"
+                         dielectrics, emitters, nee, dof, sun, textures, cutouts or normal_maps)"
                     ));
                 }
             };
@@ -122,6 +127,7 @@ impl Features {
             {
                 f.textures = true;
                 f.cutouts |= t.0.cuts_out();
+                f.normal_maps |= t.0.normal.is_some();
             }
             f.nee |= o.material.is_emitter()
                 && matches!(o.shape, Shape::Sphere { .. } | Shape::Quad { .. });
@@ -143,6 +149,7 @@ impl Features {
             sun: self.sun | other.sun,
             textures: self.textures | other.textures,
             cutouts: self.cutouts | other.cutouts,
+            normal_maps: self.normal_maps | other.normal_maps,
             count_segments: self.count_segments | other.count_segments,
             bvh: self.bvh | other.bvh,
         }
@@ -168,6 +175,7 @@ impl Features {
             ("HAS_SUN", b(self.sun)),
             ("HAS_TEXTURES", b(self.textures)),
             ("HAS_CUTOUTS", b(self.cutouts)),
+            ("HAS_NORMAL_MAPS", b(self.normal_maps)),
             ("COUNT_SEGMENTS", b(self.count_segments)),
             ("USE_BVH", b(self.bvh)),
         ]
@@ -187,6 +195,7 @@ impl Features {
             (self.sun, "sun"),
             (self.textures, "textures"),
             (self.cutouts, "cutouts"),
+            (self.normal_maps, "normal_maps"),
         ];
         let on: Vec<&str> = names.iter().filter(|(b, _)| *b).map(|(_, n)| *n).collect();
         if on.is_empty() {

@@ -1,12 +1,14 @@
 //! The texture words both tracers read (`shaders/common/texture.wgsl`, `cpu::texture`): one
-//! array of u32 holding the sRGB decoding table, each triangle's texture coordinates, a
-//! record per textured material (its maps and glTF factors) and the texels, RGBA8. One
+//! array of u32 holding the sRGB decoding table, each triangle's texture coordinates (and,
+//! where a normal map needs them, its shading frames), a record per textured material (its
+//! maps and glTF factors) and the texels, RGBA8. One
 //! storage buffer, so that every adapter binds it (lavapipe and llvmpipe included); a scene
 //! without textures uploads one word and compiles none of the code that reads them.
 
 use crate::scene::gltf::DIELECTRIC_F0;
 use crate::scene::texture::{AlphaMode, Texture, Textured};
-use crate::scene::{Material, Scene, Shape};
+use crate::scene::{Material, Scene, Shape, euler_xyz};
+use glam::DVec3;
 use std::sync::Arc;
 
 /// Word 0…255: an 8-bit sRGB value's linear value, as f32 bits (IEC 61966-2-1).
@@ -14,20 +16,29 @@ pub const SRGB_LUT: usize = 0;
 /// The word holding where the triangles' texture coordinates start: six f32 per triangle
 /// (u, v at each corner), in `Primitives::triangles` order.
 pub const UV_BASE: usize = 256;
+/// The word holding where the triangles' shading frames start (0: the scene has no normal
+/// map): [`FRAME_WORDS`] f32 per triangle, the corners' normals (3 × 3) then tangents
+/// (3 × 4, `w` the bitangent's sign), zero where unknown.
+pub const FRAMES: usize = 257;
+pub const FRAME_WORDS: usize = 21;
 /// The word holding the number of materials; the next words hold each material's record
 /// offset, or [`NONE`].
-pub const MATERIALS: usize = 257;
+pub const MATERIALS: usize = 258;
 pub const NONE: u32 = u32::MAX;
 
-/// Record words: flags, the three maps' texture headers, base factor (4), metallic,
-/// roughness, emissive factor (3), alpha cutoff, two words of padding, then each map's
-/// texture transform (six words from [`TRANSFORMS`]).
-pub const RECORD_WORDS: usize = 34;
+/// Record words: flags, the base colour, metallic-roughness and emissive maps' texture
+/// headers, base factor (4), metallic, roughness, emissive factor (3), alpha cutoff, the
+/// normal map's header ([`NORMAL_MAP`]) and scale, then each of the four maps' texture
+/// transform (six words from [`TRANSFORMS`]).
+pub const RECORD_WORDS: usize = 40;
+/// The record word holding the normal map's texture header (its scale follows).
+pub const NORMAL_MAP: usize = 14;
 /// The record word where the maps' texture transforms start.
 pub const TRANSFORMS: usize = 16;
 pub const FLAG_BASE: u32 = 1;
 pub const FLAG_MR: u32 = 2;
 pub const FLAG_EMISSIVE: u32 = 4;
+pub const FLAG_NORMAL: u32 = 8;
 /// Bits 8–9 of the flags: 0 opaque, 1 mask (cut-out at the cutoff), 2 blend (a stochastic
 /// cut-out).
 pub const ALPHA_SHIFT: u32 = 8;
@@ -76,7 +87,7 @@ impl<'a> Layout<'a> {
                 continue;
             }
             records.push((t, &o.material));
-            for tex in [&t.base_color, &t.metallic_roughness, &t.emissive]
+            for tex in [&t.base_color, &t.metallic_roughness, &t.emissive, &t.normal]
                 .into_iter()
                 .flatten()
             {
@@ -115,6 +126,7 @@ impl<'a> Layout<'a> {
     fn records(&self) -> Vec<u32> {
         let mut w = Vec::with_capacity(RECORD_WORDS * self.records.len());
         for (t, m) in &self.records {
+            debug_assert_eq!(w.len() % RECORD_WORDS, 0);
             let mut flags = match t.alpha {
                 AlphaMode::Opaque => 0,
                 AlphaMode::Mask(_) => ALPHA_MASK << ALPHA_SHIFT,
@@ -148,6 +160,7 @@ impl<'a> Layout<'a> {
                     t.emissive_factor,
                 )
             };
+            let start = w.len();
             w.push(flags);
             w.extend(maps);
             w.extend(base.map(f32::to_bits));
@@ -158,7 +171,15 @@ impl<'a> Layout<'a> {
                 AlphaMode::Mask(c) => c,
                 _ => 0.0,
             };
-            w.extend([cutoff.to_bits(), 0, 0]);
+            let normal_map = match &t.normal {
+                Some(tex) => {
+                    flags |= FLAG_NORMAL;
+                    self.header(tex)
+                }
+                None => NONE,
+            };
+            w[start] = flags;
+            w.extend([cutoff.to_bits(), normal_map, t.normal_scale.to_bits()]);
             for t in &t.transforms {
                 w.extend(t.map(f32::to_bits));
             }
@@ -181,6 +202,7 @@ pub fn words(scene: &Scene) -> Option<Vec<u32>> {
     let l = Layout::of(scene)?;
     let mut w: Vec<u32> = (0..=255u8).map(|v| srgb_decode(v).to_bits()).collect();
     w.push(0); // UV_BASE, set below
+    w.push(0); // FRAMES, set below where needed
     w.push(scene.objects.len() as u32);
     for o in &scene.objects {
         w.push(match textured(&o.material) {
@@ -220,7 +242,60 @@ pub fn words(scene: &Scene) -> Option<Vec<u32>> {
             }
         }
     }
+    if l.records.iter().any(|(t, _)| t.normal.is_some()) {
+        w[FRAMES] = w.len() as u32;
+        for o in &scene.objects {
+            frames(&o.shape, &mut w);
+        }
+    }
     Some(w)
+}
+
+/// A mesh's shading frames, its own transform applied (normals by the inverse transpose,
+/// tangents by the matrix, the bitangent's sign turned over by a mirroring scale), appended
+/// to `w`: [`FRAME_WORDS`] per triangle, zero where the mesh has none.
+fn frames(shape: &Shape, w: &mut Vec<u32>) {
+    let Shape::Mesh {
+        mesh,
+        rotation,
+        scale,
+        ..
+    } = shape
+    else {
+        return;
+    };
+    let r = euler_xyz(*rotation);
+    let flip = if scale.x * scale.y * scale.z < 0.0 {
+        -1.0
+    } else {
+        1.0
+    };
+    let unit = |v: DVec3| v.normalize_or_zero().as_vec3().to_array();
+    let identity = *rotation == DVec3::ZERO && *scale == DVec3::ONE;
+    for k in 0..mesh.triangles.len() {
+        let (n, t) = match (mesh.normals.get(k), mesh.tangents.get(k)) {
+            (Some(n), Some(t)) => (*n, *t),
+            _ => ([[0.0; 3]; 3], [[0.0; 4]; 3]),
+        };
+        for c in n {
+            let c = if identity {
+                c
+            } else {
+                unit(r * (DVec3::from(c.map(f64::from)) / *scale))
+            };
+            w.extend(c.map(f32::to_bits));
+        }
+        for c in t {
+            let c = if identity || c == [0.0; 4] {
+                c
+            } else {
+                let [x, y, z] =
+                    unit(r * (DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64) * *scale));
+                [x, y, z, c[3] * flip]
+            };
+            w.extend(c.map(f32::to_bits));
+        }
+    }
 }
 
 /// Per object, the address of its textured material as the words use it (0: none): while

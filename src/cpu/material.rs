@@ -61,16 +61,10 @@ pub fn scatter_dielectric(m: &Material, d: Vec3A, n_out: Vec3A, rng: &mut Rng) -
 }
 
 /// Lambertian, smoothness blend, fuzz and the specular-probability lobe of the lecture; the
-/// caller picks the lobe (`is_spec`) so that light sampling can come between.
+/// caller picks the lobe (`is_spec`) so that light sampling can come between. `n`: the
+/// (shading) normal on the side `d` comes from.
 #[inline(always)]
-pub fn scatter_surface(
-    m: &Material,
-    d: Vec3A,
-    n_out: Vec3A,
-    is_spec: bool,
-    rng: &mut Rng,
-) -> Scatter {
-    let n = if d.dot(n_out) < 0.0 { n_out } else { -n_out };
+pub fn scatter_surface(m: &Material, d: Vec3A, n: Vec3A, is_spec: bool, rng: &mut Rng) -> Scatter {
     let diffuse = normalize_or(n + random_unit_vector(rng), n);
     let mut dir = diffuse;
     let mut tint = m.color;

@@ -108,6 +108,8 @@ pub struct CpuScene {
     /// any material cuts out.
     pub tex: Vec<u32>,
     pub cutouts: bool,
+    /// Some material has a normal map (the shading-normal code runs).
+    pub normal_maps: bool,
     tex_key: Vec<usize>,
     /// Nodes of the BVH, and the seconds its build took.
     pub node_count: usize,
@@ -139,6 +141,7 @@ impl CpuScene {
             lights: Vec::new(),
             tex: Vec::new(),
             cutouts: false,
+            normal_maps: false,
             tex_key: Vec::new(),
             bvh,
             #[cfg(target_arch = "x86_64")]
@@ -158,7 +161,9 @@ impl CpuScene {
     fn take_textures(&mut self, scene: &Scene) {
         self.tex = crate::common::textures::words(scene).unwrap_or_default();
         self.tex_key = crate::common::textures::material_key(scene);
-        self.cutouts = crate::common::Features::of(scene).cutouts;
+        let f = crate::common::Features::of(scene);
+        self.cutouts = f.cutouts;
+        self.normal_maps = f.normal_maps;
     }
 
     /// Brings the scene up to date; the BVH is kept when the geometry is unchanged (as the

@@ -1,17 +1,32 @@
 //! Textures on the CPU: shaders/common/texture.wgsl in Rust, term for term, reading the same
 //! words (`common::textures`): bilinear sampling with wrap modes, the glTF material mapped
-//! onto the model's at a hit, and alpha cut-outs.
+//! onto the model's at a hit, tangent-space normal maps, and alpha cut-outs.
 
 use super::intersect::{Ray, Triangle, triangle_barycentrics};
+use super::sampling::normalize_or;
 use super::scene::Material;
 use crate::common::textures::{
-    ALPHA_SHIFT, FLAG_BASE, FLAG_EMISSIVE, FLAG_MR, MATERIALS, NONE, SRGB_LUT, TRANSFORMS, UV_BASE,
+    ALPHA_SHIFT, FLAG_BASE, FLAG_EMISSIVE, FLAG_MR, FLAG_NORMAL, FRAME_WORDS, FRAMES, MATERIALS,
+    NONE, NORMAL_MAP, SRGB_LUT, TRANSFORMS, UV_BASE,
 };
 use crate::scene::gltf::DIELECTRIC_F0;
 use glam::{Vec2, Vec3A, Vec4};
 
 /// Coordinates are clamped to this before texel arithmetic (texture.wgsl: TEX_UV_LIMIT).
 const UV_LIMIT: f32 = 1048576.0;
+/// The least tangent-space z a normal map's normal keeps (texture.wgsl: TEX_NORMAL_MIN_Z).
+const NORMAL_MIN_Z: f32 = 0.01;
+
+/// How a texel's bytes are read (texture.wgsl: TEX_UNORM, TEX_SRGB, TEX_SNORM).
+#[derive(Clone, Copy, PartialEq, Eq)]
+pub enum Decode {
+    /// b / 255.
+    Unorm,
+    /// The colour sRGB-decoded, alpha b / 255.
+    Srgb,
+    /// max((b − 128) / 127, −1): 128 is exactly zero (normal maps).
+    Snorm,
+}
 
 #[inline(always)]
 fn f(tex: &[u32], i: u32) -> f32 {
@@ -43,25 +58,31 @@ fn wrapped(i: i32, n: i32, mode: u32) -> i32 {
 
 /// One texel's value (texture.wgsl: tex_texel), by its word.
 #[inline(always)]
-fn decode(tex: &[u32], word: u32, srgb: bool) -> Vec4 {
+fn decode(tex: &[u32], word: u32, mode: Decode) -> Vec4 {
     let b = [
         word & 0xff,
         (word >> 8) & 0xff,
         (word >> 16) & 0xff,
         word >> 24,
     ];
-    if srgb {
-        let d = |c: u32| f(tex, SRGB_LUT as u32 + c);
-        Vec4::new(d(b[0]), d(b[1]), d(b[2]), b[3] as f32 / 255.0)
-    } else {
-        Vec4::new(b[0] as f32, b[1] as f32, b[2] as f32, b[3] as f32) / 255.0
+    match mode {
+        Decode::Srgb => {
+            let d = |c: u32| f(tex, SRGB_LUT as u32 + c);
+            Vec4::new(d(b[0]), d(b[1]), d(b[2]), b[3] as f32 / 255.0)
+        }
+        Decode::Snorm => {
+            let s = b.map(|c| c as i32 - 128);
+            (Vec4::new(s[0] as f32, s[1] as f32, s[2] as f32, s[3] as f32) / 127.0)
+                .max(Vec4::splat(-1.0))
+        }
+        Decode::Unorm => Vec4::new(b[0] as f32, b[1] as f32, b[2] as f32, b[3] as f32) / 255.0,
     }
 }
 
 /// Bilinear filtering, texel centres at half-integers (texture.wgsl: tex_sample); the four
 /// texels' indices are wrapped once per axis (the same indices texture.wgsl computes per
 /// texel).
-pub fn sample(tex: &[u32], h: u32, uv: Vec2, srgb: bool) -> Vec4 {
+pub fn sample(tex: &[u32], h: u32, uv: Vec2, mode: Decode) -> Vec4 {
     let h = h as usize;
     let (w, ht) = (tex[h] as i32, tex[h + 1] as i32);
     let uv = uv.clamp(Vec2::splat(-UV_LIMIT), Vec2::splat(UV_LIMIT));
@@ -74,7 +95,7 @@ pub fn sample(tex: &[u32], h: u32, uv: Vec2, srgb: bool) -> Vec4 {
     let (xa, xb) = (wrapped(ix, w, mu), wrapped(ix + 1, w, mu));
     let (ya, yb) = (wrapped(iy, ht, mv), wrapped(iy + 1, ht, mv));
     let base = tex[h + 4] as usize;
-    let at = |x: i32, y: i32| decode(tex, tex[base + (y * w + x) as usize], srgb);
+    let at = |x: i32, y: i32| decode(tex, tex[base + (y * w + x) as usize], mode);
     let (t00, t10, t01, t11) = (at(xa, ya), at(xb, ya), at(xa, yb), at(xb, yb));
     let top = t00 + (t10 - t00) * fx;
     let bottom = t01 + (t11 - t01) * fx;
@@ -120,19 +141,35 @@ pub fn material(tex: &[u32], m: &Material, rec: u32, uv: Vec2) -> Material {
         f(tex, rec + 7),
     );
     if flags & FLAG_BASE != 0 {
-        base *= sample(tex, tex[rec as usize + 1], xform(tex, rec, 0, uv), true);
+        base *= sample(
+            tex,
+            tex[rec as usize + 1],
+            xform(tex, rec, 0, uv),
+            Decode::Srgb,
+        );
     }
     let mut metallic = f(tex, rec + 8);
     let mut roughness = f(tex, rec + 9);
     if flags & FLAG_MR != 0 {
-        let mr = sample(tex, tex[rec as usize + 2], xform(tex, rec, 1, uv), false);
+        let mr = sample(
+            tex,
+            tex[rec as usize + 2],
+            xform(tex, rec, 1, uv),
+            Decode::Unorm,
+        );
         roughness *= mr.y;
         metallic *= mr.z;
     }
     let mut e = Vec3A::new(f(tex, rec + 10), f(tex, rec + 11), f(tex, rec + 12));
     if flags & FLAG_EMISSIVE != 0 {
         e *= Vec3A::from(
-            sample(tex, tex[rec as usize + 3], xform(tex, rec, 2, uv), true).truncate(),
+            sample(
+                tex,
+                tex[rec as usize + 3],
+                xform(tex, rec, 2, uv),
+                Decode::Srgb,
+            )
+            .truncate(),
         );
     }
     let mut out = *m;
@@ -168,7 +205,7 @@ pub fn cut_out(tex: &[u32], tri: &Triangle, index: u32, ray: &Ray, t: f32) -> bo
     let mut alpha = f(tex, rec + 7);
     if flags & FLAG_BASE != 0 {
         let uv = xform(tex, rec, 0, uv(tex, tri, index, ray.origin + t * ray.dir));
-        alpha *= sample(tex, tex[rec as usize + 1], uv, false).w;
+        alpha *= sample(tex, tex[rec as usize + 1], uv, Decode::Unorm).w;
     }
     if mode == 1 {
         return alpha < f(tex, rec + 13);
@@ -181,4 +218,43 @@ pub fn cut_out(tex: &[u32], tri: &Triangle, index: u32, ray: &Ray, t: f32) -> bo
         bits(o[2], d[2]).wrapping_add(index),
     ]);
     super::rng::unit(h) >= alpha
+}
+
+/// Whether the material of record `rec` has a normal map.
+#[inline(always)]
+pub fn has_normal_map(tex: &[u32], rec: u32) -> bool {
+    tex[rec as usize] & FLAG_NORMAL != 0
+}
+
+/// The shading normal at `p` on triangle `index` (texture.wgsl: tex_shading_normal, term for
+/// term): the interpolated frame, made orthonormal, and the map's normal taken into it.
+pub fn shading_normal(
+    tex: &[u32],
+    rec: u32,
+    tri: &Triangle,
+    index: u32,
+    p_world: Vec3A,
+    uv: Vec2,
+    n_geo: Vec3A,
+) -> Vec3A {
+    let (b1, b2) = triangle_barycentrics(tri, p_world - tri.v0);
+    let at = tex[FRAMES] + FRAME_WORDS as u32 * index;
+    let v3 = |k: u32| Vec3A::new(f(tex, at + k), f(tex, at + k + 1), f(tex, at + k + 2));
+    let n0 = v3(0);
+    let n = normalize_or(n0 + b1 * (v3(3) - n0) + b2 * (v3(6) - n0), n_geo);
+    let t0 = v3(9);
+    let mut t = t0 + b1 * (v3(13) - t0) + b2 * (v3(17) - t0);
+    t -= n * n.dot(t);
+    let other = if n.x.abs() > 0.9 { Vec3A::Y } else { Vec3A::X };
+    t = normalize_or(t, other.cross(n).normalize());
+    let w = if f(tex, at + 12) < 0.0 { -1.0 } else { 1.0 };
+    let bt = n.cross(t) * w;
+    let r = rec + NORMAL_MAP as u32;
+    let s = sample(tex, tex[r as usize], xform(tex, rec, 3, uv), Decode::Snorm);
+    let scale = f(tex, r + 1);
+    let d = (s.x * scale * t + s.y * scale * bt) / s.z.max(NORMAL_MIN_Z);
+    if d == Vec3A::ZERO {
+        return n;
+    }
+    normalize_or(n + d, n)
 }

@@ -379,13 +379,15 @@ impl<'a> Tracer<'a> {
         self.light_weight(&lights[i], p, n) / total
     }
 
-    /// The light-sampled estimate at p (facing normal n) for the Lambertian lobe, its 1/π
-    /// included and its tint not, MIS-weighted.
+    /// The light-sampled estimate at p (facing shading normal n) for the Lambertian lobe, its
+    /// 1/π included and its tint not, MIS-weighted. `n_geo`: the facing geometric normal; the
+    /// shadow ray leaves on its side, never into it.
     /// `from`: the primitive p lies on, where the shadow ray cannot meet it (`leaving`).
     fn sample_light<const P: u32>(
         &mut self,
         p: Vec3A,
         n: Vec3A,
+        n_geo: Vec3A,
         from: u32,
         rng: &mut Rng,
     ) -> Vec3A {
@@ -434,11 +436,11 @@ impl<'a> Tracer<'a> {
             material = q.material;
         }
         let cos_s = n.dot(dir);
-        if cos_s <= 0.0 {
+        if cos_s <= 0.0 || (self.s.normal_maps && n_geo.dot(dir) <= 0.0) {
             return Vec3A::ZERO;
         }
         let shadow = Ray {
-            origin: offset_ray(p, n),
+            origin: offset_ray(p, n_geo),
             dir,
         };
         let t_light = hit_primitive::<ANY>(self.s, light.prim, &shadow, T_FAR);
@@ -494,6 +496,7 @@ impl<'a> Tracer<'a> {
             let (point, material) = self.surface_at(hit, &ray);
             let mut m = &self.s.materials[material as usize];
             let textured;
+            let mut mapped = None;
             if !self.s.tex.is_empty()
                 && hit.r >> 30 == 3
                 && let Some(rec) = super::texture::record(&self.s.tex, material)
@@ -507,6 +510,7 @@ impl<'a> Tracer<'a> {
                 );
                 textured = super::texture::material(&self.s.tex, m, rec, uv);
                 m = &textured;
+                mapped = Some((rec, uv));
             }
             if self.f.emitters && m.light > 0.0 {
                 let mut w = 1.0;
@@ -523,7 +527,7 @@ impl<'a> Tracer<'a> {
                 break;
             }
             let n_out = point.normal;
-            let sc: Scatter;
+            let mut sc: Scatter;
             prev_pdf = 0.0;
             if self.f.dielectrics && m.smoothness < 0.0 {
                 sc = scatter_dielectric(m, ray.dir, n_out, rng);
@@ -532,18 +536,45 @@ impl<'a> Tracer<'a> {
                 let is_spec = m.specular >= 1.0 || (m.specular > 0.0 && rng.rand() < m.specular);
                 let front = ray.dir.dot(n_out) < 0.0;
                 let n = if front { n_out } else { -n_out };
+                // The shading normal, on the side of n (trace.wgsl: path_step).
+                let mut ns = n;
+                if self.s.normal_maps
+                    && let Some((rec, uv)) = mapped
+                    && super::texture::has_normal_map(&self.s.tex, rec)
+                {
+                    let i = hit.r & INDEX;
+                    let tri = &self.s.triangles[i as usize];
+                    ns = super::texture::shading_normal(
+                        &self.s.tex,
+                        rec,
+                        tri,
+                        i,
+                        point.position,
+                        uv,
+                        n_out,
+                    );
+                    if ns.dot(n) < 0.0 {
+                        ns = -ns;
+                    }
+                }
                 let cosine_lobe = !is_spec || m.smoothness == 0.0;
                 if nee && cosine_lobe {
                     let tint = if is_spec { m.specular_color } else { m.color };
                     // The shadow ray leaves on the side of n.
                     let from = self.leaving(hit.r, front);
-                    radiance +=
-                        throughput * tint * self.sample_light::<P>(point.position, n, from, rng);
+                    radiance += throughput
+                        * tint
+                        * self.sample_light::<P>(point.position, ns, n, from, rng);
                 }
-                sc = scatter_surface(m, ray.dir, n_out, is_spec, rng);
+                sc = scatter_surface(m, ray.dir, ns, is_spec, rng);
+                // A direction the shading normal allows but that enters the surface ends the
+                // path.
+                if self.s.normal_maps && sc.dir.dot(n) <= 0.0 {
+                    sc.absorbed = true;
+                }
                 if cosine_lobe {
-                    prev_pdf = sc.dir.dot(n).max(0.0) / PI;
-                    prev_normal = n;
+                    prev_pdf = sc.dir.dot(ns).max(0.0) / PI;
+                    prev_normal = ns;
                 }
             }
             if sc.absorbed {

@@ -75,6 +75,9 @@ pub struct PreviewReport {
     pub images: (f64, f64, f64),
     /// The status line's link field at the end (`link 2.0 Mbit/s 80 ms`).
     pub link_status: Option<String>,
+    /// Seconds from starting the program to its first frame on the far screen (the scene
+    /// loaded, its BVH built, the pipeline made and a first sample traced and drawn).
+    pub first_frame: f64,
 }
 
 impl PreviewReport {
@@ -130,6 +133,8 @@ struct Shared {
     /// The far terminal's screen.
     parser: Mutex<Option<vt100::Parser>>,
     cond: Condvar,
+    /// When the program was started.
+    started: Instant,
 }
 
 /// Reads the status lines off the emulated screen: its last two rows (the whole screen would
@@ -283,6 +288,7 @@ impl PreviewBench {
             seen: Mutex::new(Seen::default()),
             parser: Mutex::new(None),
             cond: Condvar::new(),
+            started: Instant::now(),
         });
         let link = self.link.unwrap_or(Link {
             bits_per_second: f64::INFINITY,
@@ -468,7 +474,7 @@ impl PreviewBench {
         let shared = probe.shared;
         let type_key = |k: &[u8]| probe.type_key(k);
         let startup = Duration::from_secs(120);
-        if wait_for(shared, startup, |s| s.spp.is_some_and(|n| n >= 1)).is_none() {
+        let Some((first, _)) = wait_for(shared, startup, |s| s.spp.is_some_and(|n| n >= 1)) else {
             let s = shared.seen.lock().expect("screen state").clone();
             bail!(
                 "the preview showed no frame within {} s (exited: {}, last status {:?})",
@@ -476,8 +482,13 @@ impl PreviewBench {
                 s.exited,
                 s
             );
-        }
-        let mut report = PreviewReport::default();
+        };
+        let mut report = PreviewReport {
+            first_frame: first
+                .saturating_duration_since(shared.started)
+                .as_secs_f64(),
+            ..Default::default()
+        };
         for i in 0..self.presses {
             std::thread::sleep(self.settle);
             // A restart must be visible: at least 2 spp before the key.
@@ -703,6 +714,10 @@ pub fn print(b: &PreviewBench, r: &PreviewReport) {
         .map(|v| format!("{:.0}", v * 1e3))
         .collect();
     println!("latencies    {} ms", all.join(" "));
+    println!(
+        "first frame  {:.0} ms from start (scene loaded, BVH built, pipeline made, first sample drawn)",
+        r.first_frame * 1e3
+    );
     let mut bytes = r.edit_bytes.clone();
     bytes.sort_unstable();
     let mut parse = r.edit_parse.clone();

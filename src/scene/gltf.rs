@@ -305,6 +305,16 @@ fn import_mesh(
             .textured
             .as_ref()
             .and_then(|_| prim.get(&gltf::Semantic::TexCoords(0)));
+        // A normal map needs the shading frames: the file's normals and tangents, if any.
+        let normal_mapped = mapped
+            .textured
+            .as_ref()
+            .is_some_and(|t| t.0.normal.is_some());
+        let frame_accessor = |s| normal_mapped.then(|| prim.get(&s)).flatten();
+        let (normal_accessor, tangent_accessor) = (
+            frame_accessor(gltf::Semantic::Normals),
+            frame_accessor(gltf::Semantic::Tangents),
+        );
         {
             use gltf::accessor::{DataType as T, Dimensions as D};
             let checks = std::iter::once((pos, D::Vec3, &[T::F32][..]))
@@ -316,6 +326,12 @@ fn import_mesh(
                     uv_accessor
                         .clone()
                         .map(|a| (a, D::Vec2, &[T::F32, T::U8, T::U16][..])),
+                )
+                .chain(normal_accessor.clone().map(|a| (a, D::Vec3, &[T::F32][..])))
+                .chain(
+                    tangent_accessor
+                        .clone()
+                        .map(|a| (a, D::Vec4, &[T::F32][..])),
                 );
             for (a, dims, types) in checks {
                 // The crate's reader assumes the element type its caller asks for (a debug
@@ -342,7 +358,9 @@ fn import_mesh(
             _ => Vec::new(),
         };
         let uv = |i: u32| uvs.get(i as usize).copied().unwrap_or([0.0; 2]);
-        let points: Vec<DVec3> = positions
+        let local: Vec<[f32; 3]> = positions.collect();
+        let points: Vec<DVec3> = local
+            .iter()
             .map(|p| world.transform_point3(DVec3::from(p.map(f64::from))))
             .collect();
         let indices: Vec<u32> = match reader.read_indices() {
@@ -380,7 +398,10 @@ fn import_mesh(
             triangles: Vec::with_capacity(triangles.len()),
             skipped: 0,
             uvs: Vec::new(),
+            normals: Vec::new(),
+            tangents: Vec::new(),
         };
+        let mut kept: Vec<[u32; 3]> = Vec::new();
         for t in triangles {
             let v = t.map(|i| points.get(i as usize).copied());
             let [Some(a), Some(b), Some(c)] = v else {
@@ -398,6 +419,7 @@ fn import_mesh(
                 }
                 m.triangles
                     .push(if mirrored { [a, c, b] } else { [a, b, c] });
+                kept.push(t);
                 if mapped.textured.is_some() {
                     let [ua, ub, uc] = t.map(uv);
                     m.uvs
@@ -410,6 +432,25 @@ fn import_mesh(
         if m.triangles.is_empty() {
             out.skipped.push(format!("{what}: no triangle with area"));
             continue;
+        }
+        if normal_mapped {
+            let normals: Vec<[f32; 3]> = match (normal_accessor, reader.read_normals()) {
+                (Some(_), Some(n)) => n.collect(),
+                _ => Vec::new(),
+            };
+            let tangents: Vec<[f32; 4]> = match (tangent_accessor, reader.read_tangents()) {
+                (Some(_), Some(t)) => t.collect(),
+                _ => Vec::new(),
+            };
+            let linear = glam::DMat3::from_mat4(world);
+            for (n, t) in
+                super::gltf_frames::frames(&kept, &local, &normals, &tangents, &uvs, linear)
+            {
+                m.normals
+                    .push(if mirrored { [n[0], n[2], n[1]] } else { n });
+                m.tangents
+                    .push(if mirrored { [t[0], t[2], t[1]] } else { t });
+            }
         }
         let key = material_key(&gm);
         let mapped = mapped.clone();

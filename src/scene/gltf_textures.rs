@@ -11,8 +11,8 @@ use std::sync::Arc;
 /// Each glTF texture a material uses, decoded (`None`: unused).
 pub type Textures = Vec<Option<Arc<Texture>>>;
 
-/// Decodes every image that a material's base colour, metallic-roughness or emissive map
-/// uses, each once, in parallel.
+/// Decodes every image that a material's base colour, metallic-roughness, emissive or normal
+/// map uses, each once, in parallel.
 pub fn decode(
     doc: &gltf::Document,
     base: Option<&Path>,
@@ -30,6 +30,9 @@ pub fn decode(
         .flatten()
         {
             used[info.texture().index()] = true;
+        }
+        if let Some(n) = m.normal_texture() {
+            used[n.texture().index()] = true;
         }
     }
     let mut images: Vec<usize> = doc
@@ -177,12 +180,31 @@ pub fn textured(
     let base_color = map(pbr.base_color_texture(), "base colour");
     let metallic_roughness = map(pbr.metallic_roughness_texture(), "metallic-roughness");
     let emissive = map(m.emissive_texture(), "emissive");
-    let transforms = [&base_color, &metallic_roughness, &emissive]
+    let normal_info = m.normal_texture();
+    let normal = normal_info.as_ref().and_then(|n| {
+        // The crate reads KHR_texture_transform on `Info` only; a normal map's is in its JSON.
+        let xf = n
+            .extension_value("KHR_texture_transform")
+            .map(NormalTransform::from_json)
+            .unwrap_or_default();
+        let set = xf.tex_coord.unwrap_or(n.tex_coord());
+        if set != 0 {
+            skipped.push(format!(
+                "the normal map of materials[{}]: TEXCOORD_{set} (only TEXCOORD_0 is read)",
+                m.index().map_or("default".into(), |i| i.to_string()),
+            ));
+            return None;
+        }
+        let tex = textures.get(n.texture().index()).cloned().flatten()?;
+        Some((tex, texture_transform(xf.offset, xf.rotation, xf.scale)))
+    });
+    let transforms = [&base_color, &metallic_roughness, &emissive, &normal]
         .map(|x| x.as_ref().map_or(IDENTITY_TRANSFORM, |(_, t)| *t));
-    let (base_color, metallic_roughness, emissive) = (
+    let (base_color, metallic_roughness, emissive, normal) = (
         base_color.map(|(t, _)| t),
         metallic_roughness.map(|(t, _)| t),
         emissive.map(|(t, _)| t),
+        normal.map(|(t, _)| t),
     );
     let alpha = match m.alpha_mode() {
         gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
@@ -192,6 +214,7 @@ pub fn textured(
     if base_color.is_none()
         && metallic_roughness.is_none()
         && emissive.is_none()
+        && normal.is_none()
         && alpha == AlphaMode::Opaque
     {
         return None;
@@ -201,6 +224,8 @@ pub fn textured(
         base_color,
         metallic_roughness,
         emissive,
+        normal,
+        normal_scale: normal_info.map_or(1.0, |n| n.scale()),
         base_factor: pbr.base_color_factor().map(|x| x.max(0.0)),
         metallic: pbr.metallic_factor().clamp(0.0, 1.0),
         roughness: pbr.roughness_factor().clamp(0.0, 1.0),
@@ -222,4 +247,50 @@ pub fn texture_transform(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> [f
         c * scale[1],
         offset[1],
     ]
+}
+
+/// A normal map's `KHR_texture_transform`, read from its JSON (absent fields at their
+/// defaults; malformed ones too).
+struct NormalTransform {
+    offset: [f32; 2],
+    rotation: f32,
+    scale: [f32; 2],
+    tex_coord: Option<u32>,
+}
+
+impl Default for NormalTransform {
+    fn default() -> Self {
+        NormalTransform {
+            offset: [0.0; 2],
+            rotation: 0.0,
+            scale: [1.0; 2],
+            tex_coord: None,
+        }
+    }
+}
+
+impl NormalTransform {
+    fn from_json(v: &gltf::json::Value) -> NormalTransform {
+        let d = NormalTransform::default();
+        let pair = |key: &str, or: [f32; 2]| {
+            v.get(key)
+                .and_then(|a| Some([a.get(0)?.as_f64()? as f32, a.get(1)?.as_f64()? as f32]))
+                .filter(|p| p.iter().all(|x| x.is_finite()))
+                .unwrap_or(or)
+        };
+        NormalTransform {
+            offset: pair("offset", d.offset),
+            rotation: v
+                .get("rotation")
+                .and_then(|r| r.as_f64())
+                .map(|r| r as f32)
+                .filter(|r| r.is_finite())
+                .unwrap_or(0.0),
+            scale: pair("scale", d.scale),
+            tex_coord: v
+                .get("texCoord")
+                .and_then(|t| t.as_u64())
+                .map(|t| t.min(u32::MAX as u64) as u32),
+        }
+    }
 }

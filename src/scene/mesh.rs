@@ -13,6 +13,13 @@ pub struct Mesh {
     /// Each triangle's texture coordinates at its three corners (glTF's `TEXCOORD_0`);
     /// empty when the mesh has none.
     pub uvs: Vec<[[f32; 2]; 3]>,
+    /// Each triangle's shading normals at its corners (glTF's `NORMAL`, in the file's
+    /// coordinates), for a material with a normal map; empty otherwise, and zero where the
+    /// file gives none (the tracers then use the geometric normal).
+    pub normals: Vec<[[f32; 3]; 3]>,
+    /// Each triangle's tangents at its corners, `w` the bitangent's sign (glTF's `TANGENT`,
+    /// else MikkTSpace's), alongside `normals`.
+    pub tangents: Vec<[[f32; 4]; 3]>,
 }
 
 /// Parses OBJ text (faces triangulated; materials, normals and texture coordinates ignored).
@@ -30,6 +37,8 @@ pub fn parse_obj(text: &str) -> Result<Mesh, String> {
         triangles: Vec::new(),
         skipped: 0,
         uvs: Vec::new(),
+        normals: Vec::new(),
+        tangents: Vec::new(),
     };
     for m in &models {
         let p = &m.mesh.positions;

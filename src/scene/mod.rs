@@ -9,6 +9,7 @@ pub mod color;
 mod error;
 pub mod generate;
 pub mod gltf;
+mod gltf_frames;
 mod gltf_textures;
 pub mod mesh;
 mod model;

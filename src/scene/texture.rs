@@ -49,15 +49,19 @@ pub struct Textured {
     pub base_color: Option<Arc<Texture>>,
     pub metallic_roughness: Option<Arc<Texture>>,
     pub emissive: Option<Arc<Texture>>,
+    /// A tangent-space normal map (glTF's `normalTexture`).
+    pub normal: Option<Arc<Texture>>,
+    /// The normal map's `scale`: the tangent-space x and y are multiplied by it.
+    pub normal_scale: f32,
     pub base_factor: [f32; 4],
     pub metallic: f32,
     pub roughness: f32,
     /// `emissiveFactor × emissiveStrength`.
     pub emissive_factor: [f32; 3],
     pub alpha: AlphaMode,
-    /// Each map's `KHR_texture_transform` (base colour, metallic-roughness, emissive), as
+    /// Each map's `KHR_texture_transform` (base colour, metallic-roughness, emissive, normal), as
     /// the rows of a 2×3 matrix: u' = m[0]·u + m[1]·v + m[2], v' = m[3]·u + m[4]·v + m[5].
-    pub transforms: [[f32; 6]; 3],
+    pub transforms: [[f32; 6]; 4],
 }
 
 /// The identity texture transform.
