@@ -107,7 +107,9 @@ impl SceneBuffers {
         scene: &Scene,
         s: &FrameSettings,
     ) -> bool {
-        let p = Primitives::of(scene, self.origin, s.nee);
+        // The triangles are not made again unless the geometry changed (a fresh
+        // `SceneBuffers::new` then makes them).
+        let p = Primitives::without_meshes(scene, self.origin, s.nee);
         let light_count = |l: &[GpuLight]| l.len().max(1);
         if geometry_hash(scene) != self.geometry
             || s.nee != self.nee

@@ -271,6 +271,11 @@ impl PreviewBench {
                 cmd
             }
         };
+        // portable-pty starts the program in the home directory unless told: a scene named
+        // relative to where the bench runs must be found.
+        if let Ok(dir) = std::env::current_dir() {
+            cmd.cwd(dir);
+        }
         cmd.env("TERM", "xterm-256color");
         cmd.env("COLORTERM", "truecolor");
         let mut child = pty.slave.spawn_command(cmd).with_context(|| {
