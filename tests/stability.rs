@@ -147,3 +147,38 @@ fn the_gpu_agrees_with_the_double_precision_reference() {
         );
     }
 }
+
+#[test]
+fn the_mesh_stress_cases_are_seen_valid_and_exact_in_the_furnace_on_both_tracers() {
+    // Meshes as people make them (`stability::meshes`): each must be in view (a twentieth of
+    // the pixels or more differ from the sky alone), render without an invalid sample, and keep
+    // its white furnace exact (a leak into a closed shell or a self-hit would trap a path).
+    let cases = stability::meshes::cases();
+    assert_eq!(cases.len(), 7);
+    on_both(|| {
+        for (name, s) in &cases {
+            let st = FrameSettings::new(32, 18, 12, 1);
+            let snap = snapshot(s, st, 4);
+            assert_eq!(snap.invalid_samples(), 0, "{name}");
+            let mut sky = s.clone();
+            sky.objects.clear();
+            let (img, bare) = (snap.image(), snapshot(&sky, st, 4).image());
+            let seen = img
+                .pixels
+                .iter()
+                .zip(&bare.pixels)
+                .filter(|(a, b)| a != b)
+                .count();
+            eprintln!("{name}: {seen} of {} pixels see the mesh", img.pixels.len());
+            assert!(
+                seen * 20 >= img.pixels.len(),
+                "{name}: only {seen} of {} pixels see the mesh",
+                img.pixels.len()
+            );
+            let f = stability::white_furnace(s, FURNACE_SKY);
+            let img = snapshot(&f, FrameSettings::new(32, 18, FURNACE_BOUNCES, 1), 4).image();
+            let e = stability::furnace_error(&img, FURNACE_SKY);
+            assert!(e <= FURNACE_TOLERANCE, "{name}: white furnace off by {e:e}");
+        }
+    });
+}

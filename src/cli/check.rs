@@ -187,6 +187,29 @@ fn stress(a: &CheckArgs, g: &super::args::GlobalArgs) -> anyhow::Result<ExitCode
             probe,
         });
     }
+    for (name, scene) in stability::meshes::cases() {
+        let s = FrameSettings::new(w, h, 12, 1);
+        let (invalid, _) = stability::render_counting(&ctx, &scene, s, a.spp);
+        let fs = FrameSettings::new(w, h, FURNACE_BOUNCES, 1);
+        let (_, img) = stability::render_counting(
+            &ctx,
+            &stability::white_furnace(&scene, FURNACE_SKY),
+            fs,
+            a.spp,
+        );
+        print(&stability::StressRow {
+            case: name,
+            invalid,
+            furnace: Some(stability::furnace_error(&img, FURNACE_SKY)),
+            probe: stability::ProbeResult {
+                name: String::new(),
+                count: 0,
+                worst: 0.0,
+                mismatches: 0,
+                threshold: 0.0,
+            },
+        });
+    }
     for probe in stability::run_probes(&ctx, &stability::categories(11)) {
         print(&stability::StressRow {
             case: probe.name.clone(),
