@@ -97,9 +97,19 @@ pub fn summary(s: &Scene) -> String {
         })
         .collect();
     let tex = crate::common::textures::words(s).map_or(String::new(), |w| {
+        let frames = w[crate::common::textures::FRAMES] as usize;
+        let mib = |words: usize| words as f64 * 4.0 / (1 << 20) as f64;
         format!(
-            "\n  textures   {:.1} MiB of texture words (texels and coordinates)",
-            w.len() as f64 * 4.0 / (1 << 20) as f64
+            "\n  textures   {:.1} MiB of texture words (texels and coordinates{})",
+            mib(w.len()),
+            if frames > 0 {
+                format!(
+                    ", {:.1} MiB of them normal maps' shading frames",
+                    mib(w.len() - frames)
+                )
+            } else {
+                String::new()
+            }
         )
     });
     format!(
