@@ -1,5 +1,6 @@
 // #include "common/types.wgsl"
 // #include "common/rng.wgsl"
+// #include "common/sampling.wgsl"
 // #include "common/intersect.wgsl"
 // Textures (src/common/textures.rs lays out the words, src/cpu/texture.rs reads them the same
 // way): glTF's base colour, metallic-roughness and emissive maps, sampled bilinearly with
