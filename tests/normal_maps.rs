@@ -228,6 +228,11 @@ fn centre_normal(texel: [u8; 3], tangent: Option<[f32; 4]>) -> glam::Vec3A {
     );
     let (_d, s) = scene_with(&gltf, 1.0, "");
     let words = textures::words(&s).unwrap();
+    assert_eq!(
+        textures::word_count(&s),
+        words.len(),
+        "the frames are counted"
+    );
     let rec = termtrace::cpu::texture::record(&words, 0).expect("a record");
     // Triangle 0 (corners (−1, 1), (−1, −1), (1, 1)): its point (−0.5, 0.5, 0) has UV
     // (0.25, 0.25); the triangle as the tracers store it.

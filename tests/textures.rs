@@ -221,6 +221,7 @@ fn wrap_modes_and_bilinear_weights_on_the_host() {
             width: 4,
             height: 1,
             texels: (0..4u32).map(|i| (i * 85) | 0xff00_0000).collect(),
+            name: "test".into(),
             wrap: [wrap, Wrap::Clamp],
         };
         let got = sample_one(&t, u);
@@ -241,6 +242,7 @@ fn sample_one(t: &termtrace::scene::texture::Texture, u: f32) -> f32 {
         height: t.height,
         texels: t.texels.clone(),
         wrap: t.wrap,
+        name: t.name.clone(),
     });
     let obj = s
         .objects
@@ -569,4 +571,28 @@ fn wild_texture_coordinates_give_no_invalid_sample() {
         let img = snap.image();
         assert!(img.pixels.iter().all(|p| p.iter().all(|c| c.is_finite())));
     });
+}
+
+#[test]
+fn textures_too_large_for_the_adapter_are_refused_by_name() {
+    // BoxTextured's words are 0.3 MiB: an adapter that binds 64 KiB cannot hold them, and
+    // the message names the image; its real limit (lavapipe: 128 MiB and more) can.
+    let s = Scene::load("tests/gltf/BoxTextured/BoxTextured.gltf").unwrap();
+    assert_eq!(
+        textures::word_count(&s),
+        textures::words(&s).unwrap().len(),
+        "word_count must count what words makes"
+    );
+    let why = textures::too_large(&s, 64 << 10).expect("too large for 64 KiB");
+    assert!(
+        why.contains("CesiumLogoFlat.png") && why.contains("256×256") && why.contains("0.3 MiB"),
+        "{why}"
+    );
+    assert_eq!(textures::too_large(&s, 1 << 20), None);
+    termtrace::render::Backend::Gpu(ctx())
+        .check_fits(&s)
+        .expect("BoxTextured fits the test adapter");
+    // A scene without maps has no words (tests/normal_maps.rs counts a normal map's frames).
+    let plain = Scene::load("mesh").unwrap();
+    assert_eq!(textures::word_count(&plain), 0);
 }

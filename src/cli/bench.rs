@@ -124,6 +124,7 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         ..frame_settings(&scene, Some(a.width), Some(a.height), a.max_bounces, None)
     };
     let ctx = Backend::open(g.adapter.as_deref())?;
+    ctx.check_fits(&scene)?;
     let options = RenderOptions {
         generic: a.generic,
         count_segments: true,

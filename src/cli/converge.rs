@@ -135,6 +135,7 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         .with_context(|| format!("cannot create the output directory {}", a.out.display()))?;
     crate::output::check_writable(&a.out.join("convergence.csv"))?;
     let ctx = Backend::open(g.adapter.as_deref())?;
+    ctx.check_fits(&scene)?;
     eprintln!(
         "converge: {} at {}x{} on {}",
         scene.origin,

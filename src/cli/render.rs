@@ -136,6 +136,7 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         ..frame_settings(&scene, a.width, a.height, a.max_bounces, a.seed)
     };
     let ctx = Backend::open(g.adapter.as_deref())?;
+    ctx.check_fits(&scene)?;
     let options = RenderOptions {
         generic: a.generic,
         ..Default::default()

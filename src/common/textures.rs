@@ -307,3 +307,56 @@ pub fn material_key(scene: &Scene) -> Vec<usize> {
         .map(|o| textured(&o.material).map_or(0, |t| Arc::as_ptr(t) as usize))
         .collect()
 }
+
+/// How many words [`words`] makes for `scene` (0: none), without making them.
+pub fn word_count(scene: &Scene) -> usize {
+    let Some(l) = Layout::of(scene) else {
+        return 0;
+    };
+    let triangles: usize = scene
+        .objects
+        .iter()
+        .map(|o| match &o.shape {
+            Shape::Mesh { mesh, .. } => mesh.triangles.len(),
+            _ => 0,
+        })
+        .sum();
+    let frames = l.records.iter().any(|(t, _)| t.normal.is_some());
+    l.texels_at
+        + l.textures.iter().map(|t| t.texels.len()).sum::<usize>()
+        + triangles * (6 + if frames { FRAME_WORDS } else { 0 })
+}
+
+/// Why `scene`'s texture words cannot be bound where one storage buffer holds at most
+/// `limit` bytes: their size, and the largest images, by name. `None` when they fit.
+pub fn too_large(scene: &Scene, limit: u64) -> Option<String> {
+    let bytes = 4 * word_count(scene) as u64;
+    if bytes <= limit {
+        return None;
+    }
+    let l = Layout::of(scene)?;
+    let mut textures = l.textures.clone();
+    textures.sort_by_key(|t| std::cmp::Reverse(t.texels.len()));
+    let mib = |b: u64| b as f64 / (1 << 20) as f64;
+    let largest: Vec<String> = textures
+        .iter()
+        .take(3)
+        .map(|t| {
+            format!(
+                "{} ({}×{}, {:.1} MiB)",
+                t.name,
+                t.width,
+                t.height,
+                mib(t.bytes() as u64)
+            )
+        })
+        .collect();
+    Some(format!(
+        "the scene's textures take {:.1} MiB in one storage buffer, more than the {:.1} MiB \
+         this adapter binds; the largest: {}. Use smaller images, or trace on the CPU \
+         (--adapter cpu-native), which has no such limit",
+        mib(bytes),
+        mib(limit),
+        largest.join(", ")
+    ))
+}

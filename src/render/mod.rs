@@ -134,6 +134,21 @@ impl Backend {
         }
     }
 
+    /// Whether `scene` fits this backend: a GPU binds each storage buffer up to a size
+    /// (`max_storage_buffer_binding_size`, `max_buffer_size`); the texture words, one buffer,
+    /// are what a real scene can overrun. The CPU tracer has no such limit.
+    pub fn check_fits(&self, scene: &Scene) -> anyhow::Result<()> {
+        let Backend::Gpu(ctx) = self else {
+            return Ok(());
+        };
+        let l = ctx.device.limits();
+        let limit = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
+        match crate::common::textures::too_large(scene, limit) {
+            Some(why) => anyhow::bail!("{}: {why} ({})", scene.origin, ctx.adapter_name()),
+            None => Ok(()),
+        }
+    }
+
     /// One line naming the adapter or the CPU tracer.
     pub fn describe(&self) -> String {
         match self {

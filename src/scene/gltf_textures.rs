@@ -42,7 +42,9 @@ pub fn decode(
         .collect();
     images.sort_unstable();
     images.dedup();
-    let decoded: Vec<(usize, Result<Arc<image::RgbaImage>, String>)> = images
+    // Each image: its pixels and how messages name it.
+    type Decoded = Result<(Arc<image::RgbaImage>, String), String>;
+    let decoded: Vec<(usize, Decoded)> = images
         .par_iter()
         .map(|&i| {
             let image = doc.images().nth(i).expect("an image index of the document");
@@ -59,7 +61,7 @@ pub fn decode(
                 })
                 .map(|img| Arc::new(img.to_rgba8()))
                 .map_err(|e| format!("{what}: {e}"));
-            (i, pixels)
+            (i, pixels.map(|p| (p, what)))
         })
         .collect();
     let mut by_image = std::collections::HashMap::new();
@@ -69,7 +71,7 @@ pub fn decode(
     Ok(doc
         .textures()
         .map(|t| {
-            let img = by_image.get(&t.source().index())?;
+            let (img, what) = by_image.get(&t.source().index())?;
             let wrap = |w: gltf::texture::WrappingMode| match w {
                 gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
                 gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
@@ -81,6 +83,7 @@ pub fn decode(
                 height: img.height(),
                 texels: img.pixels().map(|p| u32::from_le_bytes(p.0)).collect(),
                 wrap: [wrap(s.wrap_s()), wrap(s.wrap_t())],
+                name: what.clone(),
             }))
         })
         .collect())

@@ -23,6 +23,8 @@ pub struct Texture {
     pub texels: Vec<u32>,
     /// The wrap mode along u and along v.
     pub wrap: [Wrap; 2],
+    /// Where it came from, for messages (`images[2] (`wood.png`)`).
+    pub name: String,
 }
 
 impl Texture {
@@ -101,6 +103,7 @@ impl Texture {
             height: 1,
             texels: vec![m[0] | m[1] << 8 | m[2] << 16 | m[3] << 24],
             wrap: self.wrap,
+            name: format!("the mean of {}", self.name),
         }
     }
 }

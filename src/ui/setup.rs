@@ -220,6 +220,7 @@ pub(super) fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
         opts.scene.as_deref().unwrap_or("SCENE")
     );
     let backend = Backend::open(opts.adapter.as_deref())?;
+    backend.check_fits(&scene)?;
     // `llvmpipe (LLVM 15.0.6, 256 bits)` → `llvmpipe (Vulkan)`: the status line is short.
     let adapter = match &backend {
         Backend::Gpu(ctx) => {
