@@ -560,6 +560,22 @@ const FUZZ_CRASHES: &[(&str, &str)] = &[
         "tests/gltf/fuzz/glb-length-below-header.glb",
         "less than the header",
     ),
+    (
+        "tests/gltf/fuzz/accessor-element-type.gltf",
+        "accessor 2 holds Vec4 of F32, where Vec3 of [F32] belong",
+    ),
+    (
+        "tests/gltf/fuzz/buffer-uri-escape-not-utf8.gltf",
+        "buffers[0]",
+    ),
+    (
+        "tests/gltf/fuzz/node-cycle.gltf",
+        "nodes[0] is reached twice",
+    ),
+    (
+        "tests/gltf/fuzz/image-without-uri.gltf",
+        "images[1] has neither a uri nor a bufferView",
+    ),
 ];
 
 /// The fuzzer's crashes, kept as cases: each is refused with a message.
