@@ -7,21 +7,8 @@
 
 mod common;
 use base64::Engine;
+use common::textured::*;
 use common::*;
-use std::io::Write;
-use termtrace::scene::Scene;
-
-/// A PNG of `w × h` RGBA texels, as a data URI.
-fn png_uri(w: u32, h: u32, rgba: &[[u8; 4]]) -> String {
-    let img = image::RgbaImage::from_fn(w, h, |x, y| image::Rgba(rgba[(y * w + x) as usize]));
-    let mut png = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .unwrap();
-    format!(
-        "data:image/png;base64,{}",
-        base64::engine::general_purpose::STANDARD.encode(&png)
-    )
-}
 
 /// A square of side 2 at z = 0 facing +z, UV (0, 0) at its upper-left corner (u along +x, v
 /// along −y), with the vertex `normal` and `tangent` given (or not), and a material whose
@@ -92,24 +79,6 @@ fn square(
     .into_bytes()
 }
 
-/// `gltf` placed in front of a camera that sees the square as the middle half of the frame
-/// (pixels 8…24 of 32), under a uniform sky of `sky`, with `extra` TOML after it.
-fn scene_with(gltf: &[u8], sky: f32, extra: &str) -> (tempfile::TempDir, Scene) {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("square.gltf");
-    std::fs::File::create(&path)
-        .unwrap()
-        .write_all(gltf)
-        .unwrap();
-    let toml = format!(
-        "[camera]\nlook_from = [0, 0, 3.4641016]\nlook_at = [0, 0, 0]\nvfov = 60\n\
-         [sky]\nuniform = [{sky}, {sky}, {sky}]\n[[gltf]]\nfile = \"square.gltf\"\n{extra}"
-    );
-    let origin = dir.path().join("scene.toml");
-    let s = Scene::from_toml(&toml, &origin.display().to_string()).unwrap();
-    (dir, s)
-}
-
 const W: u32 = 32;
 
 /// A 2×2 normal map of one texel value.
@@ -148,13 +117,13 @@ fn a_flat_normal_map_is_no_normal_map_bit_for_bit() {
         ),
         ("no normals", None, None),
     ];
-    let (_d0, want) = scene_with(&plain, 0.5, LAMP);
+    let (_d0, want) = gltf_scene(&plain, 0.5, LAMP);
     let scenes: Vec<_> = variants
         .iter()
         .map(|(what, n, t)| {
             (
                 what,
-                scene_with(&square(&mapped(base), &flat, *n, *t), 0.5, LAMP),
+                gltf_scene(&square(&mapped(base), &flat, *n, *t), 0.5, LAMP),
             )
         })
         .collect();
@@ -191,7 +160,7 @@ fn a_map_tilting_every_normal_45_degrees_loses_the_lobe_below_the_surface() {
     let want = 0.96 * (1.0 + c) / 2.0 + 0.04 * 0.5;
     let tilt = [normal_map([255, 128, 255])];
     let white = r#""baseColorFactor":[1,1,1,1],"metallicFactor":0,"roughnessFactor":1"#;
-    let (_d, s) = scene_with(
+    let (_d, s) = gltf_scene(
         &square(&mapped(white), &tilt, Some([0., 0., 1.]), None),
         1.0,
         "",
@@ -226,7 +195,7 @@ fn centre_normal(texel: [u8; 3], tangent: Option<[f32; 4]>) -> glam::Vec3A {
         Some([0., 0., 1.]),
         tangent,
     );
-    let (_d, s) = scene_with(&gltf, 1.0, "");
+    let (_d, s) = gltf_scene(&gltf, 1.0, "");
     let words = textures::words(&s).unwrap();
     assert_eq!(
         textures::word_count(&s),
@@ -289,16 +258,8 @@ fn both_tracers_agree_on_a_lit_normal_mapped_scene() {
         Some([0.0, 0.0, 1.0]),
         None,
     );
-    let (_d, mut s) = scene_with(&gltf, 0.4, LAMP);
-    if let termtrace::scene::Shape::Mesh { mesh, .. } = &mut s.objects[0].shape {
-        let m = std::sync::Arc::get_mut(mesh).unwrap();
-        for t in &mut m.uvs {
-            for c in t.iter_mut() {
-                c[0] *= 2.0;
-                c[1] *= 2.0;
-            }
-        }
-    }
+    let (_d, mut s) = gltf_scene(&gltf, 0.4, LAMP);
+    scale_uvs(&mut s, 2.0);
     let st = settings(24, 24, 6);
     let gpu = snapshot_on(
         termtrace::render::Backend::Gpu(ctx()),

@@ -5,22 +5,10 @@
 
 mod common;
 use base64::Engine;
+use common::textured::*;
 use common::*;
-use std::io::Write;
 use termtrace::common::textures::{self, srgb_decode};
 use termtrace::scene::Scene;
-
-/// A PNG of `w × h` RGBA texels, as a data URI.
-fn png_uri(w: u32, h: u32, rgba: &[[u8; 4]]) -> String {
-    let img = image::RgbaImage::from_fn(w, h, |x, y| image::Rgba(rgba[(y * w + x) as usize]));
-    let mut png = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .unwrap();
-    format!(
-        "data:image/png;base64,{}",
-        base64::engine::general_purpose::STANDARD.encode(&png)
-    )
-}
 
 /// A square of side 2 at z = 0 facing +z, with UVs (0,0) at its upper-left corner, one
 /// material (`material` JSON), `images`, `textures` and `samplers` JSON arrays.
@@ -48,25 +36,6 @@ fn square_gltf(material: &str, images: &str, textures: &str, samplers: &str) -> 
     .into_bytes()
 }
 
-/// A scene placing `gltf` (written to a temporary folder) in front of a camera that sees
-/// the square as the middle half of the frame each way (at distance 2/tan 30°, the frame is
-/// 4 wide: pixels 8…24 of 32), under a uniform sky.
-fn scene_with(gltf: &[u8], sky: f32) -> (tempfile::TempDir, Scene) {
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("square.gltf");
-    std::fs::File::create(&path)
-        .unwrap()
-        .write_all(gltf)
-        .unwrap();
-    let toml = format!(
-        "[camera]\nlook_from = [0, 0, 3.4641016]\nlook_at = [0, 0, 0]\nvfov = 60\n\
-         [sky]\nuniform = [{sky}, {sky}, {sky}]\n[[gltf]]\nfile = \"square.gltf\"\n"
-    );
-    let origin = dir.path().join("scene.toml");
-    let s = Scene::from_toml(&toml, &origin.display().to_string()).unwrap();
-    (dir, s)
-}
-
 const W: u32 = 32;
 
 /// The mean over an image's pixels of r + g + b.
@@ -88,7 +57,7 @@ fn a_one_texel_emissive_map_is_exact_on_both_tracers() {
         r#"[{"source":0}]"#,
         "[]",
     );
-    let (_dir, s) = scene_with(&gltf, 0.25);
+    let (_dir, s) = gltf_scene(&gltf, 0.25, "");
     let want = [0, 1, 2].map(|k| 2.0 * srgb_decode(texel[k]));
     on_both(|| {
         let img = snapshot(&s, settings(W, W, 4), 4).image();
@@ -132,7 +101,7 @@ fn a_two_by_two_map_keeps_its_orientation() {
         r#"[{"source":0,"sampler":0}]"#,
         r#"[{"wrapS":33071,"wrapT":33071}]"#,
     );
-    let (_dir, s) = scene_with(&gltf, 0.0);
+    let (_dir, s) = gltf_scene(&gltf, 0.0, "");
     on_both(|| {
         let img = snapshot(&s, settings(W, W, 4), 4).image();
         // Within a quarter of the square from each corner the clamped bilinear weights give
@@ -163,7 +132,7 @@ fn a_masked_cut_out_shows_the_sky_where_alpha_is_below_the_cutoff() {
         r#"[{"source":0,"sampler":0}]"#,
         r#"[{"wrapS":33071,"wrapT":33071}]"#,
     );
-    let (_dir, s) = scene_with(&gltf, 0.25);
+    let (_dir, s) = gltf_scene(&gltf, 0.25, "");
     on_both(|| {
         let img = snapshot(&s, settings(W, W, 4), 8).image();
         for y in 10..22 {
@@ -189,7 +158,7 @@ fn a_blended_surface_is_hit_in_the_share_of_its_alpha() {
         "[]",
         "[]",
     );
-    let (_dir, s) = scene_with(&gltf, 0.0);
+    let (_dir, s) = gltf_scene(&gltf, 0.0, "");
     on_both(|| {
         let img = snapshot(&s, settings(W, W, 4), 256).image();
         let mut sum = 0.0f64;
@@ -304,16 +273,8 @@ fn both_tracers_agree_on_a_scene_with_every_map() {
     .unwrap()
     // UVs 0…2: the maps repeat twice.
     .into_bytes();
-    let (_dir, mut s) = scene_with(&gltf, 0.7);
-    if let termtrace::scene::Shape::Mesh { mesh, .. } = &mut s.objects[0].shape {
-        let m = std::sync::Arc::get_mut(mesh).unwrap();
-        for t in &mut m.uvs {
-            for c in t.iter_mut() {
-                c[0] *= 2.0;
-                c[1] *= 2.0;
-            }
-        }
-    }
+    let (_dir, mut s) = gltf_scene(&gltf, 0.7, "");
+    scale_uvs(&mut s, 2.0);
     let st = settings(24, 24, 6);
     let gpu = snapshot_on(
         termtrace::render::Backend::Gpu(ctx()),
@@ -400,7 +361,7 @@ fn an_edit_of_a_textured_material_reaches_both_tracers() {
         r#"[{"source":0}]"#,
         "[]",
     );
-    let (_dir, s) = scene_with(&gltf, 0.25);
+    let (_dir, s) = gltf_scene(&gltf, 0.25, "");
     let mut edited = s.clone();
     edited.objects[0].material.light *= 2.0;
     let want = [0, 1, 2].map(|k| 2.0 * srgb_decode(texel[k]));
@@ -429,7 +390,7 @@ fn metal_square(base: &str, images: &str, textures: &str) -> (tempfile::TempDir,
         textures,
         "[]",
     );
-    scene_with(&gltf, 1.0)
+    gltf_scene(&gltf, 1.0, "")
 }
 
 #[test]
@@ -516,7 +477,7 @@ fn a_texture_transform_moves_the_map() {
         r#"[{"source":0,"sampler":0}]"#,
         r#"[{"wrapS":33071,"wrapT":33071}]"#,
     );
-    let (_dir, s) = scene_with(&gltf, 0.0);
+    let (_dir, s) = gltf_scene(&gltf, 0.0, "");
     on_both(|| {
         let img = snapshot(&s, settings(W, W, 4), 4).image();
         // Pixel 13 covers u in [0.3125, 0.375]: u' in [0.8125, 0.875].
@@ -559,7 +520,7 @@ fn wild_texture_coordinates_give_no_invalid_sample() {
     ))
     .unwrap()
     .into_bytes();
-    let (_dir, mut s) = scene_with(&gltf, 0.5);
+    let (_dir, mut s) = gltf_scene(&gltf, 0.5, "");
     if let termtrace::scene::Shape::Mesh { mesh, .. } = &mut s.objects[0].shape {
         let m = std::sync::Arc::get_mut(mesh).unwrap();
         m.uvs[0] = [[1e30, -1e30], [f32::NAN, 0.5], [-1e30, f32::INFINITY]];

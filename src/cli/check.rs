@@ -175,20 +175,18 @@ fn stress(a: &CheckArgs, g: &super::args::GlobalArgs) -> anyhow::Result<ExitCode
         }
     };
     let (w, h) = (48, 27);
+    // The worst deviation of `scene`'s white furnace from its sky.
+    let furnace = |scene: &Scene| {
+        let fs = FrameSettings::new(w, h, FURNACE_BOUNCES, 1);
+        let white = stability::white_furnace(scene, FURNACE_SKY);
+        let (_, img) = stability::render_counting(&ctx, &white, fs, a.spp);
+        stability::furnace_error(&img, FURNACE_SKY)
+    };
     for (name, text) in crate::scene::EXTREME_SCENES {
         let scene = Scene::from_toml(text, &format!("builtin:{name}"))?;
         let s = FrameSettings::new(w, h, scene.render.max_bounces, 1);
         let (invalid, _) = stability::render_counting(&ctx, &scene, s, a.spp);
-        let furnace = stability::furnace_applies(name).then(|| {
-            let fs = FrameSettings::new(w, h, FURNACE_BOUNCES, 1);
-            let (_, img) = stability::render_counting(
-                &ctx,
-                &stability::white_furnace(&scene, FURNACE_SKY),
-                fs,
-                a.spp,
-            );
-            stability::furnace_error(&img, FURNACE_SKY)
-        });
+        let furnace = stability::furnace_applies(name).then(|| furnace(&scene));
         let probe = stability::run_probes(&ctx, &[stability::scene_category(&scene, 7)]).remove(0);
         print(&stability::StressRow {
             case: name.to_string(),
@@ -200,24 +198,11 @@ fn stress(a: &CheckArgs, g: &super::args::GlobalArgs) -> anyhow::Result<ExitCode
     for (name, scene) in stability::meshes::cases() {
         let s = FrameSettings::new(w, h, 12, 1);
         let (invalid, _) = stability::render_counting(&ctx, &scene, s, a.spp);
-        let fs = FrameSettings::new(w, h, FURNACE_BOUNCES, 1);
-        let (_, img) = stability::render_counting(
-            &ctx,
-            &stability::white_furnace(&scene, FURNACE_SKY),
-            fs,
-            a.spp,
-        );
         print(&stability::StressRow {
             case: name,
             invalid,
-            furnace: Some(stability::furnace_error(&img, FURNACE_SKY)),
-            probe: stability::ProbeResult {
-                name: String::new(),
-                count: 0,
-                worst: 0.0,
-                mismatches: 0,
-                threshold: 0.0,
-            },
+            furnace: Some(furnace(&scene)),
+            probe: stability::ProbeResult::none(),
         });
     }
     for probe in stability::run_probes(&ctx, &stability::categories(11)) {
@@ -233,13 +218,7 @@ fn stress(a: &CheckArgs, g: &super::args::GlobalArgs) -> anyhow::Result<ExitCode
         case: format!("furnace sphere after {DRIFT_SPP} accumulated frames"),
         invalid: drift.invalid,
         furnace: Some(drift.error),
-        probe: stability::ProbeResult {
-            name: String::new(),
-            count: 0,
-            worst: 0.0,
-            mismatches: 0,
-            threshold: 0.0,
-        },
+        probe: stability::ProbeResult::none(),
     });
     if failed > 0 {
         println!("{failed} cases failed");

@@ -142,6 +142,13 @@ fn box_obj(h: DVec3) -> String {
         );
         s += &format!("v {:e} {:e} {:e}\n", c.x, c.y, c.z);
     }
+    s + &box_faces(0)
+}
+
+/// The twelve outward triangles of a box whose corners are vertices `first + 1 … first + 8`
+/// in the order `box_obj` writes them (bit 0: +x, bit 1: +y, bit 2: +z).
+fn box_faces(first: usize) -> String {
+    let mut s = String::new();
     for f in [
         [1, 3, 4, 2],
         [5, 6, 8, 7],
@@ -150,6 +157,7 @@ fn box_obj(h: DVec3) -> String {
         [1, 5, 7, 3],
         [2, 4, 8, 6],
     ] {
+        let f = f.map(|i| i + first);
         s += &format!(
             "f {} {} {}\nf {} {} {}\n",
             f[0], f[1], f[2], f[0], f[2], f[3]
@@ -181,20 +189,7 @@ fn large_and_small() -> Scene {
         );
         obj += &format!("v {:.9e} {:.9e} {:.9e}\n", p.x, p.y, p.z);
     }
-    for f in [
-        [1, 3, 4, 2],
-        [5, 6, 8, 7],
-        [1, 2, 6, 5],
-        [3, 7, 8, 4],
-        [1, 5, 7, 3],
-        [2, 4, 8, 6],
-    ] {
-        let f = f.map(|i| i + 4);
-        obj += &format!(
-            "f {} {} {}\nf {} {} {}\n",
-            f[0], f[1], f[2], f[0], f[2], f[3]
-        );
-    }
+    obj += &box_faces(4);
     with_mesh(
         obj,
         DVec3::ZERO,

@@ -51,6 +51,17 @@ pub struct ProbeResult {
 }
 
 impl ProbeResult {
+    /// No probe: a row of `check --stress` that renders only.
+    pub fn none() -> ProbeResult {
+        ProbeResult {
+            name: String::new(),
+            count: 0,
+            worst: 0.0,
+            mismatches: 0,
+            threshold: 0.0,
+        }
+    }
+
     pub fn pass(&self) -> bool {
         self.mismatches == 0 && self.worst <= self.threshold
     }

@@ -12,6 +12,8 @@ use termtrace::output::LinearImage;
 use termtrace::render::{Backend, RenderOptions, Renderer, Snapshot};
 use termtrace::scene::Scene;
 
+pub mod textured;
+
 pub fn ctx() -> Arc<GpuContext> {
     static CTX: OnceLock<Arc<GpuContext>> = OnceLock::new();
     CTX.get_or_init(|| {
