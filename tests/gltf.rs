@@ -576,6 +576,10 @@ const FUZZ_CRASHES: &[(&str, &str)] = &[
         "tests/gltf/fuzz/image-without-uri.gltf",
         "images[1] has neither a uri nor a bufferView",
     ),
+    (
+        "tests/gltf/fuzz/accessor-count-zero.gltf",
+        "accessor 2 has a count of 0",
+    ),
 ];
 
 /// The fuzzer's crashes, kept as cases: each is refused with a message.

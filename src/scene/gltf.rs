@@ -498,6 +498,11 @@ fn import_mesh(
 /// checking, so a view or accessor that overruns its buffer would otherwise panic.
 fn accessor_fits(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(), String> {
     let name = format!("accessor {}", a.index());
+    // The specification's minimum; the crate's reader computes `count - 1` unchecked (its
+    // accessor/util.rs:384, found by `fuzz/`).
+    if a.count() == 0 {
+        return Err(format!("{name} has a count of 0 (at least 1 is required)"));
+    }
     if a.sparse().is_some() {
         return Err(format!("{name} is sparse, which termtrace does not read"));
     }
