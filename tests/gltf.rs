@@ -591,3 +591,14 @@ fn fuzzer_crashes_are_refused() {
         assert!(e.message.contains(want), "{file}: {e}");
     }
 }
+
+/// A file `fuzz/` found crashing the import that is valid enough to open: a primitive whose
+/// material has no maps, with a TEXCOORD_0 of an element type texture coordinates cannot have
+/// (the crate's reader panicked on it); the coordinates are not read, and it opens.
+#[test]
+fn a_fuzzer_crash_that_is_a_valid_file_imports() {
+    let bytes = std::fs::read("tests/gltf/fuzz/texcoord-type-untextured.gltf").unwrap();
+    let imported = import(&bytes).expect("its TEXCOORD_0 is not read");
+    assert_eq!(imported.objects.len(), 1);
+    assert!(imported.objects[0].material.textured.is_none());
+}

@@ -369,11 +369,13 @@ fn import_mesh(
             out.skipped.push(format!("{what}: no positions"));
             continue;
         };
-        // Texture coordinates, for a textured material (missing ones read as (0, 0)).
-        let uvs: Vec<[f32; 2]> = match (&uv_accessor, reader.read_tex_coords(0)) {
-            (Some(_), Some(t)) => t.into_f32().collect(),
-            _ => Vec::new(),
-        };
+        // Texture coordinates, for a textured material (missing ones read as (0, 0)). Read
+        // only where checked above: the crate's reader panics on an element type that
+        // TEXCOORD_0 cannot have (its mesh/mod.rs:430, found by `fuzz/`).
+        let uvs: Vec<[f32; 2]> = uv_accessor
+            .as_ref()
+            .and_then(|_| reader.read_tex_coords(0))
+            .map_or_else(Vec::new, |t| t.into_f32().collect());
         let uv = |i: u32| uvs.get(i as usize).copied().unwrap_or([0.0; 2]);
         let local: Vec<[f32; 3]> = positions.collect();
         let points: Vec<DVec3> = local
@@ -451,14 +453,13 @@ fn import_mesh(
             continue;
         }
         if normal_mapped {
-            let normals: Vec<[f32; 3]> = match (normal_accessor, reader.read_normals()) {
-                (Some(_), Some(n)) => n.collect(),
-                _ => Vec::new(),
-            };
-            let tangents: Vec<[f32; 4]> = match (tangent_accessor, reader.read_tangents()) {
-                (Some(_), Some(t)) => t.collect(),
-                _ => Vec::new(),
-            };
+            // Likewise read only where checked.
+            let normals: Vec<[f32; 3]> = normal_accessor
+                .and_then(|_| reader.read_normals())
+                .map_or_else(Vec::new, |n| n.collect());
+            let tangents: Vec<[f32; 4]> = tangent_accessor
+                .and_then(|_| reader.read_tangents())
+                .map_or_else(Vec::new, |t| t.collect());
             let linear = glam::DMat3::from_mat4(world);
             for (n, t) in
                 super::gltf_frames::frames(&kept, &local, &normals, &tangents, &uvs, linear)
