@@ -603,12 +603,17 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     }
     let surf = surface_at(hit, ray);
     var m = materials[surf.material];
+    // A textured hit's record, barycentrics and texture coordinates (the normal map reads
+    // them too).
     var rec = TEX_NONE;
+    var bary = vec2f(0.0);
     var uv = vec2f(0.0);
     if HAS_TEXTURES && hit.kind == KIND_TRIANGLE {
         rec = tex_record(surf.material);
         if rec != TEX_NONE {
-            uv = tex_uv(triangles[hit.index], hit.index, surf.point.position);
+            let tri = triangles[hit.index];
+            bary = triangle_barycentrics(tri, surf.point.position - tri.v0);
+            uv = tex_uv_at(hit.index, bary);
             m = tex_material(m, rec, uv);
         }
     }
@@ -638,7 +643,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         // (docs/MODEL-NOTES.md, "Normal maps"), else n.
         var ns = n;
         if HAS_NORMAL_MAPS && hit.kind == KIND_TRIANGLE && tex_has_normal_map(rec) {
-            ns = tex_shading_normal(rec, triangles[hit.index], hit.index, surf.point.position, uv, n_out);
+            ns = tex_shading_normal(rec, hit.index, bary, uv, n_out);
             ns = select(-ns, ns, dot(ns, n) >= 0.0);
         }
         // A lobe with the cosine density: the Lambertian one, or the specular one at

@@ -211,15 +211,11 @@ fn centre_normal(texel: [u8; 3], tangent: Option<[f32; 4]>) -> glam::Vec3A {
         e2: glam::Vec3A::new(2.0, 0.0, 0.0),
         material: 0,
     };
-    termtrace::cpu::texture::shading_normal(
-        &words,
-        rec,
-        &tri,
-        0,
-        glam::Vec3A::new(-0.5, 0.5, 0.0),
-        glam::Vec2::new(0.25, 0.25),
-        glam::Vec3A::Z,
-    )
+    let p = glam::Vec3A::new(-0.5, 0.5, 0.0);
+    let bary = termtrace::cpu::intersect::triangle_barycentrics(&tri, p - tri.v0);
+    let uv = termtrace::cpu::texture::uv_at(&words, 0, bary);
+    assert_eq!(uv, glam::Vec2::new(0.25, 0.25));
+    termtrace::cpu::texture::shading_normal(&words, rec, 0, bary, uv, glam::Vec3A::Z)
 }
 
 #[test]

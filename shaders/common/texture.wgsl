@@ -113,7 +113,11 @@ fn tex_record(material: u32) -> u32 {
 // triangle `index`: its corners' coordinates by p's barycentrics (triangle_barycentrics, as
 // triangle_surface finds them).
 fn tex_uv(tri: Triangle, index: u32, p_world: vec3f) -> vec2f {
-    let b = triangle_barycentrics(tri, p_world - tri.v0);
+    return tex_uv_at(index, triangle_barycentrics(tri, p_world - tri.v0));
+}
+
+// The texture coordinates on triangle `index` at barycentrics `b`.
+fn tex_uv_at(index: u32, b: vec2f) -> vec2f {
     let at = tex[TEX_UV_BASE] + 6u * index;
     let uv0 = vec2f(tex_f32(at), tex_f32(at + 1u));
     let uv1 = vec2f(tex_f32(at + 2u), tex_f32(at + 3u));
@@ -207,15 +211,14 @@ fn tex_has_normal_map(rec: u32) -> bool {
     return rec != TEX_NONE && (tex[rec] & TEX_FLAG_NORMAL) != 0u;
 }
 
-// The shading normal at p on triangle `index`, whose material's record `rec` has a normal map
-// (docs/MODEL-NOTES.md, "Normal maps"): the corners' normals and tangents interpolated by p's
-// barycentrics (the geometric normal `n_geo` where the file gives no normals; any tangent
+// The shading normal at barycentrics `b` of triangle `index` (as tex_uv_at takes them), whose
+// material's record `rec` has a normal map (docs/MODEL-NOTES.md, "Normal maps"): the corners'
+// normals and tangents interpolated by `b` (the geometric normal `n_geo` where the file gives no normals; any tangent
 // where it is degenerate), the tangent frame made orthonormal (Gram-Schmidt), and the map's
 // tangent-space normal (x, y scaled by the map's scale, z at least TEX_NORMAL_MIN_Z) taken
 // into it: N + (x·T + y·B) / z, normalised, B = N × T · w. A texel of (128, 128) leaves N as
 // it is. The caller turns the result to the side it needs.
-fn tex_shading_normal(rec: u32, tri: Triangle, index: u32, p_world: vec3f, uv: vec2f, n_geo: vec3f) -> vec3f {
-    let b = triangle_barycentrics(tri, p_world - tri.v0);
+fn tex_shading_normal(rec: u32, index: u32, b: vec2f, uv: vec2f, n_geo: vec3f) -> vec3f {
     let at = tex[TEX_FRAMES] + TEX_FRAME_WORDS * index;
     let n0 = tex_vec3(at);
     let n = normalize_or(n0 + b.x * (tex_vec3(at + 3u) - n0) + b.y * (tex_vec3(at + 6u) - n0), n_geo);

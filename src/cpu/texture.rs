@@ -111,7 +111,12 @@ pub fn record(tex: &[u32], material: u32) -> Option<u32> {
 
 /// The texture coordinates at `p` on triangle `index` (texture.wgsl: tex_uv).
 pub fn uv(tex: &[u32], tri: &Triangle, index: u32, p_world: Vec3A) -> Vec2 {
-    let (b1, b2) = triangle_barycentrics(tri, p_world - tri.v0);
+    uv_at(tex, index, triangle_barycentrics(tri, p_world - tri.v0))
+}
+
+/// The texture coordinates on triangle `index` at barycentrics `(b1, b2)` (texture.wgsl:
+/// tex_uv_at).
+pub fn uv_at(tex: &[u32], index: u32, (b1, b2): (f32, f32)) -> Vec2 {
     let at = tex[UV_BASE] + 6 * index;
     let c = |k: u32| Vec2::new(f(tex, at + k), f(tex, at + k + 1));
     let (uv0, uv1, uv2) = (c(0), c(2), c(4));
@@ -226,18 +231,17 @@ pub fn has_normal_map(tex: &[u32], rec: u32) -> bool {
     tex[rec as usize] & FLAG_NORMAL != 0
 }
 
-/// The shading normal at `p` on triangle `index` (texture.wgsl: tex_shading_normal, term for
-/// term): the interpolated frame, made orthonormal, and the map's normal taken into it.
+/// The shading normal at barycentrics `(b1, b2)` of triangle `index` (texture.wgsl:
+/// tex_shading_normal, term for term): the interpolated frame, made orthonormal, and the map's
+/// normal taken into it.
 pub fn shading_normal(
     tex: &[u32],
     rec: u32,
-    tri: &Triangle,
     index: u32,
-    p_world: Vec3A,
+    (b1, b2): (f32, f32),
     uv: Vec2,
     n_geo: Vec3A,
 ) -> Vec3A {
-    let (b1, b2) = triangle_barycentrics(tri, p_world - tri.v0);
     let at = tex[FRAMES] + FRAME_WORDS as u32 * index;
     let v3 = |k: u32| Vec3A::new(f(tex, at + k), f(tex, at + k + 1), f(tex, at + k + 2));
     let n0 = v3(0);

@@ -502,15 +502,12 @@ impl<'a> Tracer<'a> {
                 && let Some(rec) = super::texture::record(&self.s.tex, material)
             {
                 let i = hit.r & INDEX;
-                let uv = super::texture::uv(
-                    &self.s.tex,
-                    &self.s.triangles[i as usize],
-                    i,
-                    point.position,
-                );
+                let tri = &self.s.triangles[i as usize];
+                let bary = triangle_barycentrics(tri, point.position - tri.v0);
+                let uv = super::texture::uv_at(&self.s.tex, i, bary);
                 textured = super::texture::material(&self.s.tex, m, rec, uv);
                 m = &textured;
-                mapped = Some((rec, uv));
+                mapped = Some((rec, bary, uv));
             }
             if self.f.emitters && m.light > 0.0 {
                 let mut w = 1.0;
@@ -539,20 +536,11 @@ impl<'a> Tracer<'a> {
                 // The shading normal, on the side of n (trace.wgsl: path_step).
                 let mut ns = n;
                 if self.s.normal_maps
-                    && let Some((rec, uv)) = mapped
+                    && let Some((rec, bary, uv)) = mapped
                     && super::texture::has_normal_map(&self.s.tex, rec)
                 {
                     let i = hit.r & INDEX;
-                    let tri = &self.s.triangles[i as usize];
-                    ns = super::texture::shading_normal(
-                        &self.s.tex,
-                        rec,
-                        tri,
-                        i,
-                        point.position,
-                        uv,
-                        n_out,
-                    );
+                    ns = super::texture::shading_normal(&self.s.tex, rec, i, bary, uv, n_out);
                     if ns.dot(n) < 0.0 {
                         ns = -ns;
                     }

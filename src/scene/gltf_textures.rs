@@ -158,13 +158,9 @@ pub fn textured(
     skipped: &mut Vec<String>,
 ) -> Option<TexturedRef> {
     let pbr = m.pbr_metallic_roughness();
-    let mut map = |info: Option<gltf::texture::Info>, what: &str| {
-        let info = info?;
-        let transform = info.texture_transform();
-        let set = transform
-            .as_ref()
-            .and_then(|t| t.tex_coord())
-            .unwrap_or(info.tex_coord());
+    // The map on texture `index`, read through coordinate set `set` with the transform `xf`;
+    // `None` where the texture is missing, or (named in `skipped`) on a set other than 0.
+    let mut pick = |(index, set, xf): (usize, u32, [f32; 6]), what: &str| {
         if set != 0 {
             skipped.push(format!(
                 "the {what} map of materials[{}]: TEXCOORD_{set} (only TEXCOORD_0 is read)",
@@ -172,17 +168,26 @@ pub fn textured(
             ));
             return None;
         }
-        let tex = textures.get(info.texture().index()).cloned().flatten()?;
-        Some((
-            tex,
-            transform.map_or(IDENTITY_TRANSFORM, |t| {
-                texture_transform(t.offset(), t.rotation(), t.scale())
-            }),
-        ))
+        Some((textures.get(index).cloned().flatten()?, xf))
     };
-    let base_color = map(pbr.base_color_texture(), "base colour");
-    let metallic_roughness = map(pbr.metallic_roughness_texture(), "metallic-roughness");
-    let emissive = map(m.emissive_texture(), "emissive");
+    let info = |info: gltf::texture::Info| {
+        let t = info.texture_transform();
+        let set = t
+            .as_ref()
+            .and_then(|t| t.tex_coord())
+            .unwrap_or(info.tex_coord());
+        let xf = t.map_or(IDENTITY_TRANSFORM, |t| {
+            texture_transform(t.offset(), t.rotation(), t.scale())
+        });
+        (info.texture().index(), set, xf)
+    };
+    let base_color = pbr
+        .base_color_texture()
+        .and_then(|i| pick(info(i), "base colour"));
+    let metallic_roughness = pbr
+        .metallic_roughness_texture()
+        .and_then(|i| pick(info(i), "metallic-roughness"));
+    let emissive = m.emissive_texture().and_then(|i| pick(info(i), "emissive"));
     let normal_info = m.normal_texture();
     let normal = normal_info.as_ref().and_then(|n| {
         // The crate reads KHR_texture_transform on `Info` only; a normal map's is in its JSON.
@@ -191,15 +196,8 @@ pub fn textured(
             .map(NormalTransform::from_json)
             .unwrap_or_default();
         let set = xf.tex_coord.unwrap_or(n.tex_coord());
-        if set != 0 {
-            skipped.push(format!(
-                "the normal map of materials[{}]: TEXCOORD_{set} (only TEXCOORD_0 is read)",
-                m.index().map_or("default".into(), |i| i.to_string()),
-            ));
-            return None;
-        }
-        let tex = textures.get(n.texture().index()).cloned().flatten()?;
-        Some((tex, texture_transform(xf.offset, xf.rotation, xf.scale)))
+        let matrix = texture_transform(xf.offset, xf.rotation, xf.scale);
+        pick((n.texture().index(), set, matrix), "normal")
     });
     let transforms = [&base_color, &metallic_roughness, &emissive, &normal]
         .map(|x| x.as_ref().map_or(IDENTITY_TRANSFORM, |(_, t)| *t));
