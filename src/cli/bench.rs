@@ -282,6 +282,13 @@ fn run_preview(a: &BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     if a.generic {
         args.push("--generic".to_string());
     }
+    // `--log FILE -v` logs the preview's own start-up and work, to FILE.preview.
+    if let Some(log) = &g.log {
+        let mut to = log.clone().into_os_string();
+        to.push(".preview");
+        args.extend(["--log".to_string(), to.to_string_lossy().into_owned()]);
+        args.extend((0..g.verbose).map(|_| "-v".to_string()));
+    }
     let mut b = crate::measure::preview::PreviewBench {
         exe: match &a.exe {
             Some(p) => p.clone(),

@@ -247,17 +247,29 @@ impl Primitives {
                 }
                 Shape::Mesh { .. } if !meshes => {}
                 Shape::Mesh { .. } => {
-                    for [a, b, c] in o.shape.world_triangles() {
-                        let local = [a - origin, b - origin, c - origin];
-                        p.push(Kind::Triangle, p.triangles.len(), Aabb::of_points(&local));
-                        p.triangles.push(GpuTriangle {
-                            v0: pos(a),
-                            material: mat,
-                            e1: dir(b - a),
-                            e2: dir(c - a),
-                            ..Default::default()
-                        });
-                    }
+                    // In parallel: a mesh of 10⁶ triangles is a large part of a first frame.
+                    use rayon::prelude::*;
+                    let made: Vec<(Aabb, GpuTriangle)> = o
+                        .shape
+                        .world_triangles()
+                        .par_iter()
+                        .map(|&[a, b, c]| {
+                            let local = [a - origin, b - origin, c - origin];
+                            let t = GpuTriangle {
+                                v0: pos(a),
+                                material: mat,
+                                e1: dir(b - a),
+                                e2: dir(c - a),
+                                ..Default::default()
+                            };
+                            (Aabb::of_points(&local), t)
+                        })
+                        .collect();
+                    let first = p.triangles.len();
+                    p.refs
+                        .extend((first..first + made.len()).map(|k| encode_ref(Kind::Triangle, k)));
+                    p.bounds.extend(made.iter().map(|m| m.0));
+                    p.triangles.extend(made.into_iter().map(|m| m.1));
                 }
             }
         }

@@ -55,7 +55,9 @@ pub struct SceneBuffers {
 impl SceneBuffers {
     pub fn new(device: &wgpu::Device, scene: &Scene, s: &FrameSettings) -> SceneBuffers {
         let origin = scene.camera.look_at;
+        let start = std::time::Instant::now();
         let p = Primitives::of(scene, origin, s.nee);
+        let primitives_seconds = start.elapsed().as_secs_f64();
         let t = std::time::Instant::now();
         let (nodes, refs) = gpu_bvh(&p);
         let build_seconds = t.elapsed().as_secs_f64();
@@ -66,12 +68,15 @@ impl SceneBuffers {
             build_seconds * 1e3
         );
         let u = scene_uniforms(scene, s, origin);
+        let t = std::time::Instant::now();
         let tex = textures::words(scene).unwrap_or_else(|| vec![0]);
         tracing::info!(
-            "texture words: {:.1} MiB",
-            tex.len() as f64 * 4.0 / (1 << 20) as f64
+            "texture words: {:.1} MiB in {:.1} ms",
+            tex.len() as f64 * 4.0 / (1 << 20) as f64,
+            t.elapsed().as_secs_f64() * 1e3
         );
-        SceneBuffers {
+        let t = std::time::Instant::now();
+        let buffers = SceneBuffers {
             tex: storage(device, "scene.tex", &tex),
             tex_key: textures::material_key(scene),
             origin,
@@ -93,7 +98,15 @@ impl SceneBuffers {
             geometry: geometry_hash(scene),
             anchor_target: scene.camera.look_at,
             build_seconds,
-        }
+        };
+        tracing::info!(
+            "scene buffers in {:.1} ms: primitives {:.1} ms, BVH {:.1} ms, upload {:.1} ms",
+            start.elapsed().as_secs_f64() * 1e3,
+            primitives_seconds * 1e3,
+            build_seconds * 1e3,
+            t.elapsed().as_secs_f64() * 1e3
+        );
+        buffers
     }
 
     /// Brings the buffers up to date with `scene`. With the same geometry only the uniforms,

@@ -148,7 +148,7 @@ impl TracePass {
     }
 
     /// The pipeline specialized for `features`, compiled now if it is new.
-    pub fn prepare(&mut self, device: &wgpu::Device, features: Features) {
+    pub fn prepare(&self, device: &wgpu::Device, features: Features) {
         if self.ready(features) {
             return;
         }

@@ -540,8 +540,9 @@ impl PreviewBench {
                 }
                 None => {
                     report.misses += 1;
-                    // Let it show before the next press, so presses stay independent.
-                    wait_for(shared, startup, |s| s.params != before.params);
+                    // Let it show before the next press, so presses stay independent; a press
+                    // that changes nothing (a parameter at its bound) never shows.
+                    wait_for(shared, self.timeout, |s| s.params != before.params);
                 }
             }
         }

@@ -716,13 +716,21 @@ impl GpuEngine {
         features: Features,
     ) -> GpuEngine {
         let device = &ctx.device;
-        let mut trace = TracePass::new(device);
-        trace.prepare(device, features);
+        let trace = TracePass::new(device);
         if options.compile_in_background {
             // The fallback for the feature sets edits will introduce.
             trace.prepare_in_background(device, options.generic_features());
         }
-        let buffers = SceneBuffers::new(device, scene, settings);
+        // The scene's pipeline compiles while its buffers (the BVH) are made: on a large mesh
+        // each takes a large part of the time to the first frame.
+        let buffers = std::thread::scope(|s| {
+            let compiling = s.spawn(|| trace.prepare(device, features));
+            let buffers = SceneBuffers::new(device, scene, settings);
+            if let Err(panic) = compiling.join() {
+                std::panic::resume_unwind(panic);
+            }
+            buffers
+        });
         let accum = Accumulation::new(
             device,
             settings.width,

@@ -227,9 +227,10 @@ impl Shape {
                 scale,
                 ..
             } => {
+                use rayon::prelude::*;
                 let r = euler_xyz(*rotation);
                 let f = |p: DVec3| *translate + r * (*scale * p);
-                mesh.triangles.iter().map(|t| t.map(f)).collect()
+                mesh.triangles.par_iter().map(|t| t.map(f)).collect()
             }
             _ => Vec::new(),
         }

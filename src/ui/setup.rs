@@ -209,17 +209,26 @@ pub(super) struct Setup {
 }
 
 pub(super) fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
-    let scene = match &opts.scene {
-        Some(s) => crate::scene::load_scene(s, opts.camera.as_deref())?,
-        None => Scene::default_scene(),
-    };
+    // The scene loads while the adapter opens (each can take a few hundred milliseconds).
+    let (scene, backend) = std::thread::scope(|s| {
+        let opening = s.spawn(|| Backend::open(opts.adapter.as_deref()));
+        let scene = match &opts.scene {
+            Some(s) => crate::scene::load_scene(s, opts.camera.as_deref()),
+            None => Ok(Scene::default_scene()),
+        };
+        let backend = opening
+            .join()
+            .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (scene, backend)
+    });
+    let scene = scene?;
     anyhow::ensure!(
         std::io::stdout().is_terminal() && std::io::stdin().is_terminal(),
         "the live preview needs a terminal on stdin and stdout; \
          for files use `termtrace render {} -o out.png`",
         opts.scene.as_deref().unwrap_or("SCENE")
     );
-    let backend = Backend::open(opts.adapter.as_deref())?;
+    let backend = backend?;
     backend.check_fits(&scene)?;
     // `llvmpipe (LLVM 15.0.6, 256 bits)` → `llvmpipe (Vulkan)`: the status line is short.
     let adapter = match &backend {

@@ -1,0 +1,678 @@
+//! Wavefront OBJ models with their MTL materials (through `tobj`), imported as glTF files are:
+//! each group and material of the file becomes a mesh object, each MTL material metallic-
+//! roughness factors mapped by glTF's rules (`gltf::pbr_material`), and its `map_Kd`, `map_d`
+//! and `map_Ke` images textures (docs/MODEL-NOTES.md, "OBJ materials"). The MTL format:
+//! Paul Bourke's "MTL material format (Lightwave, OBJ)", paulbourke.net/dataformats/mtl/.
+
+use super::gltf::{GltfError, Imported, Pbr, pbr_material};
+use super::mesh::Mesh;
+use super::model::{Material, Object, Shape};
+use super::texture::{AlphaMode, IDENTITY_TRANSFORM, Texture, Textured, TexturedRef, Wrap};
+use glam::{DMat4, DVec3, Vec3};
+use rayon::prelude::*;
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// The MTL statements read; any other `map_…` (or `bump`, `norm`, `disp`, `refl`, `decal`)
+/// is named once in the log and left out.
+const READ_MAPS: &[&str] = &["map_Kd", "map_d", "map_Ke"];
+
+/// The key of the material of faces that have none (no `usemtl`, or an unknown name).
+pub const DEFAULT_MATERIAL: &str = "default";
+
+/// Parses OBJ text with `tobj` (faces triangulated, one index per vertex), reading each
+/// `mtllib` through `mtl`. A parse error names the first line at which the file fails.
+pub(super) fn load(
+    text: &str,
+    mtl: impl Fn(&Path) -> tobj::MTLLoadResult,
+) -> Result<(Vec<tobj::Model>, Vec<tobj::Material>), String> {
+    let opts = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ..Default::default()
+    };
+    let parse = |t: &str| tobj::load_obj_buf(&mut t.as_bytes(), &opts, &mtl);
+    match parse(text) {
+        Ok((models, materials)) => Ok((models, materials.unwrap_or_default())),
+        Err(e) => {
+            let (n, line) = failing_line(text, |t| parse(t).is_err());
+            Err(format!("line {n}: {e} (`{line}`)"))
+        }
+    }
+}
+
+/// The first line at which `fails` holds for the text up to it, with that line: tobj does not
+/// say where an error is, and each line is parsed on its own, so failing is monotone in the
+/// prefix and a binary search over prefixes of whole lines finds it.
+fn failing_line(text: &str, fails: impl Fn(&str) -> bool) -> (usize, &str) {
+    let ends: Vec<usize> = text
+        .match_indices('\n')
+        .map(|(i, _)| i + 1)
+        .chain(std::iter::once(text.len()))
+        .collect();
+    let (mut lo, mut hi) = (0, ends.len() - 1);
+    while lo < hi {
+        let mid = (lo + hi) / 2;
+        if fails(&text[..ends[mid]]) {
+            hi = mid;
+        } else {
+            lo = mid + 1;
+        }
+    }
+    (lo + 1, text[..ends[lo]].lines().last().unwrap_or("").trim())
+}
+
+/// Imports the OBJ file at `path` with its MTL files and their images (beside it), placed by
+/// `place`.
+pub fn import(path: &Path, place: DMat4) -> Result<Imported, GltfError> {
+    let name = path.display().to_string();
+    let err = |message: String| GltfError {
+        path: name.clone(),
+        message,
+    };
+    let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read it: {e}")))?;
+    let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    // Each MTL file read, with its text (to name the lines of its statements), and the first
+    // that could not be read or parsed.
+    let libraries: RefCell<Vec<(PathBuf, String)>> = RefCell::new(Vec::new());
+    let failed: RefCell<Option<String>> = RefCell::new(None);
+    let (models, mtl) = load(&text, |lib: &Path| {
+        let file = base.join(lib);
+        let result = std::fs::read_to_string(&file)
+            .map_err(|e| format!("cannot read it: {e}"))
+            .and_then(|t| {
+                let parsed = tobj::load_mtl_buf(&mut t.as_bytes()).map_err(|e| {
+                    let (n, line) = failing_line(&t, |p| tobj::load_mtl_buf(&mut p.as_bytes()).is_err());
+                    format!("line {n}: {e} (`{line}`)")
+                });
+                libraries.borrow_mut().push((file.clone(), t));
+                parsed
+            });
+        result.map_err(|e| {
+            failed
+                .borrow_mut()
+                .get_or_insert(format!("its material library `{}`: {e}", file.display()));
+            tobj::LoadError::OpenFileFailed
+        })
+    })
+    .map_err(err)?;
+    if let Some(e) = failed.into_inner() {
+        return Err(err(e));
+    }
+    let libraries = libraries.into_inner();
+    let mut skipped = Vec::new();
+    unknown_materials(&text, &mtl, &mut skipped);
+    let materials = map_materials(&mtl, &libraries, &mut skipped).map_err(err)?;
+    let mut out = Imported {
+        objects: Vec::new(),
+        camera: None,
+        sun: None,
+        skipped,
+        bounds: (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+        materials: Vec::new(),
+    };
+    let default = || {
+        pbr_material(&Pbr {
+            base: super::model::DEFAULT_COLOR,
+            metallic: 0.0,
+            roughness: 1.0,
+            emissive: Vec3::ZERO,
+            transmission: 0.0,
+            ior: 1.5,
+        })
+    };
+    let mirrored = place.determinant() < 0.0;
+    let mut names: HashMap<String, usize> = HashMap::new();
+    for model in &models {
+        let m = &model.mesh;
+        let (key, material) = match m.material_id.and_then(|i| Some((i, mtl.get(i)?))) {
+            Some((i, mat)) => (mat.name.clone(), materials[i].clone()),
+            None => (DEFAULT_MATERIAL.to_string(), default()),
+        };
+        let textured = material.textured.is_some();
+        let has_uv = m.texcoords.len() >= m.positions.len() / 3 * 2;
+        let mut mesh = Mesh {
+            triangles: Vec::with_capacity(m.indices.len() / 3),
+            skipped: 0,
+            uvs: Vec::new(),
+            normals: Vec::new(),
+            tangents: Vec::new(),
+        };
+        let point = |i: u32| -> Option<DVec3> {
+            let i = i as usize * 3;
+            let p = m.positions.get(i..i + 3)?;
+            Some(place.transform_point3(DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)))
+        };
+        // OBJ's v runs up the image, glTF's (and the tracers') down from its top row.
+        let uv = |i: u32| -> [f32; 2] {
+            let i = i as usize * 2;
+            match (has_uv, m.texcoords.get(i..i + 2)) {
+                (true, Some(t)) => [t[0], 1.0 - t[1]],
+                _ => [0.0; 2],
+            }
+        };
+        for f in m.indices.chunks_exact(3) {
+            let [Some(a), Some(b), Some(c)] = [f[0], f[1], f[2]].map(point) else {
+                return Err(err(format!(
+                    "group `{}`: a face refers to vertex {} which does not exist",
+                    model.name,
+                    f.iter().max().unwrap_or(&0) + 1
+                )));
+            };
+            let area = (b - a).cross(c - a).length();
+            if !(area > 0.0 && area.is_finite()) {
+                mesh.skipped += 1;
+                continue;
+            }
+            for p in [a, b, c] {
+                out.bounds.0 = out.bounds.0.min(p);
+                out.bounds.1 = out.bounds.1.max(p);
+            }
+            let [ua, ub, uc] = [f[0], f[1], f[2]].map(uv);
+            if mirrored {
+                mesh.triangles.push([a, c, b]);
+                if textured {
+                    mesh.uvs.push([ua, uc, ub]);
+                }
+            } else {
+                mesh.triangles.push([a, b, c]);
+                if textured {
+                    mesh.uvs.push([ua, ub, uc]);
+                }
+            }
+        }
+        if mesh.triangles.is_empty() {
+            out.skipped
+                .push(format!("group `{}`: no triangle with area", model.name));
+            continue;
+        }
+        if !out.materials.iter().any(|(k, _)| *k == key) {
+            out.materials.push((key.clone(), material.clone()));
+        }
+        // tobj splits a group at each `usemtl`: the parts are named `group`, `group.2`, ….
+        let seen = names.entry(model.name.clone()).or_insert(0);
+        *seen += 1;
+        out.objects.push(Object {
+            name: Some(match *seen {
+                1 => model.name.clone(),
+                n => format!("{}.{n}", model.name),
+            }),
+            shape: Shape::Mesh {
+                file: String::new(),
+                mesh: Arc::new(mesh),
+                translate: DVec3::ZERO,
+                rotation: DVec3::ZERO,
+                scale: DVec3::ONE,
+            },
+            material,
+            material_name: Some(key),
+            gltf: None,
+        });
+    }
+    if out.objects.is_empty() {
+        return Err(err("the file has no triangles".into()));
+    }
+    Ok(out)
+}
+
+/// Names each `usemtl` whose material no library defines (its faces get the default).
+fn unknown_materials(text: &str, mtl: &[tobj::Material], skipped: &mut Vec<String>) {
+    let mut named = Vec::new();
+    for (n, line) in text.lines().enumerate() {
+        let Some(name) = line.trim().strip_prefix("usemtl ").map(str::trim) else {
+            continue;
+        };
+        if !mtl.iter().any(|m| m.name == name) && !named.contains(&name) {
+            named.push(name);
+            skipped.push(format!(
+                "line {}: `usemtl {name}`: no material library defines it; its faces get the \
+                 default material",
+                n + 1
+            ));
+        }
+    }
+}
+
+/// The library that defines `material`, and the line (from 1) of its statement `key`
+/// (`newmtl` for the definition itself).
+fn statement<'a>(
+    libraries: &'a [(PathBuf, String)],
+    material: &str,
+    key: &str,
+) -> Option<(&'a Path, usize)> {
+    for (file, text) in libraries {
+        let mut inside = false;
+        for (n, line) in text.lines().enumerate() {
+            let mut words = line.split_whitespace();
+            let first = words.next();
+            if first == Some("newmtl") {
+                inside = line.trim()["newmtl".len()..].trim() == material;
+                if inside && key == "newmtl" {
+                    return Some((file, n + 1));
+                }
+            } else if inside && first == Some(key) {
+                return Some((file, n + 1));
+            }
+        }
+    }
+    None
+}
+
+/// A statement of a material, for messages: `file:line: material `NAME`: KEY`.
+fn locate(libraries: &[(PathBuf, String)], material: &str, key: &str) -> String {
+    match statement(libraries, material, key) {
+        Some((file, line)) => format!("{}:{line}: material `{material}`: {key}", file.display()),
+        None => format!("material `{material}`: {key}"),
+    }
+}
+
+/// A texture statement's options and file (`map_Kd -s 2 2 1 -clamp on wood.png`).
+#[derive(Debug, PartialEq)]
+pub struct TextureSpec {
+    pub file: String,
+    /// `-o`: added to the texture coordinates (after `-s`).
+    pub offset: [f32; 2],
+    /// `-s`: multiplies the texture coordinates.
+    pub scale: [f32; 2],
+    /// `-clamp on`: coordinates outside [0, 1] take the edge texel.
+    pub clamp: bool,
+    /// `-imfchan r|g|b|m|l|z`: the channel a scalar map reads.
+    pub channel: Option<char>,
+}
+
+/// Parses a texture statement's arguments: options (the MTL format's `-blendu`, `-blendv`,
+/// `-bm`, `-boost`, `-cc`, `-clamp`, `-imfchan`, `-mm`, `-o`, `-s`, `-t`, `-texres`, `-type`)
+/// and then the file name, which may hold spaces.
+pub fn texture_spec(args: &str) -> Result<TextureSpec, String> {
+    let mut spec = TextureSpec {
+        file: String::new(),
+        offset: [0.0; 2],
+        scale: [1.0; 2],
+        clamp: false,
+        channel: None,
+    };
+    let mut rest = args.trim();
+    // Up to `max` numbers after a vector option (`-o u [v [w]]`).
+    fn numbers(rest: &mut &str, max: usize) -> Vec<f32> {
+        let mut out = Vec::new();
+        while out.len() < max {
+            let t = rest.trim_start();
+            let end = t.find(char::is_whitespace).unwrap_or(t.len());
+            match t[..end].parse::<f32>() {
+                Ok(x) if !t.is_empty() => {
+                    out.push(x);
+                    *rest = &t[end..];
+                }
+                _ => break,
+            }
+        }
+        out
+    }
+    fn word<'a>(rest: &mut &'a str) -> &'a str {
+        let t = rest.trim_start();
+        let end = t.find(char::is_whitespace).unwrap_or(t.len());
+        *rest = &t[end..];
+        &t[..end]
+    }
+    while rest.starts_with('-') {
+        let option = word(&mut rest);
+        match option {
+            "-blendu" | "-blendv" | "-cc" | "-type" => {
+                word(&mut rest);
+            }
+            "-clamp" => spec.clamp = word(&mut rest) == "on",
+            "-imfchan" => spec.channel = word(&mut rest).chars().next(),
+            "-bm" | "-boost" | "-texres" => {
+                if numbers(&mut rest, 1).is_empty() {
+                    return Err(format!("{option} needs a number"));
+                }
+            }
+            "-mm" => {
+                numbers(&mut rest, 2);
+            }
+            "-o" | "-s" | "-t" => {
+                let v = numbers(&mut rest, 3);
+                if v.is_empty() {
+                    return Err(format!("{option} needs numbers"));
+                }
+                let pair = [v[0], *v.get(1).unwrap_or(&if option == "-s" { 1.0 } else { 0.0 })];
+                match option {
+                    "-o" => spec.offset = pair,
+                    "-s" => spec.scale = pair,
+                    _ => {}
+                }
+            }
+            other => return Err(format!("unknown option `{other}`")),
+        }
+        rest = rest.trim_start();
+    }
+    spec.file = rest.trim().to_string();
+    if spec.file.is_empty() {
+        return Err("no file name".into());
+    }
+    Ok(spec)
+}
+
+impl TextureSpec {
+    /// `-s` and `-o` as the model's texture transform. They act on OBJ's coordinates (v up);
+    /// the tracers' v runs down (v' = 1 − v), so v' ↦ s·v' + (1 − s − o).
+    pub fn transform(&self) -> [f32; 6] {
+        let ([su, sv], [ou, ov]) = (self.scale, self.offset);
+        [su, 0.0, ou, 0.0, sv, 1.0 - sv - ov]
+    }
+}
+
+/// One image decoded, for a material's statement.
+struct Loaded {
+    image: Arc<image::RgbaImage>,
+    spec: TextureSpec,
+    name: String,
+}
+
+/// Each MTL material mapped: factors by [`mtl_pbr`], maps decoded in parallel.
+fn map_materials(
+    mtl: &[tobj::Material],
+    libraries: &[(PathBuf, String)],
+    skipped: &mut Vec<String>,
+) -> Result<Vec<Material>, String> {
+    // Every (material, statement, arguments) whose image is read.
+    let mut wanted: Vec<(usize, &str, &str)> = Vec::new();
+    for (i, m) in mtl.iter().enumerate() {
+        for (key, value) in [
+            ("map_Kd", m.diffuse_texture.as_deref()),
+            ("map_d", m.dissolve_texture.as_deref()),
+            ("map_Ke", m.unknown_param.get("map_Ke").map(String::as_str)),
+        ] {
+            if let Some(v) = value {
+                wanted.push((i, key, v));
+            }
+        }
+        let mut unread: Vec<&str> = [
+            ("map_Ka", m.ambient_texture.is_some()),
+            ("map_Ks", m.specular_texture.is_some()),
+            ("map_Ns", m.shininess_texture.is_some()),
+            ("bump", m.normal_texture.is_some()),
+        ]
+        .into_iter()
+        .filter_map(|(k, present)| present.then_some(k))
+        .collect();
+        let mut others: Vec<&str> = m
+            .unknown_param
+            .keys()
+            .map(String::as_str)
+            .filter(|k| {
+                (k.starts_with("map_") || ["norm", "disp", "decal", "refl"].contains(k))
+                    && !READ_MAPS.contains(k)
+            })
+            .collect();
+        others.sort_unstable();
+        unread.extend(others);
+        if !unread.is_empty() {
+            skipped.push(format!(
+                "material `{}`: {} (not read)",
+                m.name,
+                unread.join(", ")
+            ));
+        }
+    }
+    // A map's file is found beside the library that defines its material.
+    let base = |i: usize| -> PathBuf {
+        statement(libraries, &mtl[i].name, "newmtl")
+            .and_then(|(f, _)| f.parent())
+            .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
+    };
+    let decoded: Vec<Result<Loaded, String>> = wanted
+        .par_iter()
+        .map(|&(i, key, args)| {
+            let what = locate(libraries, &mtl[i].name, key);
+            let spec = texture_spec(args).map_err(|e| format!("{what}: {e}"))?;
+            let path = find_image(&base(i), &spec.file).map_err(|e| format!("{what}: {e}"))?;
+            let image = std::fs::read(&path)
+                .map_err(|e| e.to_string())
+                .and_then(|b| image::load_from_memory(&b).map_err(|e| e.to_string()))
+                .map_err(|e| format!("{what}: `{}`: {e}", spec.file))?;
+            Ok(Loaded {
+                image: Arc::new(image.to_rgba8()),
+                name: format!("`{}` ({key} of `{}`)", spec.file, mtl[i].name),
+                spec,
+            })
+        })
+        .collect();
+    let mut maps: HashMap<(usize, &str), Loaded> = HashMap::new();
+    for (&(i, key, _), d) in wanted.iter().zip(decoded) {
+        maps.insert((i, key), d?);
+    }
+    Ok(mtl
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let pbr = mtl_pbr(m);
+            let mut material = pbr_material(&pbr);
+            material.textured = textured(
+                m,
+                &pbr,
+                maps.remove(&(i, "map_Kd")),
+                maps.remove(&(i, "map_d")),
+                maps.remove(&(i, "map_Ke")),
+            );
+            material
+        })
+        .collect())
+}
+
+/// The image a map names: its path beside the library, else (a path written on another
+/// machine, `C:\textures\wood.png`) its file name there.
+fn find_image(base: &Path, file: &str) -> Result<PathBuf, String> {
+    let as_written = base.join(file.replace('\\', "/"));
+    if as_written.is_file() {
+        return Ok(as_written);
+    }
+    let name = file.rsplit(['/', '\\']).next().unwrap_or(file);
+    let beside = base.join(name);
+    if beside.is_file() {
+        return Ok(beside);
+    }
+    Err(format!(
+        "`{file}` is not there (looked for {} and {})",
+        as_written.display(),
+        beside.display()
+    ))
+}
+
+/// An MTL material's factors in glTF's terms (docs/MODEL-NOTES.md, "OBJ materials"):
+/// - `Kd` → base colour (0.8 grey when absent);
+/// - `Pr` → roughness, else `Ns` by Blender's rule, roughness = 1 − √(Ns / 1000) (its exporter
+///   writes Ns = 1000 · (1 − roughness)²); no `Ns`: roughness 1;
+/// - `Pm` → metallic, else 1 for the reflecting illumination models 3, 5 and 8, else 0;
+/// - the transparent illumination models 4, 6, 7 and 9 → glass (transmission 1) of ior `Ni`;
+/// - `Ke` → emission.
+pub fn mtl_pbr(m: &tobj::Material) -> Pbr {
+    let param = |k: &str| -> Option<f32> {
+        m.unknown_param
+            .get(k)?
+            .split_whitespace()
+            .next()?
+            .parse()
+            .ok()
+    };
+    let illum = m.illumination_model.unwrap_or(2);
+    let roughness = param("Pr").unwrap_or_else(|| match m.shininess {
+        Some(ns) => 1.0 - (ns.clamp(0.0, 1000.0) / 1000.0).sqrt(),
+        None => 1.0,
+    });
+    let metallic = param("Pm").unwrap_or(if [3, 5, 8].contains(&illum) {
+        1.0
+    } else {
+        0.0
+    });
+    let glass = [4, 6, 7, 9].contains(&illum);
+    Pbr {
+        base: Vec3::from(m.diffuse.unwrap_or(super::model::DEFAULT_COLOR.to_array())),
+        metallic,
+        roughness,
+        emissive: m.emissive.map_or(Vec3::ZERO, Vec3::from),
+        transmission: if glass { 1.0 } else { 0.0 },
+        ior: m.optical_density.unwrap_or(1.5),
+    }
+}
+
+/// The material's opacity: `d`, else 1 − `Tr`.
+fn dissolve(m: &tobj::Material) -> f32 {
+    let tr = m
+        .unknown_param
+        .get("Tr")
+        .and_then(|t| t.split_whitespace().next()?.parse::<f32>().ok());
+    m.dissolve
+        .or(tr.map(|t| 1.0 - t))
+        .unwrap_or(1.0)
+        .clamp(0.0, 1.0)
+}
+
+/// The material's maps as the model's [`Textured`]: `map_Kd` × `Kd` the base colour, `map_d` ×
+/// `d` its alpha (a stochastic cut-out, glTF's BLEND, when below 1; read through `map_Kd`'s
+/// coordinates), `map_Ke` × `Ke` the emission. `None` when it has no map and is opaque.
+fn textured(
+    m: &tobj::Material,
+    pbr: &Pbr,
+    kd: Option<Loaded>,
+    d: Option<Loaded>,
+    ke: Option<Loaded>,
+) -> Option<TexturedRef> {
+    let opacity = dissolve(m);
+    let glass = pbr.transmission > 0.5;
+    let cut = !glass && (opacity < 1.0 || d.is_some());
+    if kd.is_none() && ke.is_none() && !cut {
+        return None;
+    }
+    let wrap = |s: &TextureSpec| [if s.clamp { Wrap::Clamp } else { Wrap::Repeat }; 2];
+    let texture = |l: &Loaded| Texture {
+        width: l.image.width(),
+        height: l.image.height(),
+        texels: l.image.pixels().map(|p| u32::from_le_bytes(p.0)).collect(),
+        wrap: wrap(&l.spec),
+        name: l.name.clone(),
+    };
+    let base_xf = kd.as_ref().map_or(IDENTITY_TRANSFORM, |l| l.spec.transform());
+    let base_color = match (&kd, d.as_ref().filter(|_| cut)) {
+        (Some(kd), None) => Some(texture(kd)),
+        (kd, Some(d)) => Some(with_alpha(kd.as_ref().map(texture), d, wrap)),
+        (None, None) => None,
+    };
+    Some(TexturedRef(Arc::new(Textured {
+        base_color: base_color.map(Arc::new),
+        metallic_roughness: None,
+        emissive: ke.as_ref().map(|l| Arc::new(texture(l))),
+        normal: None,
+        normal_scale: 1.0,
+        base_factor: [pbr.base.x, pbr.base.y, pbr.base.z, opacity].map(|x| x.max(0.0)),
+        metallic: pbr.metallic.clamp(0.0, 1.0),
+        roughness: pbr.roughness.clamp(0.0, 1.0),
+        // A map_Ke without Ke emits the map itself (the spec's factor would be black).
+        emissive_factor: if ke.is_some() && pbr.emissive == Vec3::ZERO {
+            [1.0; 3]
+        } else {
+            pbr.emissive.max(Vec3::ZERO).to_array()
+        },
+        alpha: if cut {
+            AlphaMode::Blend
+        } else {
+            AlphaMode::Opaque
+        },
+        transforms: [
+            base_xf,
+            IDENTITY_TRANSFORM,
+            ke.as_ref().map_or(IDENTITY_TRANSFORM, |l| l.spec.transform()),
+            IDENTITY_TRANSFORM,
+        ],
+    })))
+}
+
+/// The base-colour texture with `map_d`'s opacity as its alpha (nearest texel where the
+/// sizes differ); without `map_Kd`, a white texture of `map_d`'s size. The opacity is the
+/// channel `-imfchan` names, else the image's alpha where it has some, else its luminance.
+fn with_alpha(kd: Option<Texture>, d: &Loaded, wrap: impl Fn(&TextureSpec) -> [Wrap; 2]) -> Texture {
+    let img = &d.image;
+    let translucent = img.pixels().any(|p| p.0[3] < 255);
+    let channel = d.spec.channel.unwrap_or(if translucent { 'm' } else { 'l' });
+    let opacity = |p: &image::Rgba<u8>| -> u32 {
+        let [r, g, b, a] = p.0.map(u32::from);
+        match channel {
+            'r' => r,
+            'g' => g,
+            'b' => b,
+            'm' => a,
+            _ => (r * 2126 + g * 7152 + b * 722 + 5000) / 10000,
+        }
+    };
+    let mut t = kd.unwrap_or_else(|| Texture {
+        width: img.width(),
+        height: img.height(),
+        texels: vec![0x00ff_ffff; (img.width() * img.height()) as usize],
+        wrap: wrap(&d.spec),
+        name: d.name.clone(),
+    });
+    let (w, h) = (t.width, t.height);
+    for y in 0..h {
+        let sy = (y as u64 * img.height() as u64 / h as u64) as u32;
+        for x in 0..w {
+            let sx = (x as u64 * img.width() as u64 / w as u64) as u32;
+            let texel = &mut t.texels[(y * w + x) as usize];
+            *texel = (*texel & 0x00ff_ffff) | opacity(img.get_pixel(sx, sy)) << 24;
+        }
+    }
+    t.name = format!("{} with the opacity of {}", t.name, d.name);
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn texture_options_are_read_and_the_file_may_hold_spaces() {
+        let s = texture_spec("-s 2 3 1 -o 0.5 0.25 -clamp on -bm 0.3 my wood.png").unwrap();
+        assert_eq!(s.file, "my wood.png");
+        assert_eq!((s.scale, s.offset, s.clamp), ([2.0, 3.0], [0.5, 0.25], true));
+        // OBJ's v' = 3v + 0.25 seen with v flipped: 1 − (3(1 − v) + 0.25) = 3v − 2.25.
+        assert_eq!(s.transform(), [2.0, 0.0, 0.5, 0.0, 3.0, -2.25]);
+        assert_eq!(texture_spec("a.png").unwrap().transform(), IDENTITY_TRANSFORM);
+        assert!(texture_spec("-s").unwrap_err().contains("-s needs numbers"));
+        assert!(texture_spec("-wobble 1 a.png").unwrap_err().contains("`-wobble`"));
+        assert!(texture_spec("-clamp on").unwrap_err().contains("no file name"));
+    }
+
+    #[test]
+    fn a_parse_error_names_its_line() {
+        let e = load("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nv 1 x 2\nf 1 2 3\n", |_| {
+            Err(tobj::LoadError::OpenFileFailed)
+        })
+        .unwrap_err();
+        assert!(e.starts_with("line 5:") && e.contains("`v 1 x 2`"), "{e}");
+    }
+
+    #[test]
+    fn mtl_factors_map_by_the_documented_rules() {
+        let (_, mats) = load("mtllib a.mtl\n", |_| {
+            tobj::load_mtl_buf(
+                &mut "newmtl plain\nKd 0.5 0.25 1\nNs 250\n\
+                      newmtl mirror\nillum 3\nKd 0.9 0.9 0.9\nNs 1000\n\
+                      newmtl glass\nillum 7\nNi 1.33\n\
+                      newmtl lamp\nKe 4 2 0\n\
+                      newmtl pbr\nPr 0.3\nPm 0.5\nillum 3\n"
+                    .as_bytes(),
+            )
+        })
+        .unwrap();
+        let p: Vec<Pbr> = mats.iter().map(mtl_pbr).collect();
+        assert_eq!(p[0].base, Vec3::new(0.5, 0.25, 1.0));
+        assert_eq!((p[0].metallic, p[0].roughness), (0.0, 0.5));
+        assert_eq!((p[1].metallic, p[1].roughness), (1.0, 0.0));
+        assert_eq!((p[2].transmission, p[2].ior), (1.0, 1.33));
+        assert!(pbr_material(&p[2]).is_dielectric());
+        let lamp = pbr_material(&p[3]);
+        assert_eq!((lamp.light, lamp.color), (4.0, Vec3::new(1.0, 0.5, 0.0)));
+        assert_eq!((p[4].metallic, p[4].roughness), (0.5, 0.3));
+    }
+}
