@@ -90,7 +90,7 @@ pub fn summary(s: &Scene) -> String {
         .map(|(i, g)| {
             let objects = s.objects.iter().filter(|o| o.gltf == Some(i)).count();
             format!(
-                "\n  glTF       {}: {objects} objects, {} materials",
+                "\n  model      {}: {objects} objects, {} materials",
                 g.file,
                 g.materials.len()
             )

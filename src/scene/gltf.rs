@@ -547,13 +547,37 @@ fn accessor_fits(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(
 pub fn material(m: &gltf::Material) -> Material {
     let pbr = m.pbr_metallic_roughness();
     let [r, g, b, _] = pbr.base_color_factor();
-    let base = Vec3::new(r, g, b).max(Vec3::ZERO);
-    let metallic = pbr.metallic_factor().clamp(0.0, 1.0);
-    let roughness = pbr.roughness_factor().clamp(0.0, 1.0);
-    let emissive = Vec3::from(m.emissive_factor()).max(Vec3::ZERO)
-        * m.emissive_strength().unwrap_or(1.0).max(0.0);
-    let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
-    let ior = m.ior().unwrap_or(1.5);
+    pbr_material(&Pbr {
+        base: Vec3::new(r, g, b),
+        metallic: pbr.metallic_factor(),
+        roughness: pbr.roughness_factor(),
+        emissive: Vec3::from(m.emissive_factor()) * m.emissive_strength().unwrap_or(1.0).max(0.0),
+        transmission: m.transmission().map_or(0.0, |t| t.transmission_factor()),
+        ior: m.ior().unwrap_or(1.5),
+    })
+}
+
+/// A metallic-roughness material's factors, as glTF gives them or as an MTL material maps
+/// onto them (`scene::obj`), before [`pbr_material`] maps them onto the model.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pbr {
+    /// Linear base colour.
+    pub base: Vec3,
+    pub metallic: f32,
+    pub roughness: f32,
+    /// Emitted radiance (factor × strength).
+    pub emissive: Vec3,
+    pub transmission: f32,
+    pub ior: f32,
+}
+
+/// [`Pbr`] factors as MODEL.md's material, by the rules of [`material`].
+pub fn pbr_material(p: &Pbr) -> Material {
+    let base = p.base.max(Vec3::ZERO);
+    let metallic = p.metallic.clamp(0.0, 1.0);
+    let roughness = p.roughness.clamp(0.0, 1.0);
+    let emissive = p.emissive.max(Vec3::ZERO);
+    let (transmission, ior) = (p.transmission, p.ior);
     if emissive.max_element() > 0.0 {
         let light = emissive.max_element();
         return Material {

@@ -13,6 +13,7 @@ mod gltf_frames;
 mod gltf_textures;
 pub mod mesh;
 mod model;
+pub mod obj;
 mod parse;
 mod reader;
 pub mod texture;
@@ -43,7 +44,7 @@ impl Scene {
     /// for one.
     pub fn load_with_camera(name: &str, camera: Option<&str>) -> Result<Scene, SceneError> {
         let path = Path::new(name);
-        if is_gltf(path) {
+        if is_model(path) {
             return Self::from_gltf(path, camera);
         }
         if let Some(c) = camera {
@@ -78,11 +79,12 @@ impl Scene {
         Self::from_toml(&text, &path.display().to_string())
     }
 
-    /// A glTF 2.0 file (`.gltf` or `.glb`) as a scene: its objects, its camera (the first, or
-    /// `camera` by name; without one, a camera that frames it), its directional light as the
-    /// sun over the default sky, and the default render settings.
+    /// A glTF 2.0 file (`.gltf` or `.glb`) or an OBJ file with its MTL materials as a scene:
+    /// its objects, its camera (the first, or `camera` by name; without one, a camera that
+    /// frames it), its directional light as the sun over the default sky, and the default
+    /// render settings.
     pub fn from_gltf(path: &Path, camera: Option<&str>) -> Result<Scene, SceneError> {
-        let imported = gltf::import(path, glam::DMat4::IDENTITY, camera)?;
+        let imported = import_model(path, glam::DMat4::IDENTITY, camera)?;
         for s in &imported.skipped {
             tracing::warn!("{}: left out: {s}", path.display());
         }
@@ -137,4 +139,35 @@ pub fn load_scene(name: &str, camera: Option<&str>) -> anyhow::Result<Scene> {
 pub fn is_gltf(path: &Path) -> bool {
     path.extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"))
+}
+
+/// Whether `path` names an OBJ file (`.obj`, any case).
+pub fn is_obj(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("obj"))
+}
+
+/// Whether `path` names a model file that opens as a scene and that `[[gltf]]` places: glTF,
+/// GLB or OBJ.
+pub fn is_model(path: &Path) -> bool {
+    is_gltf(path) || is_obj(path)
+}
+
+/// Imports a model file, glTF or OBJ by its extension, placed by `place`; `camera` picks a
+/// glTF camera by name (an OBJ file has none).
+pub fn import_model(
+    path: &Path,
+    place: glam::DMat4,
+    camera: Option<&str>,
+) -> Result<gltf::Imported, gltf::GltfError> {
+    if !is_obj(path) {
+        return gltf::import(path, place, camera);
+    }
+    if let Some(c) = camera {
+        return Err(gltf::GltfError {
+            path: path.display().to_string(),
+            message: format!("--camera {c}: an OBJ file has no cameras"),
+        });
+    }
+    obj::import(path, place)
 }

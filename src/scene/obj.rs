@@ -84,7 +84,8 @@ pub fn import(path: &Path, place: DMat4) -> Result<Imported, GltfError> {
             .map_err(|e| format!("cannot read it: {e}"))
             .and_then(|t| {
                 let parsed = tobj::load_mtl_buf(&mut t.as_bytes()).map_err(|e| {
-                    let (n, line) = failing_line(&t, |p| tobj::load_mtl_buf(&mut p.as_bytes()).is_err());
+                    let (n, line) =
+                        failing_line(&t, |p| tobj::load_mtl_buf(&mut p.as_bytes()).is_err());
                     format!("line {n}: {e} (`{line}`)")
                 });
                 libraries.borrow_mut().push((file.clone(), t));
@@ -337,7 +338,10 @@ pub fn texture_spec(args: &str) -> Result<TextureSpec, String> {
                 if v.is_empty() {
                     return Err(format!("{option} needs numbers"));
                 }
-                let pair = [v[0], *v.get(1).unwrap_or(&if option == "-s" { 1.0 } else { 0.0 })];
+                let pair = [
+                    v[0],
+                    *v.get(1).unwrap_or(&if option == "-s" { 1.0 } else { 0.0 }),
+                ];
                 match option {
                     "-o" => spec.offset = pair,
                     "-s" => spec.scale = pair,
@@ -502,11 +506,7 @@ pub fn mtl_pbr(m: &tobj::Material) -> Pbr {
         Some(ns) => 1.0 - (ns.clamp(0.0, 1000.0) / 1000.0).sqrt(),
         None => 1.0,
     });
-    let metallic = param("Pm").unwrap_or(if [3, 5, 8].contains(&illum) {
-        1.0
-    } else {
-        0.0
-    });
+    let metallic = param("Pm").unwrap_or(if [3, 5, 8].contains(&illum) { 1.0 } else { 0.0 });
     let glass = [4, 6, 7, 9].contains(&illum);
     Pbr {
         base: Vec3::from(m.diffuse.unwrap_or(super::model::DEFAULT_COLOR.to_array())),
@@ -554,7 +554,9 @@ fn textured(
         wrap: wrap(&l.spec),
         name: l.name.clone(),
     };
-    let base_xf = kd.as_ref().map_or(IDENTITY_TRANSFORM, |l| l.spec.transform());
+    let base_xf = kd
+        .as_ref()
+        .map_or(IDENTITY_TRANSFORM, |l| l.spec.transform());
     let base_color = match (&kd, d.as_ref().filter(|_| cut)) {
         (Some(kd), None) => Some(texture(kd)),
         (kd, Some(d)) => Some(with_alpha(kd.as_ref().map(texture), d, wrap)),
@@ -583,7 +585,8 @@ fn textured(
         transforms: [
             base_xf,
             IDENTITY_TRANSFORM,
-            ke.as_ref().map_or(IDENTITY_TRANSFORM, |l| l.spec.transform()),
+            ke.as_ref()
+                .map_or(IDENTITY_TRANSFORM, |l| l.spec.transform()),
             IDENTITY_TRANSFORM,
         ],
     })))
@@ -592,10 +595,17 @@ fn textured(
 /// The base-colour texture with `map_d`'s opacity as its alpha (nearest texel where the
 /// sizes differ); without `map_Kd`, a white texture of `map_d`'s size. The opacity is the
 /// channel `-imfchan` names, else the image's alpha where it has some, else its luminance.
-fn with_alpha(kd: Option<Texture>, d: &Loaded, wrap: impl Fn(&TextureSpec) -> [Wrap; 2]) -> Texture {
+fn with_alpha(
+    kd: Option<Texture>,
+    d: &Loaded,
+    wrap: impl Fn(&TextureSpec) -> [Wrap; 2],
+) -> Texture {
     let img = &d.image;
     let translucent = img.pixels().any(|p| p.0[3] < 255);
-    let channel = d.spec.channel.unwrap_or(if translucent { 'm' } else { 'l' });
+    let channel = d
+        .spec
+        .channel
+        .unwrap_or(if translucent { 'm' } else { 'l' });
     let opacity = |p: &image::Rgba<u8>| -> u32 {
         let [r, g, b, a] = p.0.map(u32::from);
         match channel {
@@ -634,20 +644,35 @@ mod tests {
     fn texture_options_are_read_and_the_file_may_hold_spaces() {
         let s = texture_spec("-s 2 3 1 -o 0.5 0.25 -clamp on -bm 0.3 my wood.png").unwrap();
         assert_eq!(s.file, "my wood.png");
-        assert_eq!((s.scale, s.offset, s.clamp), ([2.0, 3.0], [0.5, 0.25], true));
+        assert_eq!(
+            (s.scale, s.offset, s.clamp),
+            ([2.0, 3.0], [0.5, 0.25], true)
+        );
         // OBJ's v' = 3v + 0.25 seen with v flipped: 1 − (3(1 − v) + 0.25) = 3v − 2.25.
         assert_eq!(s.transform(), [2.0, 0.0, 0.5, 0.0, 3.0, -2.25]);
-        assert_eq!(texture_spec("a.png").unwrap().transform(), IDENTITY_TRANSFORM);
+        assert_eq!(
+            texture_spec("a.png").unwrap().transform(),
+            IDENTITY_TRANSFORM
+        );
         assert!(texture_spec("-s").unwrap_err().contains("-s needs numbers"));
-        assert!(texture_spec("-wobble 1 a.png").unwrap_err().contains("`-wobble`"));
-        assert!(texture_spec("-clamp on").unwrap_err().contains("no file name"));
+        assert!(
+            texture_spec("-wobble 1 a.png")
+                .unwrap_err()
+                .contains("`-wobble`")
+        );
+        assert!(
+            texture_spec("-clamp on")
+                .unwrap_err()
+                .contains("no file name")
+        );
     }
 
     #[test]
     fn a_parse_error_names_its_line() {
-        let e = load("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nv 1 x 2\nf 1 2 3\n", |_| {
-            Err(tobj::LoadError::OpenFileFailed)
-        })
+        let e = load(
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nv 1 x 2\nf 1 2 3\n",
+            |_| Err(tobj::LoadError::OpenFileFailed),
+        )
         .unwrap_err();
         assert!(e.starts_with("line 5:") && e.contains("`v 1 x 2`"), "{e}");
     }
