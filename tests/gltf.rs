@@ -602,3 +602,22 @@ fn a_fuzzer_crash_that_is_a_valid_file_imports() {
     assert_eq!(imported.objects.len(), 1);
     assert!(imported.objects[0].material.textured.is_none());
 }
+
+#[test]
+fn a_map_on_a_second_texture_coordinate_set_is_left_out_and_named() {
+    // Khronos's MultiUVTest (Analytical Graphics, CC BY 4.0): its base colour map reads
+    // TEXCOORD_0 and its emissive map TEXCOORD_1, which termtrace does not read.
+    let i = termtrace::scene::gltf::import(
+        std::path::Path::new("tests/gltf/MultiUVTest/MultiUVTest.glb"),
+        glam::DMat4::IDENTITY,
+        None,
+    )
+    .unwrap();
+    let said = i.skipped.join("\n");
+    assert!(
+        said.contains("the emissive map of materials[0]: TEXCOORD_1 (only TEXCOORD_0 is read)"),
+        "{said}"
+    );
+    let t = &i.objects[0].material.textured.as_ref().expect("textured").0;
+    assert!(t.base_color.is_some() && t.emissive.is_none());
+}

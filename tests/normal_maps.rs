@@ -294,3 +294,45 @@ fn both_tracers_agree_on_a_lit_normal_mapped_scene() {
         }
     }
 }
+
+#[test]
+fn the_public_mirror_test_keeps_its_tangents_and_renders_alike_on_both_tracers() {
+    // Khronos's NormalTangentMirrorTest (Analytical Graphics, CC BY 4.0): a plate of
+    // normal-mapped bumps whose texture coordinates are mirrored in u and in v, with the
+    // file's TANGENTs of both handedness signs.
+    let s = termtrace::scene::Scene::load(
+        "tests/gltf/NormalTangentMirrorTest/NormalTangentMirrorTest.glb",
+    )
+    .unwrap();
+    let termtrace::scene::Shape::Mesh { mesh, .. } = &s.objects[0].shape else {
+        panic!("not a mesh")
+    };
+    assert_eq!(mesh.tangents.len(), mesh.triangles.len());
+    let signs: Vec<f32> = mesh.tangents.iter().flatten().map(|t| t[3]).collect();
+    assert!(
+        signs.contains(&1.0) && signs.contains(&-1.0),
+        "both handednesses"
+    );
+    let st = settings(24, 24, 4);
+    let gpu = snapshot_on(
+        termtrace::render::Backend::Gpu(ctx()),
+        &s,
+        st,
+        96,
+        Default::default(),
+    );
+    let cpu = cpu_snapshot(&s, st, 96);
+    assert_eq!((gpu.invalid_samples(), cpu.invalid_samples()), (0, 0));
+    let mean = |i: &termtrace::output::LinearImage| -> f64 {
+        i.pixels
+            .iter()
+            .map(|p| (p[0] + p[1] + p[2]) as f64)
+            .sum::<f64>()
+            / i.pixels.len() as f64
+    };
+    let (a, b) = (mean(&gpu.image()), mean(&cpu.image()));
+    assert!(
+        (a - b).abs() <= 0.01 * a.max(b),
+        "means {a} (GPU) and {b} (CPU)"
+    );
+}

@@ -346,3 +346,42 @@ fn an_edited_obj_material_is_written_back_as_an_override_of_the_file() {
         files[1].1
     );
 }
+
+#[test]
+fn fuzzer_finds_are_refused_or_imported_without_a_panic() {
+    // Each file under tests/assets/obj/fuzz/ is an input of `fuzz/fuzz_targets/obj.rs` that
+    // once panicked: the OBJ text, the MTL library and an image, split by the byte 0x1e.
+    let mut cases = 0;
+    for entry in std::fs::read_dir("tests/assets/obj/fuzz").unwrap() {
+        let path = entry.unwrap().path();
+        let data = std::fs::read(&path).unwrap();
+        let mut parts = data.split(|&b| b == 0x1e);
+        let text = String::from_utf8_lossy(parts.next().unwrap_or_default()).into_owned();
+        let mtl = parts.next().unwrap_or_default().to_vec();
+        let image = parts.next().unwrap_or_default().to_vec();
+        let read = |p: &std::path::Path| -> std::io::Result<Vec<u8>> {
+            match p.extension().and_then(|e| e.to_str()) {
+                Some("mtl") => Ok(mtl.clone()),
+                Some(_) => Ok(image.clone()),
+                None => Err(std::io::ErrorKind::NotFound.into()),
+            }
+        };
+        let result = std::panic::catch_unwind(|| {
+            obj::import_from(
+                "fuzz.obj",
+                &text,
+                std::path::Path::new("."),
+                &read,
+                glam::DMat4::IDENTITY,
+            )
+            .map(|_| ())
+        });
+        match result {
+            Ok(Err(e)) => assert!(!e.message.is_empty(), "{}", path.display()),
+            Ok(Ok(())) => {}
+            Err(_) => panic!("{} panicked", path.display()),
+        }
+        cases += 1;
+    }
+    assert!(cases >= 1);
+}

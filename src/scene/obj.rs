@@ -64,29 +64,89 @@ fn failing_line(text: &str, fails: impl Fn(&str) -> bool) -> (usize, &str) {
     (lo + 1, text[..ends[lo]].lines().last().unwrap_or("").trim())
 }
 
+/// Reads a file's bytes (the file system's, or a fuzzer's from memory).
+pub type Reader<'a> = &'a (dyn Fn(&Path) -> std::io::Result<Vec<u8>> + Sync);
+
+/// The MTL text with every colour statement (`Ka`, `Kd`, `Ks`, `Ke`) of one number written
+/// as three: the format allows `Kd r` for grey (g and b default to r), and tobj 4.0.5 panics
+/// on fewer than three numbers (found by `fuzz/`). Two numbers, or none, are refused by line.
+fn colours_of_three(text: &str) -> Result<String, String> {
+    let mut out = String::with_capacity(text.len() + 16);
+    for (n, line) in text.split_inclusive('\n').enumerate() {
+        let mut words = line.split_whitespace();
+        let key = words.next();
+        if matches!(key, Some("Ka" | "Kd" | "Ks" | "Ke")) {
+            let key = key.unwrap_or_default();
+            let rest: Vec<&str> = words.collect();
+            match rest.len() {
+                1 => {
+                    let r = rest[0];
+                    out.push_str(&format!("{key} {r} {r} {r}\n"));
+                    continue;
+                }
+                0 | 2 => {
+                    return Err(format!(
+                        "line {}: `{key}` needs one number (grey) or three (`{}`)",
+                        n + 1,
+                        line.trim()
+                    ));
+                }
+                _ => {}
+            }
+        }
+        out.push_str(line);
+    }
+    Ok(out)
+}
+
 /// Imports the OBJ file at `path` with its MTL files and their images (beside it), placed by
 /// `place`.
 pub fn import(path: &Path, place: DMat4) -> Result<Imported, GltfError> {
-    let name = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| GltfError {
+        path: path.display().to_string(),
+        message: format!("cannot read it: {e}"),
+    })?;
+    let text = String::from_utf8_lossy(&bytes);
+    let base = path.parent().unwrap_or(Path::new("."));
+    import_from(
+        &path.display().to_string(),
+        &text,
+        base,
+        &|p| std::fs::read(p),
+        place,
+    )
+}
+
+/// Imports OBJ `text` (named `name` in errors), reading its libraries and images from folder
+/// `base` through `read`.
+pub fn import_from(
+    name: &str,
+    text: &str,
+    base: &Path,
+    read: Reader,
+    place: DMat4,
+) -> Result<Imported, GltfError> {
     let err = |message: String| GltfError {
-        path: name.clone(),
+        path: name.to_string(),
         message,
     };
-    let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read it: {e}")))?;
-    let base = path.parent().unwrap_or(Path::new(".")).to_path_buf();
     // Each MTL file read, with its text (to name the lines of its statements), and the first
     // that could not be read or parsed.
     let libraries: RefCell<Vec<(PathBuf, String)>> = RefCell::new(Vec::new());
     let failed: RefCell<Option<String>> = RefCell::new(None);
-    let (models, mtl) = load(&text, |lib: &Path| {
+    let (models, mtl) = load(text, |lib: &Path| {
         let file = base.join(lib);
-        let result = std::fs::read_to_string(&file)
+        let result = read(&file)
             .map_err(|e| format!("cannot read it: {e}"))
-            .and_then(|t| {
-                let parsed = tobj::load_mtl_buf(&mut t.as_bytes()).map_err(|e| {
-                    let (n, line) =
-                        failing_line(&t, |p| tobj::load_mtl_buf(&mut p.as_bytes()).is_err());
-                    format!("line {n}: {e} (`{line}`)")
+            .and_then(|b| {
+                let t = String::from_utf8_lossy(&b).into_owned();
+                let parsed = colours_of_three(&t).and_then(|fixed| {
+                    tobj::load_mtl_buf(&mut fixed.as_bytes()).map_err(|e| {
+                        let (n, line) = failing_line(&fixed, |p| {
+                            tobj::load_mtl_buf(&mut p.as_bytes()).is_err()
+                        });
+                        format!("line {n}: {e} (`{line}`)")
+                    })
                 });
                 libraries.borrow_mut().push((file.clone(), t));
                 parsed
@@ -104,8 +164,8 @@ pub fn import(path: &Path, place: DMat4) -> Result<Imported, GltfError> {
     }
     let libraries = libraries.into_inner();
     let mut skipped = Vec::new();
-    unknown_materials(&text, &mtl, &mut skipped);
-    let materials = map_materials(&mtl, &libraries, &mut skipped).map_err(err)?;
+    unknown_materials(text, &mtl, &mut skipped);
+    let materials = map_materials(&mtl, &libraries, read, &mut skipped).map_err(err)?;
     let mut out = Imported {
         objects: Vec::new(),
         camera: None,
@@ -379,6 +439,7 @@ struct Loaded {
 fn map_materials(
     mtl: &[tobj::Material],
     libraries: &[(PathBuf, String)],
+    read: Reader,
     skipped: &mut Vec<String>,
 ) -> Result<Vec<Material>, String> {
     // Every (material, statement, arguments) whose image is read.
@@ -432,10 +493,9 @@ fn map_materials(
         .map(|&(i, key, args)| {
             let what = locate(libraries, &mtl[i].name, key);
             let spec = texture_spec(args).map_err(|e| format!("{what}: {e}"))?;
-            let path = find_image(&base(i), &spec.file).map_err(|e| format!("{what}: {e}"))?;
-            let image = std::fs::read(&path)
-                .map_err(|e| e.to_string())
-                .and_then(|b| image::load_from_memory(&b).map_err(|e| e.to_string()))
+            let bytes =
+                find_image(&base(i), &spec.file, read).map_err(|e| format!("{what}: {e}"))?;
+            let image = image::load_from_memory(&bytes)
                 .map_err(|e| format!("{what}: `{}`: {e}", spec.file))?;
             Ok(Loaded {
                 image: Arc::new(image.to_rgba8()),
@@ -466,20 +526,23 @@ fn map_materials(
         .collect())
 }
 
-/// The image a map names: its path beside the library, else (a path written on another
-/// machine, `C:\textures\wood.png`) its file name there.
-fn find_image(base: &Path, file: &str) -> Result<PathBuf, String> {
+/// The bytes of the image a map names: its path beside the library, else (a path written
+/// on another machine, `C:\\textures\\wood.png`) its file name there.
+fn find_image(base: &Path, file: &str, read: Reader) -> Result<Vec<u8>, String> {
     let as_written = base.join(file.replace('\\', "/"));
-    if as_written.is_file() {
-        return Ok(as_written);
-    }
+    let first = match read(&as_written) {
+        Ok(b) => return Ok(b),
+        Err(e) => e,
+    };
     let name = file.rsplit(['/', '\\']).next().unwrap_or(file);
     let beside = base.join(name);
-    if beside.is_file() {
-        return Ok(beside);
+    if beside != as_written
+        && let Ok(b) = read(&beside)
+    {
+        return Ok(b);
     }
     Err(format!(
-        "`{file}` is not there (looked for {} and {})",
+        "`{file}` is not there (looked for {} and {}: {first})",
         as_written.display(),
         beside.display()
     ))
@@ -675,6 +738,17 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.starts_with("line 5:") && e.contains("`v 1 x 2`"), "{e}");
+    }
+
+    #[test]
+    fn a_colour_of_one_number_is_grey_and_of_two_is_refused() {
+        assert_eq!(
+            colours_of_three("Kd 0.5\nKs 1 2 3\n").unwrap(),
+            "Kd 0.5 0.5 0.5\nKs 1 2 3\n"
+        );
+        let e = colours_of_three("newmtl m\nKa 1 1\n").unwrap_err();
+        assert!(e.starts_with("line 2: `Ka` needs one number"), "{e}");
+        assert!(colours_of_three("Kd\n").is_err());
     }
 
     #[test]
