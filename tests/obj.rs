@@ -385,3 +385,49 @@ fn fuzzer_finds_are_refused_or_imported_without_a_panic() {
     }
     assert!(cases >= 1);
 }
+
+#[test]
+fn every_committed_asset_converges_to_one_image_on_both_tracers() {
+    // The bias check of `converge` (a Welch t-test per 8×8 tile of the two tracers' images,
+    // independent seeds, Bonferroni-corrected over every tile of every asset at α = 0.01) on
+    // each public asset in the repository: glTF's Box, BoxTextured, NormalTangentMirrorTest
+    // and MultiUVTest, and the two OBJ models.
+    use termtrace::converge::metrics;
+    let assets = [
+        "tests/gltf/Box/Box.gltf",
+        "tests/gltf/BoxTextured/BoxTextured.gltf",
+        "tests/gltf/NormalTangentMirrorTest/NormalTangentMirrorTest.glb",
+        "tests/gltf/MultiUVTest/MultiUVTest.glb",
+        "tests/assets/obj/cube-pets/animal-dog.obj",
+        "tests/assets/obj/space-kit/craft_racer.obj",
+    ];
+    let (mut tiles, mut failures) = (0, Vec::new());
+    for a in assets {
+        let s = Scene::load(a).unwrap();
+        let at = |seed| termtrace::common::FrameSettings {
+            seed,
+            ..settings(32, 24, 6)
+        };
+        let gpu = snapshot_on(
+            termtrace::render::Backend::Gpu(ctx()),
+            &s,
+            at(1),
+            48,
+            Default::default(),
+        );
+        let cpu = cpu_snapshot(&s, at(2), 48);
+        assert_eq!(
+            (gpu.invalid_samples(), cpu.invalid_samples()),
+            (0, 0),
+            "{a}"
+        );
+        let r = metrics::bias_check(&cpu, &gpu, false, 8, 0.01 / assets.len() as f64);
+        tiles += r.tiles;
+        eprintln!("{a}: {} tiles, smallest p {:.3e}", r.tiles, r.min_p);
+        if !r.significant.is_empty() {
+            failures.push(format!("{a}: {:?}", r.significant));
+        }
+    }
+    assert!(tiles >= 12 * assets.len(), "only {tiles} tiles tested");
+    assert!(failures.is_empty(), "tiles differ: {failures:#?}");
+}

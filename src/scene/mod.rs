@@ -7,6 +7,7 @@
 mod builtin;
 pub mod color;
 mod error;
+mod files;
 pub mod generate;
 pub mod gltf;
 mod gltf_frames;
@@ -21,6 +22,7 @@ mod write;
 
 pub use builtin::{BUILTIN_FILES, BUILTIN_SCENES, DEFAULT_SCENE, EXTREME_SCENES, builtin_source};
 pub use error::{Diagnostic, SceneError};
+pub use files::{import_model, is_gltf, is_model, is_obj};
 pub use mesh::Mesh;
 pub use model::*;
 pub use write::to_toml;
@@ -133,41 +135,4 @@ pub fn load_scene(name: &str, camera: Option<&str>) -> anyhow::Result<Scene> {
         SceneError::Invalid(_) => anyhow::anyhow!("invalid scene\n{e}"),
         other => other.into(),
     })
-}
-
-/// Whether `path` names a glTF file (`.gltf` or `.glb`, any case).
-pub fn is_gltf(path: &Path) -> bool {
-    path.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"))
-}
-
-/// Whether `path` names an OBJ file (`.obj`, any case).
-pub fn is_obj(path: &Path) -> bool {
-    path.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("obj"))
-}
-
-/// Whether `path` names a model file that opens as a scene and that `[[gltf]]` places: glTF,
-/// GLB or OBJ.
-pub fn is_model(path: &Path) -> bool {
-    is_gltf(path) || is_obj(path)
-}
-
-/// Imports a model file, glTF or OBJ by its extension, placed by `place`; `camera` picks a
-/// glTF camera by name (an OBJ file has none).
-pub fn import_model(
-    path: &Path,
-    place: glam::DMat4,
-    camera: Option<&str>,
-) -> Result<gltf::Imported, gltf::GltfError> {
-    if !is_obj(path) {
-        return gltf::import(path, place, camera);
-    }
-    if let Some(c) = camera {
-        return Err(gltf::GltfError {
-            path: path.display().to_string(),
-            message: format!("--camera {c}: an OBJ file has no cameras"),
-        });
-    }
-    obj::import(path, place)
 }

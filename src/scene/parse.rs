@@ -477,10 +477,14 @@ fn read_gltf(
         .unwrap_or(std::path::Path::new("."))
         .join(&file);
     let place = placement_matrix(translate, rotation, scale);
-    let imported = match super::import_model(&path, place, camera_name.as_deref()) {
+    let imported = match super::files::import_model(&path, place, camera_name.as_deref()) {
         Ok(i) => i,
         Err(e) => {
-            let kind = if super::is_obj(&path) { "OBJ" } else { "glTF" };
+            let kind = if super::files::is_obj(&path) {
+                "OBJ"
+            } else {
+                "glTF"
+            };
             t.error("file", format!("{kind} `{file}`: {}", e.message), None);
             return None;
         }
