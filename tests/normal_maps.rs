@@ -313,26 +313,5 @@ fn the_public_mirror_test_keeps_its_tangents_and_renders_alike_on_both_tracers()
         signs.contains(&1.0) && signs.contains(&-1.0),
         "both handednesses"
     );
-    let st = settings(24, 24, 4);
-    let gpu = snapshot_on(
-        termtrace::render::Backend::Gpu(ctx()),
-        &s,
-        st,
-        96,
-        Default::default(),
-    );
-    let cpu = cpu_snapshot(&s, st, 96);
-    assert_eq!((gpu.invalid_samples(), cpu.invalid_samples()), (0, 0));
-    let mean = |i: &termtrace::output::LinearImage| -> f64 {
-        i.pixels
-            .iter()
-            .map(|p| (p[0] + p[1] + p[2]) as f64)
-            .sum::<f64>()
-            / i.pixels.len() as f64
-    };
-    let (a, b) = (mean(&gpu.image()), mean(&cpu.image()));
-    assert!(
-        (a - b).abs() <= 0.01 * a.max(b),
-        "means {a} (GPU) and {b} (CPU)"
-    );
+    tracers_agree_on_mean(&s, settings(24, 24, 4), 96);
 }

@@ -4,7 +4,7 @@
 //! edited OBJ material is written back as an override.
 
 mod common;
-use common::textured::png_uri;
+use common::textured::{png_bytes, png_uri, square_gltf, tracers_agree_on_mean};
 use common::*;
 use termtrace::scene::{Scene, obj};
 
@@ -48,14 +48,6 @@ fn square_obj(material: &str) -> Vec<u8> {
     .into_bytes()
 }
 
-fn png(w: u32, h: u32, rgba: &[[u8; 4]]) -> Vec<u8> {
-    let img = image::RgbaImage::from_fn(w, h, |x, y| image::Rgba(rgba[(y * w + x) as usize]));
-    let mut out = Vec::new();
-    img.write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png)
-        .unwrap();
-    out
-}
-
 #[test]
 fn an_obj_square_with_its_mtl_is_its_gltf_twin_bit_for_bit() {
     // Kd × map_Kd, Ns 250 (roughness 1 − √0.25 = 0.5), no metal: the glTF material of the
@@ -66,13 +58,15 @@ fn an_obj_square_with_its_mtl_is_its_gltf_twin_bit_for_bit() {
             "square.mtl",
             b"newmtl painted\nKd 0.9 0.8 0.7\nNs 250\nillum 2\nmap_Kd paint.png\n".to_vec(),
         ),
-        ("paint.png", png(2, 2, &TEXELS)),
+        ("paint.png", png_bytes(2, 2, &TEXELS)),
     ];
     let (_a, from_obj) = folder(&obj_files, &framed(0.7, "square.obj"));
-    let gltf = termtrace_square_gltf(
+    let gltf = square_gltf(
         r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.9,0.8,0.7,1],"metallicFactor":0,
             "roughnessFactor":0.5,"baseColorTexture":{"index":0}}}"#,
-        &png_uri(2, 2, &TEXELS),
+        &format!(r#"[{{"uri":"{}"}}]"#, png_uri(2, 2, &TEXELS)),
+        r#"[{"source":0}]"#,
+        "[]",
     );
     let (_b, from_gltf) = folder(&[("square.gltf", gltf)], &framed(0.7, "square.gltf"));
     assert_eq!(
@@ -96,32 +90,6 @@ fn an_obj_square_with_its_mtl_is_its_gltf_twin_bit_for_bit() {
     });
 }
 
-/// `tests/textures.rs`'s square as glTF, with one material and one image (a data URI).
-fn termtrace_square_gltf(material: &str, image_uri: &str) -> Vec<u8> {
-    use base64::Engine;
-    let pos: [[f32; 3]; 4] = [[-1., 1., 0.], [1., 1., 0.], [-1., -1., 0.], [1., -1., 0.]];
-    let uv: [[f32; 2]; 4] = [[0., 0.], [1., 0.], [0., 1.], [1., 1.]];
-    let idx: [u16; 6] = [0, 2, 1, 1, 2, 3];
-    let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
-    bin.extend(uv.iter().flatten().flat_map(|x| x.to_le_bytes()));
-    bin.extend(idx.iter().flat_map(|x| x.to_le_bytes()));
-    let uri = base64::engine::general_purpose::STANDARD.encode(&bin);
-    format!(
-        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
-        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
-        "materials":[{material}],"images":[{{"uri":"{image_uri}"}}],"textures":[{{"source":0}}],
-        "accessors":[
-          {{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,-1,0],"max":[1,1,0]}},
-          {{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},
-          {{"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}}],
-        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},
-          {{"buffer":0,"byteOffset":80,"byteLength":12}}],
-        "buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{uri}"}}]}}"#,
-        bin.len()
-    )
-    .into_bytes()
-}
-
 #[test]
 fn an_opacity_map_cuts_out_exactly_where_it_is_zero_or_one() {
     // map_d of two texels, opaque then clear, clamped: opacity 1 for u ≤ ¼ and 0 for u ≥ ¾
@@ -136,7 +104,7 @@ fn an_opacity_map_cuts_out_exactly_where_it_is_zero_or_one() {
         ),
         (
             "stencil.png",
-            png(2, 1, &[[255, 255, 255, 255], [0, 0, 0, 255]]),
+            png_bytes(2, 1, &[[255, 255, 255, 255], [0, 0, 0, 255]]),
         ),
     ];
     let (_d, s) = folder(&files, &framed(0.25, "square.obj"));
@@ -221,29 +189,7 @@ fn public_kenney_models_open_with_their_materials_and_render_alike_on_both_trace
     );
     assert!(red.material.textured.is_none());
     for s in [&dog, &racer] {
-        let st = settings(24, 24, 4);
-        let gpu = snapshot_on(
-            termtrace::render::Backend::Gpu(ctx()),
-            s,
-            st,
-            128,
-            Default::default(),
-        );
-        let cpu = cpu_snapshot(s, st, 128);
-        assert_eq!((gpu.invalid_samples(), cpu.invalid_samples()), (0, 0));
-        let mean = |i: &termtrace::output::LinearImage| -> f64 {
-            i.pixels
-                .iter()
-                .map(|p| (p[0] + p[1] + p[2]) as f64)
-                .sum::<f64>()
-                / i.pixels.len() as f64
-        };
-        let (a, b) = (mean(&gpu.image()), mean(&cpu.image()));
-        assert!(
-            (a - b).abs() <= 0.01 * a.max(b),
-            "{}: means {a} (GPU) and {b} (CPU)",
-            s.origin
-        );
+        tracers_agree_on_mean(s, settings(24, 24, 4), 128);
     }
 }
 

@@ -4,48 +4,12 @@
 //! GPU tracers agreeing on a scene with every map.
 
 mod common;
-use base64::Engine;
 use common::textured::*;
 use common::*;
 use termtrace::common::textures::{self, srgb_decode};
 use termtrace::scene::Scene;
 
-/// A square of side 2 at z = 0 facing +z, with UVs (0,0) at its upper-left corner, one
-/// material (`material` JSON), `images`, `textures` and `samplers` JSON arrays.
-fn square_gltf(material: &str, images: &str, textures: &str, samplers: &str) -> Vec<u8> {
-    let pos: [[f32; 3]; 4] = [[-1., 1., 0.], [1., 1., 0.], [-1., -1., 0.], [1., -1., 0.]];
-    let uv: [[f32; 2]; 4] = [[0., 0.], [1., 0.], [0., 1.], [1., 1.]];
-    let idx: [u16; 6] = [0, 2, 1, 1, 2, 3];
-    let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
-    bin.extend(uv.iter().flatten().flat_map(|x| x.to_le_bytes()));
-    bin.extend(idx.iter().flat_map(|x| x.to_le_bytes()));
-    let uri = base64::engine::general_purpose::STANDARD.encode(&bin);
-    format!(
-        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
-        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
-        "materials":[{material}],"images":{images},"textures":{textures},"samplers":{samplers},
-        "accessors":[
-          {{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,-1,0],"max":[1,1,0]}},
-          {{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},
-          {{"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}}],
-        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},
-          {{"buffer":0,"byteOffset":80,"byteLength":12}}],
-        "buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{uri}"}}]}}"#,
-        bin.len()
-    )
-    .into_bytes()
-}
-
 const W: u32 = 32;
-
-/// The mean over an image's pixels of r + g + b.
-fn mean(i: &termtrace::output::LinearImage) -> f64 {
-    i.pixels
-        .iter()
-        .map(|p| (p[0] + p[1] + p[2]) as f64)
-        .sum::<f64>()
-        / i.pixels.len() as f64
-}
 
 #[test]
 fn a_one_texel_emissive_map_is_exact_on_both_tracers() {
@@ -333,20 +297,7 @@ fn the_public_textured_box_renders_the_same_on_both_tracers() {
             .flatten()
             .all(|c| (0.0..=1.0).contains(&c[1]))
     );
-    let st = settings(24, 24, 4);
-    let gpu = snapshot_on(
-        termtrace::render::Backend::Gpu(ctx()),
-        &s,
-        st,
-        128,
-        Default::default(),
-    );
-    let cpu = cpu_snapshot(&s, st, 128);
-    let (a, b) = (mean(&gpu.image()), mean(&cpu.image()));
-    assert!(
-        (a - b).abs() <= 0.01 * a.max(b),
-        "means {a} (GPU) and {b} (CPU)"
-    );
+    tracers_agree_on_mean(&s, settings(24, 24, 4), 128);
 }
 
 #[test]
