@@ -1,11 +1,13 @@
 //! What both tracers stand on, backend-neutral: the scene's arrays and the Pod mirrors of
 //! the WGSL structs they are made of, the exact-sum accumulation format and its decoding, the
 //! resolved preview frame, the frame settings, the feature set that drives specialization,
-//! and the WGSL text the shared constants are read from. `gpu` uploads these arrays and
+//! an environment map's directions and sampling distribution, and the WGSL text the shared
+//! constants are read from. `gpu` uploads these arrays and
 //! `cpu` reads them as they are; neither imports the other.
 
 pub mod accum;
 pub mod arrays;
+pub mod envmap;
 pub mod features;
 pub mod layout;
 pub mod resolved;

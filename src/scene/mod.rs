@@ -6,6 +6,7 @@
 
 mod builtin;
 pub mod color;
+pub mod envmap;
 mod error;
 mod files;
 pub mod generate;

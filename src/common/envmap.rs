@@ -1,0 +1,230 @@
+//! An environment map's directions and its importance sampling, the same arithmetic for both
+//! tracers: the equirectangular mapping from a direction to the map's (u, v), and a
+//! piecewise-constant 2D distribution over the texels weighted by luminance × sin θ, sampled
+//! by inverting a marginal CDF over rows and a conditional CDF within the row (Pharr, Jakob
+//! and Humphreys, "Physically Based Rendering", 4th ed., §A.5.6 and §12.5.2). CDFs rather
+//! than alias tables: the inversion is continuous (neighbouring random numbers give
+//! neighbouring directions, which stratified and Sobol samples need), and a binary search of
+//! log₂(4096) = 12 steps costs little beside a path segment.
+
+use glam::Vec3;
+use std::f32::consts::PI;
+
+/// The direction of map coordinates (u, v) ∈ [0, 1]², `rotation` in radians about +y: v runs
+/// from the zenith (+y, v = 0) to the nadir; u = ½ looks down −z (the default camera's view,
+/// so a panorama's middle is seen straight ahead) and u = ¾ towards +x (its right half to
+/// the right): φ = 2πu + rotation, d = (−sin θ sin φ, cos θ, sin θ cos φ).
+pub fn direction(u: f32, v: f32, rotation: f32) -> Vec3 {
+    let (sin_t, cos_t) = (PI * v).sin_cos();
+    let (sin_p, cos_p) = (2.0 * PI * u + rotation).sin_cos();
+    Vec3::new(-sin_t * sin_p, cos_t, sin_t * cos_p)
+}
+
+/// The map coordinates of unit direction `d` (the inverse of [`direction`]), u in [0, 1).
+pub fn coordinates(d: Vec3, rotation: f32) -> (f32, f32) {
+    let v = d.y.clamp(-1.0, 1.0).acos() / PI;
+    let phi = (-d.x).atan2(d.z) - rotation;
+    let u = (phi / (2.0 * PI)).rem_euclid(1.0);
+    (if u >= 1.0 { 0.0 } else { u }, v)
+}
+
+/// Rec. 709 luminance, the weight of a texel's colour.
+pub fn luminance(c: [f32; 3]) -> f32 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
+/// The sampling distribution of a `width × height` map: for each row the CDF of its texels
+/// (`width + 1` entries, from 0 to 1), and the CDF of the rows (`height + 1`). Built in f64,
+/// stored in f32, which is what both tracers read.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Distribution {
+    pub width: u32,
+    pub height: u32,
+    /// Row-major conditional CDFs, `height × (width + 1)`.
+    pub conditional: Vec<f32>,
+    /// The marginal CDF over rows, `height + 1`.
+    pub marginal: Vec<f32>,
+    /// The integral of the weights over [0, 1]² (their mean): the piecewise-constant density
+    /// of texel (x, y) is its weight / `integral`. Zero when the map is black.
+    pub integral: f64,
+}
+
+/// One sampled direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    pub dir: Vec3,
+    /// The density with respect to solid angle (0 where the map is black).
+    pub pdf: f32,
+    /// The texel the sample fell in.
+    pub texel: (u32, u32),
+}
+
+/// Inverts a CDF of `n + 1` entries at `u`: the interval i with cdf[i] ≤ u < cdf[i + 1] (a
+/// zero-width interval is never returned while a wider one holds u) and u's place in it.
+fn invert(cdf: &[f32], u: f32) -> (usize, f32) {
+    let n = cdf.len() - 1;
+    // The last i in [0, n) with cdf[i] <= u.
+    let (mut lo, mut hi) = (0usize, n);
+    while hi - lo > 1 {
+        let mid = (lo + hi) / 2;
+        if cdf[mid] <= u {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let width = cdf[lo + 1] - cdf[lo];
+    let t = if width > 0.0 {
+        ((u - cdf[lo]) / width).clamp(0.0, 1.0)
+    } else {
+        0.5
+    };
+    (lo, t)
+}
+
+impl Distribution {
+    /// The distribution of `texels` (row-major, rows from the top), each weighted by its
+    /// luminance × sin θ at its row's centre (the solid angle a texel spans).
+    pub fn new(width: u32, height: u32, texels: &[[f32; 3]]) -> Distribution {
+        let (w, h) = (width as usize, height as usize);
+        assert_eq!(texels.len(), w * h, "texels of a {width}×{height} map");
+        // Rows in parallel: each row's CDF is its own.
+        use rayon::prelude::*;
+        let mut conditional = vec![0f32; h * (w + 1)];
+        let rows: Vec<f64> = conditional
+            .par_chunks_mut(w + 1)
+            .enumerate()
+            .map(|(y, cdf)| {
+                let sin_t = (std::f64::consts::PI * (y as f64 + 0.5) / h as f64).sin();
+                let row = &texels[y * w..(y + 1) * w];
+                let mut sum = 0f64;
+                cdf[0] = 0.0;
+                // The running sums in f64 first (in place of the f32 CDF would lose them).
+                let mut acc = Vec::with_capacity(w);
+                for t in row {
+                    sum += luminance(*t).max(0.0) as f64 * sin_t;
+                    acc.push(sum);
+                }
+                for (x, a) in acc.iter().enumerate() {
+                    // A black row's CDF is uniform; the marginal never picks it.
+                    cdf[x + 1] = if sum > 0.0 {
+                        (a / sum) as f32
+                    } else {
+                        (x + 1) as f32 / w as f32
+                    };
+                }
+                cdf[w] = 1.0;
+                sum / w as f64
+            })
+            .collect();
+        let total: f64 = rows.iter().sum();
+        let mut marginal = Vec::with_capacity(h + 1);
+        let mut acc = 0f64;
+        marginal.push(0f32);
+        for r in &rows {
+            acc += r;
+            marginal.push(if total > 0.0 {
+                (acc / total) as f32
+            } else {
+                0.0
+            });
+        }
+        marginal[h] = 1.0;
+        Distribution {
+            width,
+            height,
+            conditional,
+            marginal,
+            integral: total / h as f64,
+        }
+    }
+
+    /// The conditional CDF of row `y`.
+    fn row(&self, y: usize) -> &[f32] {
+        let w = self.width as usize + 1;
+        &self.conditional[y * w..(y + 1) * w]
+    }
+
+    /// The density over [0, 1]² of texel (x, y) (its weight / the integral), from the CDFs.
+    fn density_uv(&self, x: usize, y: usize) -> f32 {
+        let (w, h) = (self.width as f32, self.height as f32);
+        let row = self.row(y);
+        (self.marginal[y + 1] - self.marginal[y]) * h * (row[x + 1] - row[x]) * w
+    }
+
+    /// A direction for the random numbers (u1, u2) ∈ [0, 1)², with its solid-angle density.
+    pub fn sample(&self, u1: f32, u2: f32, rotation: f32) -> Sample {
+        let (y, ty) = invert(&self.marginal, u2);
+        let (x, tx) = invert(self.row(y), u1);
+        let u = (x as f32 + tx) / self.width as f32;
+        let v = (y as f32 + ty) / self.height as f32;
+        let dir = direction(u, v, rotation);
+        let sin_t = (PI * v).sin();
+        let pdf = if sin_t > 0.0 && self.integral > 0.0 {
+            self.density_uv(x, y) / (2.0 * PI * PI * sin_t)
+        } else {
+            0.0
+        };
+        Sample {
+            dir,
+            pdf,
+            texel: (x as u32, y as u32),
+        }
+    }
+
+    /// The solid-angle density with which [`Distribution::sample`] gives unit direction `d`.
+    pub fn pdf(&self, d: Vec3, rotation: f32) -> f32 {
+        if self.integral <= 0.0 {
+            return 0.0;
+        }
+        let (u, v) = coordinates(d, rotation);
+        let x = ((u * self.width as f32) as usize).min(self.width as usize - 1);
+        let y = ((v * self.height as f32) as usize).min(self.height as usize - 1);
+        let sin_t = (PI * v).sin();
+        if sin_t <= 0.0 {
+            return 0.0;
+        }
+        self.density_uv(x, y) / (2.0 * PI * PI * sin_t)
+    }
+
+    /// Bytes the CDFs take.
+    pub fn bytes(&self) -> usize {
+        4 * (self.conditional.len() + self.marginal.len())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn directions_and_coordinates_are_inverse_and_face_as_documented() {
+        for &(u, v) in &[(0.1, 0.2), (0.5, 0.5), (0.75, 0.5), (0.99, 0.9), (0.0, 0.3)] {
+            for rot in [0.0, 1.0, -2.5] {
+                let d = direction(u, v, rot);
+                assert!((d.length() - 1.0).abs() < 1e-5);
+                let (u2, v2) = coordinates(d, rot);
+                let du = (u2 - u).abs().min(1.0 - (u2 - u).abs());
+                assert!(du < 1e-4 && (v2 - v).abs() < 1e-4, "{u},{v} → {u2},{v2}");
+            }
+        }
+        assert!(direction(0.5, 0.5, 0.0).abs_diff_eq(Vec3::NEG_Z, 1e-6));
+        assert!(direction(0.75, 0.5, 0.0).abs_diff_eq(Vec3::X, 1e-6));
+        assert!(direction(0.3, 0.0, 0.0).abs_diff_eq(Vec3::Y, 1e-6));
+    }
+
+    #[test]
+    fn a_black_map_samples_nothing_and_a_black_row_is_never_chosen() {
+        let black = Distribution::new(4, 2, &[[0.0; 3]; 8]);
+        assert_eq!(black.integral, 0.0);
+        assert_eq!(black.sample(0.3, 0.6, 0.0).pdf, 0.0);
+        let mut t = vec![[1.0f32; 3]; 8];
+        t[..4].fill([0.0; 3]);
+        let d = Distribution::new(4, 2, &t);
+        for i in 0..100 {
+            let s = d.sample((i as f32 + 0.5) / 100.0, (i as f32 * 0.37) % 1.0, 0.0);
+            assert_eq!(s.texel.1, 1, "the black top row");
+            assert!(s.pdf > 0.0);
+        }
+    }
+}
