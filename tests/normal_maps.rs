@@ -19,12 +19,7 @@ fn square(
     normal: Option<[f32; 3]>,
     tangent: Option<[f32; 4]>,
 ) -> Vec<u8> {
-    let pos: [[f32; 3]; 4] = [[-1., 1., 0.], [1., 1., 0.], [-1., -1., 0.], [1., -1., 0.]];
-    let uv: [[f32; 2]; 4] = [[0., 0.], [1., 0.], [0., 1.], [1., 1.]];
-    let idx: [u16; 6] = [0, 2, 1, 1, 2, 3];
-    let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
-    bin.extend(uv.iter().flatten().flat_map(|x| x.to_le_bytes()));
-    bin.extend(idx.iter().flat_map(|x| x.to_le_bytes()));
+    let mut bin = square_bin();
     bin.extend([0, 0]); // align to 4
     let mut attributes = r#""POSITION":0,"TEXCOORD_0":1"#.to_string();
     let mut accessors = vec![

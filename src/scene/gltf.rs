@@ -57,6 +57,20 @@ pub struct Imported {
     pub materials: Vec<(String, Material)>,
 }
 
+impl Imported {
+    /// Nothing imported yet, with what was already left out; empty bounds.
+    pub fn new(skipped: Vec<String>) -> Imported {
+        Imported {
+            objects: Vec::new(),
+            camera: None,
+            sun: None,
+            skipped,
+            bounds: (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            materials: Vec::new(),
+        }
+    }
+}
+
 /// How a glTF material is named in a scene: its name, `#INDEX` when it has none, `default`
 /// for glTF's default material.
 pub fn material_key(m: &gltf::Material) -> String {
@@ -134,14 +148,7 @@ pub fn import_slice(
         .default_scene()
         .or_else(|| doc.scenes().next())
         .ok_or_else(|| err("the file has no scene".into()))?;
-    let mut out = Imported {
-        objects: Vec::new(),
-        camera: None,
-        sun: None,
-        skipped,
-        bounds: (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        materials: Vec::new(),
-    };
+    let mut out = Imported::new(skipped);
     let mut cameras = Vec::new();
     let mut lights = Vec::new();
     let mut stack: Vec<(gltf::Node, DMat4)> = scene.nodes().map(|n| (n, place)).collect();

@@ -166,14 +166,7 @@ pub fn import_from(
     let mut skipped = Vec::new();
     unknown_materials(text, &mtl, &mut skipped);
     let materials = map_materials(&mtl, &libraries, read, &mut skipped).map_err(err)?;
-    let mut out = Imported {
-        objects: Vec::new(),
-        camera: None,
-        sun: None,
-        skipped,
-        bounds: (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-        materials: Vec::new(),
-    };
+    let mut out = Imported::new(skipped);
     let default = || {
         pbr_material(&Pbr {
             base: super::model::DEFAULT_COLOR,

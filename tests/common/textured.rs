@@ -55,15 +55,22 @@ pub fn scale_uvs(s: &mut Scene, k: f32) {
     }
 }
 
-/// A square of side 2 at z = 0 facing +z, with UVs (0,0) at its upper-left corner, one
-/// material (`material` JSON), `images`, `textures` and `samplers` JSON arrays.
-pub fn square_gltf(material: &str, images: &str, textures: &str, samplers: &str) -> Vec<u8> {
+/// The square's buffer: four positions (f32 × 3), their UVs (f32 × 2), six u16 indices
+/// (92 bytes; bufferViews at 0, 48 and 80).
+pub fn square_bin() -> Vec<u8> {
     let pos: [[f32; 3]; 4] = [[-1., 1., 0.], [1., 1., 0.], [-1., -1., 0.], [1., -1., 0.]];
     let uv: [[f32; 2]; 4] = [[0., 0.], [1., 0.], [0., 1.], [1., 1.]];
     let idx: [u16; 6] = [0, 2, 1, 1, 2, 3];
     let mut bin: Vec<u8> = pos.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
     bin.extend(uv.iter().flatten().flat_map(|x| x.to_le_bytes()));
     bin.extend(idx.iter().flat_map(|x| x.to_le_bytes()));
+    bin
+}
+
+/// A square of side 2 at z = 0 facing +z, with UVs (0,0) at its upper-left corner, one
+/// material (`material` JSON), `images`, `textures` and `samplers` JSON arrays.
+pub fn square_gltf(material: &str, images: &str, textures: &str, samplers: &str) -> Vec<u8> {
+    let bin = square_bin();
     let uri = base64::engine::general_purpose::STANDARD.encode(&bin);
     format!(
         r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
