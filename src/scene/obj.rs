@@ -17,7 +17,7 @@ use std::sync::Arc;
 
 /// The MTL statements read; any other `map_…` (or `bump`, `norm`, `disp`, `refl`, `decal`)
 /// is named once in the log and left out.
-const READ_MAPS: &[&str] = &["map_Kd", "map_d", "map_Ke"];
+const READ_MAPS: &[&str] = &["map_Kd", "map_d", "map_Ke", "norm"];
 
 /// The key of the material of faces that have none (no `usemtl`, or an unknown name).
 pub const DEFAULT_MATERIAL: &str = "default";
@@ -186,6 +186,11 @@ pub fn import_from(
             None => (DEFAULT_MATERIAL.to_string(), default()),
         };
         let textured = material.textured.is_some();
+        let normal_mapped = material
+            .textured
+            .as_ref()
+            .is_some_and(|t| t.0.normal.is_some());
+        let mut kept: Vec<[u32; 3]> = Vec::new();
         let has_uv = m.texcoords.len() >= m.positions.len() / 3 * 2;
         let mut mesh = Mesh {
             triangles: Vec::with_capacity(m.indices.len() / 3),
@@ -225,6 +230,7 @@ pub fn import_from(
                 out.bounds.1 = out.bounds.1.max(p);
             }
             let [ua, ub, uc] = [f[0], f[1], f[2]].map(uv);
+            kept.push([f[0], f[1], f[2]]);
             if mirrored {
                 mesh.triangles.push([a, c, b]);
                 if textured {
@@ -241,6 +247,28 @@ pub fn import_from(
             out.skipped
                 .push(format!("group `{}`: no triangle with area", model.name));
             continue;
+        }
+        if normal_mapped {
+            // The shading frames, as glTF's: the file's normals (`vn`), MikkTSpace tangents
+            // on the flipped coordinates (the tracers' v, glTF's).
+            let chunks3 = |v: &[f32]| -> Vec<[f32; 3]> {
+                v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+            };
+            let positions = chunks3(&m.positions);
+            let normals = if m.normals.len() == m.positions.len() {
+                chunks3(&m.normals)
+            } else {
+                Vec::new()
+            };
+            let uvs: Vec<[f32; 2]> = (0..positions.len() as u32).map(uv).collect();
+            let linear = glam::DMat3::from_mat4(place);
+            for (n, t) in super::gltf_frames::frames(&kept, &positions, &normals, &[], &uvs, linear)
+            {
+                mesh.normals
+                    .push(if mirrored { [n[0], n[2], n[1]] } else { n });
+                mesh.tangents
+                    .push(if mirrored { [t[0], t[2], t[1]] } else { t });
+            }
         }
         if !out.materials.iter().any(|(k, _)| *k == key) {
             out.materials.push((key.clone(), material.clone()));
@@ -334,6 +362,8 @@ pub struct TextureSpec {
     pub clamp: bool,
     /// `-imfchan r|g|b|m|l|z`: the channel a scalar map reads.
     pub channel: Option<char>,
+    /// `-bm`: a bump or normal map's multiplier.
+    pub bump: Option<f32>,
 }
 
 /// Parses a texture statement's arguments: options (the MTL format's `-blendu`, `-blendv`,
@@ -346,6 +376,7 @@ pub fn texture_spec(args: &str) -> Result<TextureSpec, String> {
         scale: [1.0; 2],
         clamp: false,
         channel: None,
+        bump: None,
     };
     let mut rest = args.trim();
     // Up to `max` numbers after a vector option (`-o u [v [w]]`).
@@ -379,8 +410,12 @@ pub fn texture_spec(args: &str) -> Result<TextureSpec, String> {
             "-clamp" => spec.clamp = word(&mut rest) == "on",
             "-imfchan" => spec.channel = word(&mut rest).chars().next(),
             "-bm" | "-boost" | "-texres" => {
-                if numbers(&mut rest, 1).is_empty() {
+                let v = numbers(&mut rest, 1);
+                let Some(&x) = v.first() else {
                     return Err(format!("{option} needs a number"));
+                };
+                if option == "-bm" {
+                    spec.bump = Some(x);
                 }
             }
             "-mm" => {
@@ -442,6 +477,7 @@ fn map_materials(
             ("map_Kd", m.diffuse_texture.as_deref()),
             ("map_d", m.dissolve_texture.as_deref()),
             ("map_Ke", m.unknown_param.get("map_Ke").map(String::as_str)),
+            ("norm", m.unknown_param.get("norm").map(String::as_str)),
         ] {
             if let Some(v) = value {
                 wanted.push((i, key, v));
@@ -513,6 +549,7 @@ fn map_materials(
                 maps.remove(&(i, "map_Kd")),
                 maps.remove(&(i, "map_d")),
                 maps.remove(&(i, "map_Ke")),
+                maps.remove(&(i, "norm")),
             );
             material
         })
@@ -588,18 +625,20 @@ fn dissolve(m: &tobj::Material) -> f32 {
 
 /// The material's maps as the model's [`Textured`]: `map_Kd` × `Kd` the base colour, `map_d` ×
 /// `d` its alpha (a stochastic cut-out, glTF's BLEND, when below 1; read through `map_Kd`'s
-/// coordinates), `map_Ke` × `Ke` the emission. `None` when it has no map and is opaque.
+/// coordinates), `map_Ke` × `Ke` the emission, `norm` a tangent-space normal map (its `-bm`
+/// the scale). `None` when it has no map and is opaque.
 fn textured(
     m: &tobj::Material,
     pbr: &Pbr,
     kd: Option<Loaded>,
     d: Option<Loaded>,
     ke: Option<Loaded>,
+    norm: Option<Loaded>,
 ) -> Option<TexturedRef> {
     let opacity = dissolve(m);
     let glass = pbr.transmission > 0.5;
     let cut = !glass && (opacity < 1.0 || d.is_some());
-    if kd.is_none() && ke.is_none() && !cut {
+    if kd.is_none() && ke.is_none() && norm.is_none() && !cut {
         return None;
     }
     let wrap = |s: &TextureSpec| [if s.clamp { Wrap::Clamp } else { Wrap::Repeat }; 2];
@@ -622,8 +661,8 @@ fn textured(
         base_color: base_color.map(Arc::new),
         metallic_roughness: None,
         emissive: ke.as_ref().map(|l| Arc::new(texture(l))),
-        normal: None,
-        normal_scale: 1.0,
+        normal: norm.as_ref().map(|l| Arc::new(texture(l))),
+        normal_scale: norm.as_ref().and_then(|l| l.spec.bump).unwrap_or(1.0),
         base_factor: [pbr.base.x, pbr.base.y, pbr.base.z, opacity].map(|x| x.max(0.0)),
         metallic: pbr.metallic.clamp(0.0, 1.0),
         roughness: pbr.roughness.clamp(0.0, 1.0),
@@ -643,7 +682,8 @@ fn textured(
             IDENTITY_TRANSFORM,
             ke.as_ref()
                 .map_or(IDENTITY_TRANSFORM, |l| l.spec.transform()),
-            IDENTITY_TRANSFORM,
+            norm.as_ref()
+                .map_or(IDENTITY_TRANSFORM, |l| l.spec.transform()),
         ],
     })))
 }
