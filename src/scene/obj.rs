@@ -379,27 +379,26 @@ pub fn texture_spec(args: &str) -> Result<TextureSpec, String> {
         bump: None,
     };
     let mut rest = args.trim();
-    // Up to `max` numbers after a vector option (`-o u [v [w]]`).
-    fn numbers(rest: &mut &str, max: usize) -> Vec<f32> {
-        let mut out = Vec::new();
-        while out.len() < max {
-            let t = rest.trim_start();
-            let end = t.find(char::is_whitespace).unwrap_or(t.len());
-            match t[..end].parse::<f32>() {
-                Ok(x) if !t.is_empty() => {
-                    out.push(x);
-                    *rest = &t[end..];
-                }
-                _ => break,
-            }
-        }
-        out
-    }
+    // The next word, taken off `rest`.
     fn word<'a>(rest: &mut &'a str) -> &'a str {
         let t = rest.trim_start();
         let end = t.find(char::is_whitespace).unwrap_or(t.len());
         *rest = &t[end..];
         &t[..end]
+    }
+    // Up to `max` numbers after a vector option (`-o u [v [w]]`): words taken while they
+    // are numbers.
+    fn numbers(rest: &mut &str, max: usize) -> Vec<f32> {
+        let mut out = Vec::new();
+        while out.len() < max {
+            let mut ahead = *rest;
+            let Ok(x) = word(&mut ahead).parse::<f32>() else {
+                break;
+            };
+            out.push(x);
+            *rest = ahead;
+        }
+        out
     }
     while rest.starts_with('-') {
         let option = word(&mut rest);
@@ -459,9 +458,16 @@ impl TextureSpec {
 /// One image decoded, for a material's statement.
 struct Loaded {
     image: Arc<image::RgbaImage>,
+    /// Which distinct image file it is (statements naming one file share its decoding and,
+    /// with the same wrap mode, its texture).
+    source: usize,
     spec: TextureSpec,
     name: String,
 }
+
+/// The textures made so far, by (image file, clamped): one allocation per image and wrap
+/// mode, which the texture words then hold once.
+type TextureCache = HashMap<(usize, bool), Arc<Texture>>;
 
 /// Each MTL material mapped: factors by [`mtl_pbr`], maps decoded in parallel.
 fn map_materials(
@@ -517,26 +523,48 @@ fn map_materials(
             .and_then(|(f, _)| f.parent())
             .map_or_else(|| PathBuf::from("."), Path::to_path_buf)
     };
-    let decoded: Vec<Result<Loaded, String>> = wanted
+    // Each statement's options, and the distinct files they name (by folder and name as
+    // written), each with the first statement naming it, for messages.
+    let mut specs = Vec::with_capacity(wanted.len());
+    let mut files: Vec<(PathBuf, String, String)> = Vec::new();
+    for &(i, key, args) in &wanted {
+        let what = locate(libraries, &mtl[i].name, key);
+        let spec = texture_spec(args).map_err(|e| format!("{what}: {e}"))?;
+        let folder = base(i);
+        let source = match files
+            .iter()
+            .position(|(f, n, _)| *f == folder && *n == spec.file)
+        {
+            Some(k) => k,
+            None => {
+                files.push((folder, spec.file.clone(), what));
+                files.len() - 1
+            }
+        };
+        specs.push((source, spec));
+    }
+    // Each file read and decoded once, in parallel.
+    let decoded: Vec<Result<Arc<image::RgbaImage>, String>> = files
         .par_iter()
-        .map(|&(i, key, args)| {
-            let what = locate(libraries, &mtl[i].name, key);
-            let spec = texture_spec(args).map_err(|e| format!("{what}: {e}"))?;
-            let bytes =
-                find_image(&base(i), &spec.file, read).map_err(|e| format!("{what}: {e}"))?;
-            let image = image::load_from_memory(&bytes)
-                .map_err(|e| format!("{what}: `{}`: {e}", spec.file))?;
-            Ok(Loaded {
-                image: Arc::new(image.to_rgba8()),
-                name: format!("`{}` ({key} of `{}`)", spec.file, mtl[i].name),
-                spec,
-            })
+        .map(|(folder, file, what)| {
+            let bytes = find_image(folder, file, read).map_err(|e| format!("{what}: {e}"))?;
+            let image =
+                image::load_from_memory(&bytes).map_err(|e| format!("{what}: `{file}`: {e}"))?;
+            Ok(Arc::new(image.to_rgba8()))
         })
         .collect();
+    let images = decoded.into_iter().collect::<Result<Vec<_>, _>>()?;
     let mut maps: HashMap<(usize, &str), Loaded> = HashMap::new();
-    for (&(i, key, _), d) in wanted.iter().zip(decoded) {
-        maps.insert((i, key), d?);
+    for (&(i, key, _), (source, spec)) in wanted.iter().zip(specs) {
+        let loaded = Loaded {
+            image: images[source].clone(),
+            source,
+            name: format!("`{}` ({key} of `{}`)", spec.file, mtl[i].name),
+            spec,
+        };
+        maps.insert((i, key), loaded);
     }
+    let mut cache = TextureCache::new();
     Ok(mtl
         .iter()
         .enumerate()
@@ -550,6 +578,7 @@ fn map_materials(
                 maps.remove(&(i, "map_d")),
                 maps.remove(&(i, "map_Ke")),
                 maps.remove(&(i, "norm")),
+                &mut cache,
             );
             material
         })
@@ -634,6 +663,7 @@ fn textured(
     d: Option<Loaded>,
     ke: Option<Loaded>,
     norm: Option<Loaded>,
+    cache: &mut TextureCache,
 ) -> Option<TexturedRef> {
     let opacity = dissolve(m);
     let glass = pbr.transmission > 0.5;
@@ -649,19 +679,27 @@ fn textured(
         wrap: wrap(&l.spec),
         name: l.name.clone(),
     };
+    // A map as it is, shared by every statement naming its file with its wrap mode.
+    let mut shared = |l: &Loaded| -> Arc<Texture> {
+        cache
+            .entry((l.source, l.spec.clamp))
+            .or_insert_with(|| Arc::new(texture(l)))
+            .clone()
+    };
     let base_xf = kd
         .as_ref()
         .map_or(IDENTITY_TRANSFORM, |l| l.spec.transform());
+    // With an opacity map the base map is this material's own (its alpha replaced).
     let base_color = match (&kd, d.as_ref().filter(|_| cut)) {
-        (Some(kd), None) => Some(texture(kd)),
-        (kd, Some(d)) => Some(with_alpha(kd.as_ref().map(texture), d, wrap)),
+        (Some(kd), None) => Some(shared(kd)),
+        (kd, Some(d)) => Some(Arc::new(with_alpha(kd.as_ref().map(texture), d, wrap))),
         (None, None) => None,
     };
     Some(TexturedRef(Arc::new(Textured {
-        base_color: base_color.map(Arc::new),
+        base_color,
         metallic_roughness: None,
-        emissive: ke.as_ref().map(|l| Arc::new(texture(l))),
-        normal: norm.as_ref().map(|l| Arc::new(texture(l))),
+        emissive: ke.as_ref().map(&mut shared),
+        normal: norm.as_ref().map(&mut shared),
         normal_scale: norm.as_ref().and_then(|l| l.spec.bump).unwrap_or(1.0),
         base_factor: [pbr.base.x, pbr.base.y, pbr.base.z, opacity].map(|x| x.max(0.0)),
         metallic: pbr.metallic.clamp(0.0, 1.0),
