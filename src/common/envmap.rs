@@ -7,6 +7,7 @@
 //! neighbouring directions, which stratified and Sobol samples need), and a binary search of
 //! log₂(4096) = 12 steps costs little beside a path segment.
 
+pub use crate::scene::color::luminance;
 use glam::Vec3;
 use std::f32::consts::PI;
 
@@ -26,11 +27,6 @@ pub fn coordinates(d: Vec3, rotation: f32) -> (f32, f32) {
     let phi = (-d.x).atan2(d.z) - rotation;
     let u = (phi / (2.0 * PI)).rem_euclid(1.0);
     (if u >= 1.0 { 0.0 } else { u }, v)
-}
-
-/// Rec. 709 luminance, the weight of a texel's colour.
-pub fn luminance(c: [f32; 3]) -> f32 {
-    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
 
 /// The sampling distribution of a `width × height` map: for each row the CDF of its texels

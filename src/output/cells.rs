@@ -7,7 +7,7 @@
 //! ramp, no colour) for dumb terminals.
 
 use super::image::LinearImage;
-use crate::scene::color::linear_to_srgb;
+use crate::scene::color::{linear_to_srgb, luminance};
 
 /// How pixels map to glyphs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -146,10 +146,6 @@ fn mean(px: &[[f32; 3]]) -> [f32; 3] {
 
 fn srgb8(c: [f32; 3]) -> [u8; 3] {
     c.map(|v| (linear_to_srgb(v as f64) * 255.0).round() as u8)
-}
-
-fn luminance(c: [f32; 3]) -> f32 {
-    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
 
 /// Fills `out` with the `sx × sy` block of pixels whose top-left is `(x0, y0)`, row by row.

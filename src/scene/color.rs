@@ -27,6 +27,11 @@ pub fn linear_to_gamma22(c: f64) -> f64 {
 }
 
 /// Parses `"#rrggbb"` (sRGB) to a linear colour.
+/// Rec. 709 luminance of a linear RGB colour.
+pub fn luminance(c: [f32; 3]) -> f32 {
+    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
+}
+
 pub fn parse_hex(s: &str) -> Option<Vec3> {
     let h = s.strip_prefix('#')?;
     if h.len() != 6 || !h.bytes().all(|b| b.is_ascii_hexdigit()) {

@@ -48,7 +48,7 @@ impl Scene {
     pub fn load_with_camera(name: &str, camera: Option<&str>) -> Result<Scene, SceneError> {
         let path = Path::new(name);
         if is_model(path) {
-            return Self::from_gltf(path, camera);
+            return Self::from_model(path, camera);
         }
         if let Some(c) = camera {
             return Err(SceneError::Gltf(gltf::GltfError {
@@ -86,7 +86,7 @@ impl Scene {
     /// its objects, its camera (the first, or `camera` by name; without one, a camera that
     /// frames it), its directional light as the sun over the default sky, and the default
     /// render settings.
-    pub fn from_gltf(path: &Path, camera: Option<&str>) -> Result<Scene, SceneError> {
+    pub fn from_model(path: &Path, camera: Option<&str>) -> Result<Scene, SceneError> {
         let imported = import_model(path, glam::DMat4::IDENTITY, camera)?;
         for s in &imported.skipped {
             tracing::warn!("{}: left out: {s}", path.display());
