@@ -5,7 +5,6 @@
 
 mod common;
 use common::*;
-use termtrace::converge::metrics;
 use termtrace::output::LinearImage;
 use termtrace::render::{Backend, RenderOptions, Renderer, Snapshot};
 use termtrace::scene::{BUILTIN_SCENES, Scene};
@@ -24,8 +23,7 @@ fn every_shipped_scene_converges_to_the_gpu_image_on_the_cpu() {
     // tiles, Bonferroni-corrected over all tiles of all scenes at α = 0.01. tests/nee.rs
     // shows the same check finding a light 5 % too bright.
     let spp = 48;
-    let mut failures = Vec::new();
-    let mut tiles = 0;
+    let mut tally = BiasTally::default();
     for (name, _) in BUILTIN_SCENES {
         let scene = Scene::load(name).unwrap();
         let gpu = render_on(Backend::Gpu(ctx()), &scene, 1, spp);
@@ -35,18 +33,9 @@ fn every_shipped_scene_converges_to_the_gpu_image_on_the_cpu() {
             0,
             "{name}: invalid samples on the CPU"
         );
-        let r = metrics::bias_check(&cpu, &gpu, false, 8, 0.01 / BUILTIN_SCENES.len() as f64);
-        tiles += r.tiles;
-        eprintln!("{name}: {} tiles, smallest p {:.3e}", r.tiles, r.min_p);
-        if !r.significant.is_empty() {
-            failures.push(format!("{name}: {:?}", r.significant));
-        }
+        tally.check(name, &cpu, &gpu, 0.01 / BUILTIN_SCENES.len() as f64);
     }
-    assert!(
-        tiles >= 12 * BUILTIN_SCENES.len(),
-        "only {tiles} tiles tested"
-    );
-    assert!(failures.is_empty(), "tiles differ: {failures:#?}");
+    tally.assert_none_differ(12 * BUILTIN_SCENES.len());
 }
 
 /// The share of pixels whose colours agree to a relative 10⁻³.

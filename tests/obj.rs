@@ -338,7 +338,6 @@ fn every_committed_asset_converges_to_one_image_on_both_tracers() {
     // independent seeds, Bonferroni-corrected over every tile of every asset at α = 0.01) on
     // each public asset in the repository: glTF's Box, BoxTextured, NormalTangentMirrorTest
     // and MultiUVTest, and the two OBJ models.
-    use termtrace::converge::metrics;
     let assets = [
         "tests/gltf/Box/Box.gltf",
         "tests/gltf/BoxTextured/BoxTextured.gltf",
@@ -347,7 +346,7 @@ fn every_committed_asset_converges_to_one_image_on_both_tracers() {
         "tests/assets/obj/cube-pets/animal-dog.obj",
         "tests/assets/obj/space-kit/craft_racer.obj",
     ];
-    let (mut tiles, mut failures) = (0, Vec::new());
+    let mut tally = BiasTally::default();
     for a in assets {
         let s = Scene::load(a).unwrap();
         let at = |seed| termtrace::common::FrameSettings {
@@ -367,15 +366,9 @@ fn every_committed_asset_converges_to_one_image_on_both_tracers() {
             (0, 0),
             "{a}"
         );
-        let r = metrics::bias_check(&cpu, &gpu, false, 8, 0.01 / assets.len() as f64);
-        tiles += r.tiles;
-        eprintln!("{a}: {} tiles, smallest p {:.3e}", r.tiles, r.min_p);
-        if !r.significant.is_empty() {
-            failures.push(format!("{a}: {:?}", r.significant));
-        }
+        tally.check(a, &cpu, &gpu, 0.01 / assets.len() as f64);
     }
-    assert!(tiles >= 12 * assets.len(), "only {tiles} tiles tested");
-    assert!(failures.is_empty(), "tiles differ: {failures:#?}");
+    tally.assert_none_differ(12 * assets.len());
 }
 
 #[test]
@@ -447,4 +440,34 @@ fn a_flat_norm_map_is_no_map_bit_for_bit_and_a_tilted_one_turns_the_light() {
             );
         });
     }
+}
+
+#[test]
+fn materials_naming_one_image_share_its_texture() {
+    // Two materials with the same map and wrap mode hold one texture allocation (so the
+    // texture words hold its texels once); a clamped use of the same file is another.
+    let obj = b"mtllib square.mtl\nv -1 1 0\nv 1 1 0\nv -1 -1 0\nv 1 -1 0\nvt 0 1\nvt 1 1\n\
+                vt 0 0\nvt 1 0\ng a\nusemtl a\nf 1/1 3/3 2/2\ng b\nusemtl b\nf 2/2 3/3 4/4\n\
+                g c\nusemtl c\nf 1/1 3/3 4/4\n";
+    let mtl = b"newmtl a\nmap_Kd paint.png\nnewmtl b\nKd 0.5 0.5 0.5\nmap_Kd paint.png\n\
+                newmtl c\nmap_Kd -clamp on paint.png\n";
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("square.obj"), obj).unwrap();
+    std::fs::write(dir.path().join("square.mtl"), mtl).unwrap();
+    std::fs::write(dir.path().join("paint.png"), png_bytes(2, 2, &TEXELS)).unwrap();
+    let i = obj::import(&dir.path().join("square.obj"), glam::DMat4::IDENTITY).unwrap();
+    let map = |k: usize| {
+        i.objects[k]
+            .material
+            .textured
+            .as_ref()
+            .unwrap()
+            .0
+            .base_color
+            .clone()
+            .unwrap()
+    };
+    assert!(std::sync::Arc::ptr_eq(&map(0), &map(1)));
+    assert!(!std::sync::Arc::ptr_eq(&map(0), &map(2)));
+    assert_eq!(map(0).texels, map(2).texels);
 }

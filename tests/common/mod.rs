@@ -192,3 +192,35 @@ pub fn image_diff(a: &LinearImage, b: &LinearImage) -> (usize, f32, Option<(u32,
     }
     (n, worst, first)
 }
+
+/// The bias check of `converge` over several scenes (8×8 tiles, Welch t-tests): the tiles
+/// tested and those that differ, each named by its scene.
+#[derive(Default)]
+pub struct BiasTally {
+    tiles: usize,
+    failures: Vec<String>,
+}
+
+impl BiasTally {
+    /// Tests `img` against `reference` at significance `alpha` per tile (Bonferroni over the
+    /// scene's tiles inside; the caller divides by the number of scenes).
+    pub fn check(&mut self, name: &str, img: &Snapshot, reference: &Snapshot, alpha: f64) {
+        let r = termtrace::converge::metrics::bias_check(img, reference, false, 8, alpha);
+        self.tiles += r.tiles;
+        eprintln!("{name}: {} tiles, smallest p {:.3e}", r.tiles, r.min_p);
+        if !r.significant.is_empty() {
+            self.failures.push(format!("{name}: {:?}", r.significant));
+        }
+    }
+
+    /// Fails unless at least `min_tiles` tiles were tested and none differed.
+    pub fn assert_none_differ(self, min_tiles: usize) {
+        let tiles = self.tiles;
+        assert!(tiles >= min_tiles, "only {tiles} tiles tested");
+        assert!(
+            self.failures.is_empty(),
+            "tiles differ: {:#?}",
+            self.failures
+        );
+    }
+}
