@@ -37,7 +37,7 @@ fn measure(what: &str, w: u32, h: u32, texels: &[[f32; 3]]) {
     println!(
         "{what:<28} {w:>5}×{h:<5} build {:>8.1} ms (best of 3)   texels {:>7.1} MiB   CDFs {:>6.1} MiB",
         best * 1e3,
-        (texels.len() * 12) as f64 / (1 << 20) as f64,
+        (texels.len() * 4) as f64 / (1 << 20) as f64,
         d.bytes() as f64 / (1 << 20) as f64
     );
 }
@@ -47,7 +47,7 @@ fn main() {
         let t = Instant::now();
         let m = EnvMap::load(std::path::Path::new(&path)).unwrap_or_else(|e| panic!("{e}"));
         println!("loaded {path} in {:.1} ms", t.elapsed().as_secs_f64() * 1e3);
-        measure("the map given", m.width, m.height, &m.texels);
+        measure("the map given", m.width, m.height, &m.texels());
     }
     for (w, h) in [(2048, 1024), (8192, 4096)] {
         measure("synthetic sky with a sun", w, h, &synthetic(w, h));

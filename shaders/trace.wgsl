@@ -5,6 +5,7 @@
 // #include "common/material.wgsl"
 // #include "common/fixed.wgsl"
 // #include "common/texture.wgsl"
+// #include "common/envmap.wgsl"
 // The path tracer: one invocation traces its share of a round's `sample_count` paths through
 // one pixel and adds them to that pixel's running sums (src/gpu/trace.rs drives it).
 
@@ -22,6 +23,8 @@ override HAS_SUN: bool = true;
 override HAS_TEXTURES: bool = true;
 override HAS_CUTOUTS: bool = true;
 override HAS_NORMAL_MAPS: bool = true;
+// An HDR environment map (common/envmap.wgsl): looked up by escaping rays, sampled with HAS_NEE.
+override HAS_ENV_MAP: bool = true;
 // Counting path segments costs an atomic per workgroup; only `bench` turns it on.
 override COUNT_SEGMENTS: bool = false;
 // Walk the BVH, or test every primitive in turn (tests compare the two; see src/common/features.rs).
@@ -50,7 +53,8 @@ var<private> tests: u32;
 @group(0) @binding(12) var<storage, read> lights: array<Light>;
 // Per-lane sums when a pixel's samples are traced by several lanes (see fn trace).
 @group(0) @binding(13) var<storage, read_write> scratch: array<u32>;
-// Binding 14, the texture words, is declared in common/texture.wgsl.
+// Binding 14, the texture words, is declared in common/texture.wgsl; binding 15, the
+// environment map's, in common/envmap.wgsl.
 
 const KIND_NONE: u32 = 0u;
 const KIND_SPHERE: u32 = 1u;
@@ -506,10 +510,18 @@ fn light_choice_pmf(i: u32, p: vec3f, n: vec3f) -> f32 {
 // lobe (its 1/π included, its tint not): emitted radiance × cos / π / pdf, MIS-weighted.
 // n_geo: the facing geometric normal; the shadow ray leaves on its side, never into it.
 fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, state: ptr<function, Rng>) -> vec3f {
-    // One light is chosen without a draw.
+    // The environment map, with probability env_pick (src/common/arrays.rs: env_pick), or
+    // one of the scene's lights by choose_light; one light alone is chosen without a draw.
+    let pe = env_pick();
     var pick = 0.0;
-    if scene.n_lights > 1u {
+    if scene.n_lights + select(0u, 1u, pe > 0.0) > 1u {
         pick = rand(state);
+    }
+    if pe > 0.0 && pick < pe {
+        return sample_env(p, n, n_geo, pe, state);
+    }
+    if pe > 0.0 {
+        pick = (pick - pe) / (1.0 - pe);
     }
     let choice = choose_light(pick, p, n);
     if choice.pmf <= 0.0 {
@@ -565,9 +577,47 @@ fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, state: ptr<function, Rng>) -> 
         return vec3f(0.0);
     }
     let m = materials[material];
-    let pl = choice.pmf * pdf;
+    let pl = (1.0 - pe) * choice.pmf * pdf;
     let bsdf_pdf = cos_s / PI;
     return m.color * m.light * (cos_s / PI / pl * power_heuristic(pl, bsdf_pdf));
+}
+
+// The probability that light sampling picks the environment map: 0 without one.
+fn env_pick() -> f32 {
+    if HAS_ENV_MAP {
+        return scene.env_pick;
+    }
+    return 0.0;
+}
+
+// The environment map's share of sample_light, picked with probability pe: a direction from
+// the map's distribution, unoccluded, MIS-weighted against the cosine lobe.
+fn sample_env(p: vec3f, n: vec3f, n_geo: vec3f, pe: f32, state: ptr<function, Rng>) -> vec3f {
+    let s = env_sample(rand2(state), scene.env_rotation);
+    let cos_s = dot(n, s.dir);
+    if s.pdf <= 0.0 || cos_s <= 0.0 || (HAS_NORMAL_MAPS && dot(n_geo, s.dir) <= 0.0) {
+        return vec3f(0.0);
+    }
+    if occluded(Ray(offset_ray(p, n_geo), s.dir), T_FAR, EMPTY_SLOT) {
+        return vec3f(0.0);
+    }
+    let pl = pe * s.pdf;
+    return s.radiance * scene.env_intensity * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI));
+}
+
+// What a ray that leaves the scene sees: the environment map (MIS-weighted where light
+// sampling could have found its direction), or the sky; a camera ray sees the sky behind a
+// map that is not visible.
+fn escaped(path: Path, dir: vec3f) -> vec3f {
+    if HAS_ENV_MAP && (path.bounce > 0u || scene.env_visible != 0u) {
+        var w = 1.0;
+        let pe = env_pick();
+        if HAS_NEE && path.prev_pdf > 0.0 && pe > 0.0 {
+            w = power_heuristic(path.prev_pdf, pe * env_pdf(dir, scene.env_rotation));
+        }
+        return env_radiance(dir, scene.env_rotation) * scene.env_intensity * w;
+    }
+    return sky(dir);
 }
 
 // A path being traced: the ray of its next segment and what the segments so far have found.
@@ -595,10 +645,10 @@ fn path_start(primary: Ray) -> Path {
 fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     let ray = (*path).ray;
     let bounce = (*path).bounce;
-    let nee = HAS_NEE && scene.n_lights > 0u;
+    let nee = HAS_NEE && (scene.n_lights > 0u || env_pick() > 0.0);
     let hit = intersect_scene(ray);
     if hit.kind == KIND_NONE {
-        (*path).radiance += (*path).throughput * sky(ray.dir);
+        (*path).radiance += (*path).throughput * escaped(*path, ray.dir);
         return true;
     }
     let surf = surface_at(hit, ray);
@@ -620,7 +670,8 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     if HAS_EMITTERS && m.light > 0.0 {
         var w = 1.0;
         if nee && (*path).prev_pdf > 0.0 && m.light_slot > 0u {
-            let choice = light_choice_pmf(m.light_slot - 1u, (*path).prev_point, (*path).prev_normal);
+            let choice = (1.0 - env_pick())
+                * light_choice_pmf(m.light_slot - 1u, (*path).prev_point, (*path).prev_normal);
             let pl = choice * light_pdf(hit, (*path).prev_point, surf.point.position);
             w = power_heuristic((*path).prev_pdf, pl);
         }

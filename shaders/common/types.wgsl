@@ -30,7 +30,12 @@ struct SceneUniforms {
     n_quads: u32,           // 180
     n_boxes: u32,           // 184
     n_triangles: u32,       // 188
-}                           // 192
+    // The environment map (common/envmap.wgsl), where the scene has one.
+    env_rotation: f32,      // 192  radians about +y
+    env_intensity: f32,     // 196
+    env_pick: f32,          // 200  probability that light sampling picks the map (0: never)
+    env_visible: u32,       // 204  1: camera rays see the map; 0: the sky behind it
+}                           // 208
 
 // What one submission traces: rows [row_offset, row_offset + row_count) of the image,
 // samples [sample_base, sample_base + sample_count) of every pixel in them.

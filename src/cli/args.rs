@@ -21,6 +21,11 @@ pub struct GlobalArgs {
     /// one that frames the model when it has none.
     #[arg(long, global = true, value_name = "NAME")]
     pub camera: Option<String>,
+    /// Light the scene with this HDR environment map (an equirectangular Radiance `.hdr` or
+    /// OpenEXR file), for any scene, glTF and OBJ included; it replaces the map of a scene
+    /// that has one and keeps its intensity, rotation and visibility.
+    #[arg(long, global = true, value_name = "FILE")]
+    pub sky: Option<PathBuf>,
     /// Write logs to this file.
     #[arg(long, global = true, value_name = "FILE")]
     pub log: Option<PathBuf>,

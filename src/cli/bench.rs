@@ -112,7 +112,7 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let prepare = Instant::now();
     let scene = match a.spheres {
         Some(n) => crate::scene::generate::sphere_field(n, 2024),
-        None => load_scene(&a.scene, g.camera.as_deref())?,
+        None => load_scene(&a.scene, g.camera.as_deref(), g.sky.as_deref())?,
     };
     let scene = if a.mean_textures {
         with_mean_textures(&scene)

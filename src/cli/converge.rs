@@ -121,7 +121,7 @@ fn bar(quiet: bool, len: u64, template: &str) -> ProgressBar {
 }
 
 pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
-    let scene = load_scene(&a.scene, g.camera.as_deref())?;
+    let scene = load_scene(&a.scene, g.camera.as_deref(), g.sky.as_deref())?;
     let settings = frame_settings(&scene, a.width, a.height, a.max_bounces, a.seed);
     let variants = if a.compare.is_empty() {
         vec![Variant::default()]

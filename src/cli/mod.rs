@@ -181,6 +181,7 @@ pub fn main() -> ExitCode {
 fn view(a: ViewArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     crate::ui::run(ViewOptions {
         camera: g.camera.clone(),
+        sky: g.sky.clone(),
         scene: a.scene,
         cells: a.cells,
         color: a.color,

@@ -108,7 +108,7 @@ pub(crate) fn frame_settings(
 }
 
 pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
-    let scene = load_scene(&a.scene, g.camera.as_deref())?;
+    let scene = load_scene(&a.scene, g.camera.as_deref(), g.sky.as_deref())?;
     let out = a
         .output
         .clone()

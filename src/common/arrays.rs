@@ -91,12 +91,31 @@ pub fn scene_uniforms(scene: &Scene, s: &FrameSettings, origin: DVec3) -> SceneU
         }
     }
     u.n_lights = lights(scene, s.nee).0.len() as u32;
+    if let Some(e) = &scene.environment {
+        u.env_rotation = e.rotation.to_radians();
+        u.env_intensity = e.intensity;
+        u.env_visible = e.visible as u32;
+        u.env_pick = env_pick(e.lights() && s.nee, u.n_lights);
+    }
     let n = scene.counts();
     u.n_spheres = n.spheres as u32;
     u.n_quads = n.quads as u32;
     u.n_boxes = n.boxes as u32;
     u.n_triangles = n.triangles as u32;
     u
+}
+
+/// The light-selection rule of next-event estimation (docs/MODEL-NOTES.md, "Environment
+/// maps"): the probability of sampling the environment map rather than the scene's lights.
+/// All of it where the map is the only light, half where there are both (the scene's lights
+/// then share the other half by their own rule), none where the map sends no light or light
+/// sampling is off.
+pub fn env_pick(map_lights: bool, scene_lights: u32) -> f32 {
+    match (map_lights, scene_lights) {
+        (false, _) => 0.0,
+        (true, 0) => 1.0,
+        (true, _) => 0.5,
+    }
 }
 
 /// A sphere's anchor: the surface point nearest `toward` (the camera's `look_at`), where

@@ -11,6 +11,82 @@ pub use crate::scene::color::luminance;
 use glam::Vec3;
 use std::f32::consts::PI;
 
+/// One texel as both tracers store it: Radiance's RGBE, three 8-bit mantissas and a shared
+/// 8-bit exponent, value = m × 2^(e − 136) (Ward, "Real Pixels", Graphics Gems II, 1991).
+/// Four bytes a texel (an 8k map is 128 MiB, not 384), a range of 2^±127 (a sun of 10⁵ next
+/// to a sky of 10⁻³ fits, which half floats do not), and lossless for `.hdr` files, which
+/// hold exactly these numbers: `image` decodes them as m × 2^(e − 136), and this packing
+/// gives the same bytes back. An EXR's channels keep 8 bits relative to the texel's
+/// brightest one (0.4 % at worst). Bytes r, g, b, e from the lowest.
+pub fn rgbe_pack(c: [f32; 3]) -> u32 {
+    let v = c[0].max(c[1]).max(c[2]);
+    // Below 2^-100 is black: both tracers then decode only normal floats.
+    if v.is_nan() || v < 2f32.powi(-100) {
+        return 0;
+    }
+    // v = f × 2^k with f in [0.5, 1): the brightest mantissa f × 256 is in [128, 256).
+    let mut k = v.log2().floor() as i32 + 1;
+    let scale = |k: i32| 2f32.powi(8 - k);
+    // log2 may round across a power of two: put v × 2^(8−k) in [128, 256) exactly.
+    while v * scale(k) >= 256.0 {
+        k += 1;
+    }
+    while v * scale(k) < 128.0 {
+        k -= 1;
+    }
+    if k + 128 > 255 {
+        // Beyond 2^127: the largest value RGBE holds.
+        return 0xffff_ffff;
+    }
+    let m = |x: f32| ((x * scale(k) + 0.5).floor() as u32).min(255);
+    let (r, g, b) = (m(c[0]), m(c[1]), m(c[2]));
+    // Rounding the brightest up to 256 is one more step of the exponent.
+    if r.max(g).max(b) > 255 || v * scale(k) + 0.5 >= 256.0 {
+        let m2 = |x: f32| ((x * scale(k + 1) + 0.5).floor() as u32).min(255);
+        return m2(c[0]) | m2(c[1]) << 8 | m2(c[2]) << 16 | ((k + 1 + 128) as u32) << 24;
+    }
+    r | g << 8 | b << 16 | ((k + 128) as u32) << 24
+}
+
+/// A packed texel's radiance (as `env_texel` in shaders/common/envmap.wgsl decodes it).
+pub fn rgbe_unpack(w: u32) -> [f32; 3] {
+    let e = w >> 24;
+    if e == 0 {
+        return [0.0; 3];
+    }
+    let f = 2f32.powi(e as i32 - 136);
+    [
+        (w & 0xff) as f32 * f,
+        (w >> 8 & 0xff) as f32 * f,
+        (w >> 16 & 0xff) as f32 * f,
+    ]
+}
+
+/// The words a map is uploaded as (one storage buffer, `env` in shaders/common/envmap.wgsl):
+/// a header of [`ENV_HEADER`] words (width, height, the first word of the conditional CDFs,
+/// the first word of the texels), the marginal CDF (`height + 1` f32), the conditional CDFs
+/// (`height × (width + 1)` f32), then the RGBE texels, row-major from the top. An 8k map
+/// (8192 × 4096) takes 256 MiB.
+pub fn words(d: &Distribution, rgbe: &[u32]) -> Vec<u32> {
+    debug_assert_eq!(rgbe.len(), (d.width * d.height) as usize);
+    let conditional = ENV_HEADER + d.marginal.len();
+    let texels = conditional + d.conditional.len();
+    let mut w = Vec::with_capacity(words_len(d));
+    w.extend([d.width, d.height, conditional as u32, texels as u32]);
+    w.extend(d.marginal.iter().map(|x| x.to_bits()));
+    w.extend(d.conditional.iter().map(|x| x.to_bits()));
+    w.extend_from_slice(rgbe);
+    w
+}
+
+/// The header words of [`words`]; the marginal CDF follows them.
+pub const ENV_HEADER: usize = 4;
+
+/// How many words [`words`] makes for a map.
+pub fn words_len(d: &Distribution) -> usize {
+    ENV_HEADER + d.marginal.len() + d.conditional.len() + (d.width * d.height) as usize
+}
+
 /// The direction of map coordinates (u, v) ∈ [0, 1]², `rotation` in radians about +y: v runs
 /// from the zenith (+y, v = 0) to the nadir; u = ½ looks down −z (the default camera's view,
 /// so a panorama's middle is seen straight ahead) and u = ¾ towards +x (its right half to
@@ -168,19 +244,28 @@ impl Distribution {
         }
     }
 
+    /// The texel unit direction `d` falls in, and its v (`env_texel_of` in
+    /// shaders/common/envmap.wgsl, the same arithmetic).
+    pub fn texel_of(&self, d: Vec3, rotation: f32) -> (u32, u32, f32) {
+        let v = d.y.clamp(-1.0, 1.0).acos() / PI;
+        let turns = ((-d.x).atan2(d.z) - rotation) / (2.0 * PI);
+        let u = turns - turns.floor();
+        let x = ((u * self.width as f32) as u32).min(self.width - 1);
+        let y = ((v * self.height as f32) as u32).min(self.height - 1);
+        (x, y, v)
+    }
+
     /// The solid-angle density with which [`Distribution::sample`] gives unit direction `d`.
     pub fn pdf(&self, d: Vec3, rotation: f32) -> f32 {
         if self.integral <= 0.0 {
             return 0.0;
         }
-        let (u, v) = coordinates(d, rotation);
-        let x = ((u * self.width as f32) as usize).min(self.width as usize - 1);
-        let y = ((v * self.height as f32) as usize).min(self.height as usize - 1);
+        let (x, y, v) = self.texel_of(d, rotation);
         let sin_t = (PI * v).sin();
         if sin_t <= 0.0 {
             return 0.0;
         }
-        self.density_uv(x, y) / (2.0 * PI * PI * sin_t)
+        self.density_uv(x as usize, y as usize) / (2.0 * PI * PI * sin_t)
     }
 
     /// Bytes the CDFs take.
@@ -207,6 +292,35 @@ mod tests {
         assert!(direction(0.5, 0.5, 0.0).abs_diff_eq(Vec3::NEG_Z, 1e-6));
         assert!(direction(0.75, 0.5, 0.0).abs_diff_eq(Vec3::X, 1e-6));
         assert!(direction(0.3, 0.0, 0.0).abs_diff_eq(Vec3::Y, 1e-6));
+    }
+
+    #[test]
+    fn rgbe_round_trips_radiance_files_and_keeps_eight_bits() {
+        // Every value a .hdr file can hold (normalized: the brightest mantissa ≥ 128) packs
+        // back to its own bytes.
+        for e in [1u32, 100, 127, 128, 136, 150, 200, 255] {
+            for (r, g, b) in [(128, 0, 0), (255, 255, 255), (200, 13, 128), (3, 129, 77)] {
+                let w = r | g << 8 | b << 16 | e << 24;
+                if e < 36 {
+                    continue; // below 2^-100: packed as black
+                }
+                assert_eq!(rgbe_pack(rgbe_unpack(w)), w, "e {e} rgb {r} {g} {b}");
+            }
+        }
+        for c in [
+            [1.0, 1.0, 1.0],
+            [1e5, 2e4, 3e3],
+            [1e-3, 0.0, 5e-4],
+            [0.9999, 0.5, 0.25],
+        ] {
+            let d = rgbe_unpack(rgbe_pack(c));
+            let max = c[0].max(c[1]).max(c[2]);
+            for i in 0..3 {
+                assert!((d[i] - c[i]).abs() <= max / 256.0, "{c:?} → {d:?}");
+            }
+        }
+        assert_eq!(rgbe_unpack(rgbe_pack([1.0; 3])), [1.0; 3]);
+        assert_eq!(rgbe_pack([0.0; 3]), 0);
     }
 
     #[test]

@@ -27,6 +27,9 @@ pub struct Features {
     pub cutouts: bool,
     /// Tangent-space normal maps (shading normals).
     pub normal_maps: bool,
+    /// An HDR environment map: looked up where rays leave the scene, and sampled by
+    /// next-event estimation (with `nee`).
+    pub env_map: bool,
     /// Counts path segments (benchmarks only); not a scene feature.
     pub count_segments: bool,
     /// Walk the BVH (true) or test every primitive (false: for tests and scaling benchmarks).
@@ -49,6 +52,7 @@ impl Features {
             textures: true,
             cutouts: true,
             normal_maps: true,
+            env_map: true,
             count_segments: false,
             bvh: true,
         }
@@ -69,6 +73,7 @@ impl Features {
             textures: false,
             cutouts: false,
             normal_maps: false,
+            env_map: false,
             count_segments: false,
             bvh: false,
         }
@@ -92,10 +97,12 @@ impl Features {
                 "textures" => &mut f.textures,
                 "cutouts" => &mut f.cutouts,
                 "normal_maps" => &mut f.normal_maps,
+                "env_map" => &mut f.env_map,
                 _ => {
                     return Err(format!(
                         "unknown feature `{name}` (expected spheres, quads, boxes, triangles, \
-                         dielectrics, emitters, nee, dof, sun, textures, cutouts or normal_maps)"
+                         dielectrics, emitters, nee, dof, sun, textures, cutouts, normal_maps \
+                         or env_map)"
                     ));
                 }
             };
@@ -110,6 +117,8 @@ impl Features {
             dof: scene.camera.aperture > 0.0,
             sun: matches!(&scene.sky, Sky::Gradient { sun: Some(s), .. } if s.intensity > 0.0),
             bvh: true,
+            env_map: scene.environment.is_some(),
+            nee: scene.environment.as_ref().is_some_and(|e| e.lights()),
             ..Features::none()
         };
         for o in &scene.objects {
@@ -150,6 +159,7 @@ impl Features {
             textures: self.textures | other.textures,
             cutouts: self.cutouts | other.cutouts,
             normal_maps: self.normal_maps | other.normal_maps,
+            env_map: self.env_map | other.env_map,
             count_segments: self.count_segments | other.count_segments,
             bvh: self.bvh | other.bvh,
         }
@@ -176,6 +186,7 @@ impl Features {
             ("HAS_TEXTURES", b(self.textures)),
             ("HAS_CUTOUTS", b(self.cutouts)),
             ("HAS_NORMAL_MAPS", b(self.normal_maps)),
+            ("HAS_ENV_MAP", b(self.env_map)),
             ("COUNT_SEGMENTS", b(self.count_segments)),
             ("USE_BVH", b(self.bvh)),
         ]
@@ -196,6 +207,7 @@ impl Features {
             (self.textures, "textures"),
             (self.cutouts, "cutouts"),
             (self.normal_maps, "normal_maps"),
+            (self.env_map, "env_map"),
         ];
         let on: Vec<&str> = names.iter().filter(|(b, _)| *b).map(|(_, n)| *n).collect();
         if on.is_empty() {

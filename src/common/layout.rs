@@ -36,6 +36,10 @@ pub struct SceneUniforms {
     pub n_quads: u32,
     pub n_boxes: u32,
     pub n_triangles: u32,
+    pub env_rotation: f32,
+    pub env_intensity: f32,
+    pub env_pick: f32,
+    pub env_visible: u32,
 }
 
 #[repr(C)]
@@ -174,6 +178,10 @@ pub fn mirrors() -> Vec<MirrorLayout> {
                 n_quads,
                 n_boxes,
                 n_triangles,
+                env_rotation,
+                env_intensity,
+                env_pick,
+                env_visible,
             ]
         ),
         m!(
@@ -230,7 +238,7 @@ pub fn mirrors() -> Vec<MirrorLayout> {
 }
 
 const _: () = {
-    assert!(std::mem::size_of::<SceneUniforms>() == 192);
+    assert!(std::mem::size_of::<SceneUniforms>() == 208);
     assert!(std::mem::size_of::<DispatchUniforms>() == 32);
     assert!(std::mem::size_of::<ResolveUniforms>() == 32);
     assert!(std::mem::size_of::<GpuMaterial>() == 48);

@@ -35,6 +35,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         "common/texture.wgsl",
         include_str!("../../shaders/common/texture.wgsl"),
     ),
+    (
+        "common/envmap.wgsl",
+        include_str!("../../shaders/common/envmap.wgsl"),
+    ),
 ];
 
 /// The source of one file compiled into the binary, by path relative to `shaders/`.

@@ -11,7 +11,9 @@ use crate::common::FrameSettings;
 use crate::common::arrays::{Primitives, geometry_hash, gpu_bvh, scene_uniforms};
 use crate::common::layout::{GpuLight, GpuMaterial, SceneUniforms};
 use crate::scene::Scene;
+use crate::scene::envmap::EnvMap;
 use glam::{DVec3, Vec3A};
+use std::sync::Arc;
 
 fn v(a: [f32; 3]) -> Vec3A {
     Vec3A::from_array(a)
@@ -51,6 +53,10 @@ pub struct Uniforms {
     pub seed: u32,
     pub n_lights: u32,
     pub primitives: u32,
+    pub env_rotation: f32,
+    pub env_intensity: f32,
+    pub env_pick: f32,
+    pub env_visible: bool,
 }
 
 impl Uniforms {
@@ -75,6 +81,10 @@ impl Uniforms {
             seed: u.seed,
             n_lights: u.n_lights,
             primitives: u.n_spheres + u.n_quads + u.n_boxes + u.n_triangles,
+            env_rotation: u.env_rotation,
+            env_intensity: u.env_intensity,
+            env_pick: u.env_pick,
+            env_visible: u.env_visible != 0,
         }
     }
 }
@@ -110,6 +120,8 @@ pub struct CpuScene {
     pub cutouts: bool,
     /// Some material has a normal map (the shading-normal code runs).
     pub normal_maps: bool,
+    /// The environment map, where the scene has one (its CDFs and texels as the GPU's).
+    pub env: Option<Arc<EnvMap>>,
     tex_key: Vec<usize>,
     /// Nodes of the BVH, and the seconds its build took.
     pub node_count: usize,
@@ -142,6 +154,7 @@ impl CpuScene {
             tex: Vec::new(),
             cutouts: false,
             normal_maps: false,
+            env: scene.environment.as_ref().map(|e| e.map.clone()),
             tex_key: Vec::new(),
             bvh,
             #[cfg(target_arch = "x86_64")]
@@ -176,6 +189,7 @@ impl CpuScene {
         // The geometry is unchanged: the triangles stay (10⁶ of them take 0.2 s to make).
         let p = Primitives::without_meshes(scene, self.origin, s.nee);
         self.u = Uniforms::of(&scene_uniforms(scene, s, self.origin));
+        self.env = scene.environment.as_ref().map(|e| e.map.clone());
         let triangles = std::mem::take(&mut self.triangles);
         self.take(&p);
         self.triangles = triangles;

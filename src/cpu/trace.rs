@@ -259,6 +259,70 @@ impl<'a> Tracer<'a> {
         c
     }
 
+    /// The probability that light sampling picks the environment map (0 without one).
+    #[inline(always)]
+    fn env_pick(&self) -> f32 {
+        if self.f.env_map {
+            self.s.u.env_pick
+        } else {
+            0.0
+        }
+    }
+
+    /// What a ray that leaves the scene sees (trace.wgsl: escaped): the environment map,
+    /// MIS-weighted where light sampling could have found its direction, or the sky.
+    fn escaped(&self, dir: Vec3A, bounce: u32, prev_pdf: f32) -> Vec3A {
+        let u = &self.s.u;
+        if let Some(map) = self.s.env.as_ref().filter(|_| self.f.env_map)
+            && (bounce > 0 || u.env_visible)
+        {
+            let d = glam::Vec3::from(dir);
+            let (x, y, _) = map.distribution.texel_of(d, u.env_rotation);
+            let l = Vec3A::from_array(map.texel(x, y)) * u.env_intensity;
+            let pe = self.env_pick();
+            if self.f.nee && prev_pdf > 0.0 && pe > 0.0 {
+                let pl = pe * map.distribution.pdf(d, u.env_rotation);
+                return l * power_heuristic(prev_pdf, pl);
+            }
+            return l;
+        }
+        self.sky(dir)
+    }
+
+    /// The environment map's share of `sample_light`, picked with probability `pe`
+    /// (trace.wgsl: sample_env).
+    fn sample_env<const P: u32>(
+        &mut self,
+        p: Vec3A,
+        n: Vec3A,
+        n_geo: Vec3A,
+        from: u32,
+        pe: f32,
+        rng: &mut Rng,
+    ) -> Vec3A {
+        let Some(map) = self.s.env.as_ref() else {
+            return Vec3A::ZERO;
+        };
+        let u = &self.s.u;
+        let (u1, u2) = rng.rand2();
+        let s = map.distribution.sample(u1, u2, u.env_rotation);
+        let dir = Vec3A::from(s.dir);
+        let cos_s = n.dot(dir);
+        if s.pdf <= 0.0 || cos_s <= 0.0 || (self.s.normal_maps && n_geo.dot(dir) <= 0.0) {
+            return Vec3A::ZERO;
+        }
+        let radiance = Vec3A::from_array(map.texel(s.texel.0, s.texel.1)) * u.env_intensity;
+        let shadow = Ray {
+            origin: offset_ray(p, n_geo),
+            dir,
+        };
+        if self.occluded::<P>(&shadow, T_FAR, NONE, from) {
+            return Vec3A::ZERO;
+        }
+        let pl = pe * s.pdf;
+        radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI))
+    }
+
     /// Primitive `r` where a ray leaving its surface on the side of its normal (`out`) or
     /// against it cannot meet it again, else NONE. A ray leaving a plane, or a convex primitive
     /// outward, cannot (in exact arithmetic: in floating point its test could only find the
@@ -391,12 +455,20 @@ impl<'a> Tracer<'a> {
         from: u32,
         rng: &mut Rng,
     ) -> Vec3A {
-        // One light is chosen without a draw.
-        let pick = if self.s.u.n_lights > 1 {
+        // The environment map with probability env_pick, else one of the scene's lights;
+        // one light alone is chosen without a draw.
+        let pe = self.env_pick();
+        let mut pick = if self.s.u.n_lights + (pe > 0.0) as u32 > 1 {
             rng.rand()
         } else {
             0.0
         };
+        if pe > 0.0 && pick < pe {
+            return self.sample_env::<P>(p, n, n_geo, from, pe, rng);
+        }
+        if pe > 0.0 {
+            pick = (pick - pe) / (1.0 - pe);
+        }
         let (index, pmf) = self.choose_light(pick, p, n);
         if pmf <= 0.0 {
             return Vec3A::ZERO;
@@ -448,7 +520,7 @@ impl<'a> Tracer<'a> {
             return Vec3A::ZERO;
         }
         let m = &self.s.materials[material as usize];
-        let pl = pmf * pdf;
+        let pl = (1.0 - pe) * pmf * pdf;
         let bsdf_pdf = cos_s / PI;
         m.color * m.light * (cos_s / PI / pl * power_heuristic(pl, bsdf_pdf))
     }
@@ -470,7 +542,7 @@ impl<'a> Tracer<'a> {
         let mut throughput = Vec3A::ONE;
         let mut radiance = Vec3A::ZERO;
         let mut segments = 0;
-        let nee = NEE && u.n_lights > 0;
+        let nee = NEE && (u.n_lights > 0 || self.env_pick() > 0.0);
         let mut prev_pdf = 0.0;
         let mut prev_point = ray.origin;
         let mut prev_normal = Vec3A::Y;
@@ -490,7 +562,7 @@ impl<'a> Tracer<'a> {
                 None => self.intersect::<P>(&ray, skip),
             };
             let Some(hit) = found else {
-                radiance += throughput * self.sky(ray.dir);
+                radiance += throughput * self.escaped(ray.dir, bounce, prev_pdf);
                 break;
             };
             let (point, material) = self.surface_at(hit, &ray);
@@ -512,8 +584,8 @@ impl<'a> Tracer<'a> {
             if self.f.emitters && m.light > 0.0 {
                 let mut w = 1.0;
                 if nee && prev_pdf > 0.0 && m.light_slot > 0 {
-                    let choice =
-                        self.light_choice_pmf(m.light_slot as usize - 1, prev_point, prev_normal);
+                    let choice = (1.0 - self.env_pick())
+                        * self.light_choice_pmf(m.light_slot as usize - 1, prev_point, prev_normal);
                     let pl = choice * self.light_pdf(hit, prev_point, point.position);
                     w = power_heuristic(prev_pdf, pl);
                 }

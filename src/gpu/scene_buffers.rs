@@ -5,7 +5,9 @@ use crate::common::arrays::{FrameSettings, Primitives, geometry_hash, gpu_bvh, s
 use crate::common::layout::GpuLight;
 use crate::common::textures;
 use crate::scene::Scene;
+use crate::scene::envmap::EnvMap;
 use glam::DVec3;
+use std::sync::Arc;
 use wgpu::util::DeviceExt;
 
 fn storage<T: bytemuck::Pod + Default>(
@@ -22,6 +24,15 @@ fn storage<T: bytemuck::Pod + Default>(
     })
 }
 
+/// Whether `scene`'s environment map is `had` (the same loaded map, or both none).
+fn same_map(scene: &Scene, had: &Option<Arc<EnvMap>>) -> bool {
+    match (&scene.environment, had) {
+        (None, None) => true,
+        (Some(e), Some(m)) => Arc::ptr_eq(&e.map, m),
+        _ => false,
+    }
+}
+
 /// The scene's GPU buffers.
 pub struct SceneBuffers {
     pub uniforms: wgpu::Buffer,
@@ -35,6 +46,10 @@ pub struct SceneBuffers {
     pub lights: wgpu::Buffer,
     /// The texture words (`common::textures`; one word when the scene has none).
     pub tex: wgpu::Buffer,
+    /// The environment map's words (`common::envmap::words`; one word without a map), and
+    /// the map they were made from.
+    pub env: wgpu::Buffer,
+    env_map: Option<Arc<EnvMap>>,
     /// What the texture words were made from: per object, its textured material's address
     /// (0: none), and the geometry (the triangles' coordinates are in them).
     tex_key: Vec<usize>,
@@ -76,8 +91,19 @@ impl SceneBuffers {
             t.elapsed().as_secs_f64() * 1e3
         );
         let t = std::time::Instant::now();
+        let env_map = scene.environment.as_ref().map(|e| e.map.clone());
+        let env = match &env_map {
+            Some(m) => storage(
+                device,
+                "scene.env",
+                &crate::common::envmap::words(&m.distribution, &m.rgbe),
+            ),
+            None => storage::<u32>(device, "scene.env", &[]),
+        };
         let buffers = SceneBuffers {
             tex: storage(device, "scene.tex", &tex),
+            env,
+            env_map,
             tex_key: textures::material_key(scene),
             origin,
             uniforms: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -127,6 +153,7 @@ impl SceneBuffers {
         if geometry_hash(scene) != self.geometry
             || s.nee != self.nee
             || textures::material_key(scene) != self.tex_key
+            || !same_map(scene, &self.env_map)
             || light_count(&p.lights) * std::mem::size_of::<GpuLight>()
                 > self.lights.size() as usize
         {

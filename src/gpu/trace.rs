@@ -117,6 +117,7 @@ impl TracePass {
                 entry(12, ro),
                 entry(13, rw),
                 entry(14, ro),
+                entry(15, ro),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -215,6 +216,7 @@ impl TracePass {
                 &scene.lights,
                 &accum.scratch,
                 &scene.tex,
+                &scene.env,
             ],
         )
     }

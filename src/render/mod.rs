@@ -135,18 +135,35 @@ impl Backend {
     }
 
     /// Whether `scene` fits this backend: a GPU binds each storage buffer up to a size
-    /// (`max_storage_buffer_binding_size`, `max_buffer_size`); the texture words, one buffer,
-    /// are what a real scene can overrun. The CPU tracer has no such limit.
+    /// (`max_storage_buffer_binding_size`, `max_buffer_size`); the texture words and an
+    /// environment map, one buffer each, are what a real scene can overrun. The CPU tracer has no such limit.
     pub fn check_fits(&self, scene: &Scene) -> anyhow::Result<()> {
         let Backend::Gpu(ctx) = self else {
             return Ok(());
         };
         let l = ctx.device.limits();
         let limit = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
-        match crate::common::textures::too_large(scene, limit) {
-            Some(why) => anyhow::bail!("{}: {why} ({})", scene.origin, ctx.adapter_name()),
-            None => Ok(()),
+        if let Some(why) = crate::common::textures::too_large(scene, limit) {
+            anyhow::bail!("{}: {why} ({})", scene.origin, ctx.adapter_name());
         }
+        if let Some(e) = &scene.environment {
+            let bytes = crate::common::envmap::words_len(&e.map.distribution) as u64 * 4;
+            if bytes > limit {
+                anyhow::bail!(
+                    "{}: the environment map {} ({}×{}) needs {:.0} MiB in one buffer, and {} \
+                     binds at most {:.0} MiB: use a smaller map, or the CPU tracer \
+                     (--adapter cpu-native)",
+                    scene.origin,
+                    e.map.name,
+                    e.map.width,
+                    e.map.height,
+                    bytes as f64 / (1 << 20) as f64,
+                    ctx.adapter_name(),
+                    limit as f64 / (1 << 20) as f64
+                );
+            }
+        }
+        Ok(())
     }
 
     /// One line naming the adapter or the CPU tracer.

@@ -1,15 +1,19 @@
 //! Environment maps as the model holds them: an equirectangular image of linear radiance
-//! (Radiance `.hdr` or OpenEXR, through `image`), every texel checked on load.
+//! (Radiance `.hdr` or OpenEXR, through `image`), every texel checked on load, packed as both
+//! tracers read it, with its sampling distribution built once.
 
+use crate::common::envmap::{Distribution, rgbe_pack, rgbe_unpack};
 use std::path::Path;
 
-/// An equirectangular map of linear RGB radiance, rows from the top (the zenith);
-/// `common::envmap` maps directions onto it and samples it.
+/// An equirectangular map of linear RGB radiance, rows from the top (the zenith), as RGBE
+/// texels (`common::envmap::rgbe_pack`), and the distribution that samples it, built from
+/// those texels (what the tracers see).
 #[derive(Debug, PartialEq)]
 pub struct EnvMap {
     pub width: u32,
     pub height: u32,
-    pub texels: Vec<[f32; 3]>,
+    pub rgbe: Vec<u32>,
+    pub distribution: Distribution,
     /// The file, for messages.
     pub name: String,
 }
@@ -35,7 +39,7 @@ impl EnvMap {
         if width == 0 || height == 0 {
             return Err(format!("{name}: the image is empty"));
         }
-        let mut texels = Vec::with_capacity((width * height) as usize);
+        let mut rgbe = Vec::with_capacity((width * height) as usize);
         for (x, y, p) in img.enumerate_pixels() {
             let c = p.0;
             if let Some(bad) = c.iter().find(|v| !v.is_finite() || **v < 0.0) {
@@ -44,18 +48,42 @@ impl EnvMap {
                      must be finite and not negative"
                 ));
             }
-            texels.push(c);
+            rgbe.push(rgbe_pack(c));
         }
+        drop(img);
+        let distribution = Distribution::new(width, height, &unpack_all(&rgbe));
         Ok(EnvMap {
             width,
             height,
-            texels,
+            rgbe,
+            distribution,
             name,
         })
     }
 
-    /// Bytes the texels take as the tracers hold them (three f32 each).
-    pub fn bytes(&self) -> usize {
-        self.texels.len() * 12
+    /// A map of one radiance in every direction (`width × height` texels).
+    pub fn constant(width: u32, height: u32, c: [f32; 3], name: &str) -> EnvMap {
+        let img = image::Rgb32FImage::from_pixel(width, height, image::Rgb(c));
+        Self::from_image(img, name.into()).expect("a finite, non-negative radiance")
     }
+
+    /// The radiance of texel (x, y), as the tracers decode it.
+    pub fn texel(&self, x: u32, y: u32) -> [f32; 3] {
+        rgbe_unpack(self.rgbe[(y * self.width + x) as usize])
+    }
+
+    /// Every texel decoded, row-major.
+    pub fn texels(&self) -> Vec<[f32; 3]> {
+        unpack_all(&self.rgbe)
+    }
+
+    /// Bytes the tracers hold: the RGBE texels and the CDFs.
+    pub fn bytes(&self) -> usize {
+        self.rgbe.len() * 4 + self.distribution.bytes()
+    }
+}
+
+fn unpack_all(rgbe: &[u32]) -> Vec<[f32; 3]> {
+    use rayon::prelude::*;
+    rgbe.par_iter().map(|&w| rgbe_unpack(w)).collect()
 }

@@ -106,6 +106,7 @@ impl Scene {
                 .unwrap_or_else(|| gltf::framing_camera(imported.bounds)),
             render: RenderSettings::default(),
             sky,
+            environment: None,
             materials: Vec::new(),
             objects: imported
                 .objects
@@ -131,9 +132,33 @@ impl Scene {
 /// A scene by built-in name or file path, with an error message for the command line (an
 /// invalid scene lists every problem, each with its file, line and key). Below both the
 /// commands and the preview, which load scenes the same way.
-pub fn load_scene(name: &str, camera: Option<&str>) -> anyhow::Result<Scene> {
-    Scene::load_with_camera(name, camera).map_err(|e| match e {
+pub fn load_scene(name: &str, camera: Option<&str>, sky: Option<&Path>) -> anyhow::Result<Scene> {
+    let mut scene = Scene::load_with_camera(name, camera).map_err(|e| match e {
         SceneError::Invalid(_) => anyhow::anyhow!("invalid scene\n{e}"),
         other => other.into(),
-    })
+    })?;
+    if let Some(path) = sky {
+        scene.set_sky_map(path)?;
+    }
+    Ok(scene)
+}
+
+impl Scene {
+    /// Lights the scene with the map at `path` (`--sky FILE`): it replaces the scene's map,
+    /// keeping its intensity, rotation and visibility, or adds one with the defaults. The
+    /// file is kept by its absolute path, so that a scene written back anywhere finds it.
+    pub fn set_sky_map(&mut self, path: &Path) -> anyhow::Result<()> {
+        let file = std::path::absolute(path)
+            .unwrap_or_else(|_| path.to_path_buf())
+            .display()
+            .to_string();
+        let mut env = Environment::load(&file, path).map_err(|e| anyhow::anyhow!("--sky {e}"))?;
+        if let Some(old) = &self.environment {
+            env.intensity = old.intensity;
+            env.rotation = old.rotation;
+            env.visible = old.visible;
+        }
+        self.environment = Some(env);
+        Ok(())
+    }
 }

@@ -127,6 +127,55 @@ impl Sky {
     }
 }
 
+/// An HDR environment map around the scene (`[sky] map = "…"` or `--sky FILE`): it lights
+/// the scene, and rays that leave the scene see it (docs/MODEL-NOTES.md "Environment maps").
+/// The `[sky]` gradient or uniform colour stays the background that camera rays see where
+/// the map is not `visible`.
+#[derive(Clone, Debug)]
+pub struct Environment {
+    /// The file as the scene names it (relative to the scene file), for writing back.
+    pub file: String,
+    /// The loaded map, shared by every copy of the scene (edits clone the scene).
+    pub map: std::sync::Arc<super::envmap::EnvMap>,
+    /// A factor on the map's radiance.
+    pub intensity: f32,
+    /// Degrees about the up axis (+y); positive turns the map's features to the left as seen
+    /// from above (counter-clockwise).
+    pub rotation: f32,
+    /// Whether camera rays see the map (false: they see the `[sky]` background).
+    pub visible: bool,
+}
+
+impl PartialEq for Environment {
+    fn eq(&self, o: &Environment) -> bool {
+        self.file == o.file
+            && (std::sync::Arc::ptr_eq(&self.map, &o.map) || self.map == o.map)
+            && self.intensity == o.intensity
+            && self.rotation == o.rotation
+            && self.visible == o.visible
+    }
+}
+
+impl Environment {
+    /// The map of `file` (as written) at `path`, with the defaults: intensity 1, no rotation,
+    /// visible.
+    pub fn load(file: &str, path: &Path) -> Result<Environment, String> {
+        Ok(Environment {
+            file: file.to_string(),
+            map: std::sync::Arc::new(super::envmap::EnvMap::load(path)?),
+            intensity: 1.0,
+            rotation: 0.0,
+            visible: true,
+        })
+    }
+
+    /// Whether the map sends any light: its texels are not all black and its intensity is
+    /// above zero (a dark map is looked up but never sampled).
+    pub fn lights(&self) -> bool {
+        self.intensity > 0.0 && self.map.distribution.integral > 0.0
+    }
+}
+
 /// The lecture's four material parameters plus `ior` and `specular_color` (MODEL.md table).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
@@ -302,6 +351,8 @@ pub struct Scene {
     pub camera: Camera,
     pub render: RenderSettings,
     pub sky: Sky,
+    /// An HDR environment map, where the scene has one.
+    pub environment: Option<Environment>,
     /// The `[materials.NAME]` tables, as written (kept for writing the scene back).
     pub materials: Vec<(String, Material)>,
     pub objects: Vec<Object>,

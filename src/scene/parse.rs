@@ -4,6 +4,7 @@ use super::error::SceneError;
 use super::model::*;
 use super::reader::{Sink, Table};
 use glam::{DMat4, DVec3, Vec3};
+use std::path::Path;
 use toml::de::DeTable;
 
 const TOP_KEYS: &[&str] = &[
@@ -26,7 +27,16 @@ const CAMERA_KEYS: &[&str] = &[
     "focus_distance",
 ];
 const RENDER_KEYS: &[&str] = &["width", "height", "spp", "max_bounces", "seed"];
-const SKY_KEYS: &[&str] = &["bottom", "top", "uniform", "sun"];
+const SKY_KEYS: &[&str] = &[
+    "bottom",
+    "top",
+    "uniform",
+    "sun",
+    "map",
+    "intensity",
+    "rotation",
+    "visible",
+];
 const SUN_KEYS: &[&str] = &["direction", "color", "intensity", "size"];
 const MATERIAL_KEYS: &[&str] = &[
     "color",
@@ -87,10 +97,9 @@ fn read_scene(root: &Table, origin: &str) -> Scene {
         .table("render", "[render]".into(), RENDER_KEYS)
         .map(|t| read_render(&t))
         .unwrap_or_default();
-    let sky = root
-        .table("sky", "[sky]".into(), SKY_KEYS)
-        .map(|t| read_sky(&t))
-        .unwrap_or_default();
+    let sky_table = root.table("sky", "[sky]".into(), SKY_KEYS);
+    let sky = sky_table.as_ref().map(read_sky).unwrap_or_default();
+    let environment = sky_table.as_ref().and_then(|t| read_environment(t, origin));
 
     let materials: Vec<(String, MaterialPatch)> = root
         .named_tables("materials", MATERIAL_KEYS)
@@ -141,6 +150,7 @@ fn read_scene(root: &Table, origin: &str) -> Scene {
         camera,
         render,
         sky,
+        environment,
         gltf,
         materials: materials
             .into_iter()
@@ -225,6 +235,47 @@ fn read_sky(t: &Table) -> Sky {
         bottom: t.color("bottom").unwrap_or(db),
         top: t.color("top").unwrap_or(dt),
         sun,
+    }
+}
+
+/// `[sky] map = "file.hdr"` with its `intensity`, `rotation` and `visible`; the map is read
+/// (relative to the scene file) and its distribution built here, so that a broken map is an
+/// error at its line.
+fn read_environment(t: &Table, origin: &str) -> Option<Environment> {
+    let intensity = t.f64_in("intensity", 0.0, 1e30);
+    let rotation = t.f64("rotation");
+    let visible = t.boolean("visible");
+    let Some(file) = t.string("map") else {
+        for k in ["intensity", "rotation", "visible"] {
+            if t.has(k) {
+                t.error(
+                    k,
+                    format!("`{k}` belongs to an environment map, and [sky] has no `map`"),
+                    Some("add `map = \"sky.hdr\"` (a Radiance .hdr or OpenEXR file)".into()),
+                );
+            }
+        }
+        return None;
+    };
+    if origin.starts_with("builtin:") {
+        t.error("map", "a built-in scene cannot name a map file", None);
+        return None;
+    }
+    let path = Path::new(origin)
+        .parent()
+        .unwrap_or(Path::new("."))
+        .join(&file);
+    match Environment::load(&file, &path) {
+        Ok(mut env) => {
+            env.intensity = intensity.unwrap_or(1.0) as f32;
+            env.rotation = rotation.unwrap_or(0.0) as f32;
+            env.visible = visible.unwrap_or(true);
+            Some(env)
+        }
+        Err(e) => {
+            t.error("map", e, None);
+            None
+        }
     }
 }
 

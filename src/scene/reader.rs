@@ -284,6 +284,18 @@ impl<'a, 's> Table<'a, 's> {
         Some(c.as_vec3())
     }
 
+    /// `true` or `false`.
+    pub fn boolean(&self, key: &str) -> Option<bool> {
+        let v = self.get(key)?;
+        match v.get_ref().as_bool() {
+            Some(b) => Some(b),
+            None => {
+                self.type_error(key, v, "true or false");
+                None
+            }
+        }
+    }
+
     /// A string.
     pub fn string(&self, key: &str) -> Option<String> {
         let v = self.get(key)?;

@@ -96,6 +96,14 @@ pub fn to_toml(scene: &Scene) -> String {
             }
         }
     }
+    if let Some(e) = &scene.environment {
+        let _ = writeln!(o, "map = {}", toml::Value::String(e.file.clone()));
+        let _ = writeln!(
+            o,
+            "intensity = {}\nrotation = {}\nvisible = {}",
+            e.intensity, e.rotation, e.visible
+        );
+    }
     for (name, m) in &scene.materials {
         let _ = writeln!(o, "\n[materials.{name}]");
         material_lines(&mut o, m, &Material::default());

@@ -195,6 +195,24 @@ impl App {
                 cam.vfov = (cam.vfov * k).clamp(1.0, 170.0);
                 Effect::SceneChanged
             }
+            Action::RotateSky(deg) => match &mut self.scene.environment {
+                Some(e) => {
+                    e.rotation = (e.rotation + deg).rem_euclid(360.0);
+                    let r = e.rotation;
+                    self.say(&format!("environment map turned to {r}°"));
+                    Effect::SceneChanged
+                }
+                None => self.no_map(),
+            },
+            Action::ScaleSky(k) => match &mut self.scene.environment {
+                Some(e) => {
+                    e.intensity = (e.intensity * k).clamp(1e-6, 1e6);
+                    let i = e.intensity;
+                    self.say(&format!("environment map intensity {i:.3}"));
+                    Effect::SceneChanged
+                }
+                None => self.no_map(),
+            },
             Action::FocusOnSelected => self.focus_on_selected(),
             Action::ResetAccumulation => Effect::Reset,
             Action::Revert => {
@@ -226,6 +244,12 @@ impl App {
             }
             Action::Quit | Action::Back => Effect::Quit,
         }
+    }
+
+    /// The environment map keys in a scene without one.
+    fn no_map(&mut self) -> Effect {
+        self.say("no environment map: open the scene with --sky FILE.hdr, or give [sky] a map");
+        Effect::None
     }
 
     fn adjust(&mut self, up: bool, coarse: bool) -> Effect {

@@ -88,6 +88,10 @@ pub enum Action {
     Move(f64, f64, f64),
     /// Multiply the field of view.
     Zoom(f64),
+    /// Turn the environment map about the up axis by degrees.
+    RotateSky(f32),
+    /// Multiply the environment map's intensity.
+    ScaleSky(f32),
     FocusOnSelected,
     ResetAccumulation,
     Revert,
@@ -155,6 +159,14 @@ pub const BINDINGS: &[Binding] = &[
         help: "zoom in / out (field of view)",
     },
     Binding {
+        keys: ", / .",
+        help: "turn the environment map left / right (15°)",
+    },
+    Binding {
+        keys: "< / >",
+        help: "dim / brighten the environment map (×0.8 / ×1.25)",
+    },
+    Binding {
         keys: "f",
         help: "focus on the selected object",
     },
@@ -192,6 +204,9 @@ pub const BINDINGS: &[Binding] = &[
 const ORBIT_DEG: f64 = 5.0;
 const MOVE_STEP: f64 = 0.05;
 const ZOOM_STEP: f64 = 0.9;
+/// Degrees per turn of the environment map, and its intensity's factor per step.
+const SKY_TURN_DEG: f32 = 15.0;
+const SKY_SCALE: f32 = 1.25;
 
 /// The action of a key press, if it has one.
 pub fn action(key: KeyEvent) -> Option<Action> {
@@ -251,6 +266,10 @@ pub fn action(key: KeyEvent) -> Option<Action> {
         KeyCode::Char('n') => Move(0.0, 0.0, -MOVE_STEP),
         KeyCode::Char('z') => Zoom(ZOOM_STEP),
         KeyCode::Char('x') => Zoom(1.0 / ZOOM_STEP),
+        KeyCode::Char(',') => RotateSky(-SKY_TURN_DEG),
+        KeyCode::Char('.') => RotateSky(SKY_TURN_DEG),
+        KeyCode::Char('<') => ScaleSky(1.0 / SKY_SCALE),
+        KeyCode::Char('>') => ScaleSky(SKY_SCALE),
         KeyCode::Char('f') => FocusOnSelected,
         KeyCode::Char('r') => ResetAccumulation,
         KeyCode::Char('R') => Revert,

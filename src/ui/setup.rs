@@ -34,6 +34,8 @@ pub enum Graphics {
 pub struct ViewOptions {
     /// A glTF scene's camera by name (`--camera`).
     pub camera: Option<String>,
+    /// An environment map for the scene (`--sky`).
+    pub sky: Option<std::path::PathBuf>,
     pub scene: Option<String>,
     pub cells: CellMode,
     /// `None`: detect from COLORTERM / TERM.
@@ -213,8 +215,14 @@ pub(super) fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
     let (scene, backend) = std::thread::scope(|s| {
         let opening = s.spawn(|| Backend::open(opts.adapter.as_deref()));
         let scene = match &opts.scene {
-            Some(s) => crate::scene::load_scene(s, opts.camera.as_deref()),
-            None => Ok(Scene::default_scene()),
+            Some(s) => crate::scene::load_scene(s, opts.camera.as_deref(), opts.sky.as_deref()),
+            None => {
+                let mut scene = Scene::default_scene();
+                match &opts.sky {
+                    Some(p) => scene.set_sky_map(p).map(|()| scene),
+                    None => Ok(scene),
+                }
+            }
         };
         let backend = opening
             .join()
