@@ -582,6 +582,10 @@ fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, state: ptr<function, Rng>) -> 
     return m.color * m.light * (cos_s / PI / pl * power_heuristic(pl, bsdf_pdf));
 }
 
+// SceneUniforms.env_mode (src/common/arrays.rs).
+const ENV_NONE: u32 = 0u;
+const ENV_VISIBLE: u32 = 2u;
+
 // The probability that light sampling picks the environment map: 0 without one.
 fn env_pick() -> f32 {
     if HAS_ENV_MAP {
@@ -609,7 +613,7 @@ fn sample_env(p: vec3f, n: vec3f, n_geo: vec3f, pe: f32, state: ptr<function, Rn
 // sampling could have found its direction), or the sky; a camera ray sees the sky behind a
 // map that is not visible.
 fn escaped(path: Path, dir: vec3f) -> vec3f {
-    if HAS_ENV_MAP && (path.bounce > 0u || scene.env_visible != 0u) {
+    if HAS_ENV_MAP && scene.env_mode != ENV_NONE && (path.bounce > 0u || scene.env_mode == ENV_VISIBLE) {
         var w = 1.0;
         let pe = env_pick();
         if HAS_NEE && path.prev_pdf > 0.0 && pe > 0.0 {

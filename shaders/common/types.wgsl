@@ -34,7 +34,7 @@ struct SceneUniforms {
     env_rotation: f32,      // 192  radians about +y
     env_intensity: f32,     // 196
     env_pick: f32,          // 200  probability that light sampling picks the map (0: never)
-    env_visible: u32,       // 204  1: camera rays see the map; 0: the sky behind it
+    env_mode: u32,          // 204  0: no map; 1: a map camera rays do not see; 2: seen by all
 }                           // 208
 
 // What one submission traces: rows [row_offset, row_offset + row_count) of the image,

@@ -96,6 +96,7 @@ pub fn summary(s: &Scene) -> String {
             )
         })
         .collect();
+    let env = s.environment.as_ref().map_or(String::new(), environment);
     let tex = crate::common::textures::words(s).map_or(String::new(), |w| {
         let frames = w[crate::common::textures::FRAMES] as usize;
         let mib = |words: usize| words as f64 * 4.0 / (1 << 20) as f64;
@@ -117,7 +118,7 @@ pub fn summary(s: &Scene) -> String {
          render     {}x{}, {} spp, max_bounces {}, seed {}\n  sky        {}\n  \
          objects    {} ({} spheres, {} quads, {} boxes, {} meshes of {} triangles)\n  \
          materials  {} Lambertian, {} glossy/metal, {} dielectric, {} emitters; {} named\n  \
-         tracer     {}{gltf}{tex}",
+         tracer     {}{env}{gltf}{tex}",
         s.origin,
         v3(c.look_from),
         v3(c.look_at),
@@ -226,4 +227,58 @@ fn stress(a: &CheckArgs, g: &super::args::GlobalArgs) -> anyhow::Result<ExitCode
     }
     println!("every case passed");
     Ok(ExitCode::SUCCESS)
+}
+
+/// The environment map's line: its file and size, what the tracers hold, its brightest texel
+/// and where it lies, and the share of the light in its brightest 0.1 % of texels (a sun).
+fn environment(e: &crate::scene::Environment) -> String {
+    use crate::common::envmap::{direction, luminance};
+    let m = &e.map;
+    let texels = m.texels();
+    let sin = |y: usize| (std::f64::consts::PI * (y as f64 + 0.5) / m.height as f64).sin();
+    let weights: Vec<f64> = texels
+        .iter()
+        .enumerate()
+        .map(|(i, t)| luminance(*t) as f64 * sin(i / m.width as usize))
+        .collect();
+    let total: f64 = weights.iter().sum();
+    let (brightest, _) = texels
+        .iter()
+        .enumerate()
+        .max_by(|a, b| luminance(*a.1).total_cmp(&luminance(*b.1)))
+        .expect("a map has texels");
+    let mut sorted = weights.clone();
+    sorted.sort_by(|a, b| b.total_cmp(a));
+    let top = sorted[..sorted.len().div_ceil(1000)].iter().sum::<f64>();
+    let (x, y) = (brightest as u32 % m.width, brightest as u32 / m.width);
+    let d = direction(
+        (x as f32 + 0.5) / m.width as f32,
+        (y as f32 + 0.5) / m.height as f32,
+        e.rotation.to_radians(),
+    );
+    format!(
+        "\n  env map    {} ({}×{}, {:.1} MiB as traced), intensity {}, rotation {}°, {}; \
+         brightest texel {:.3e} at ({x}, {y}), towards [{:.2}, {:.2}, {:.2}]; the brightest \
+         0.1 % of texels send {:.0} % of its light",
+        e.file,
+        m.width,
+        m.height,
+        m.bytes() as f64 / (1 << 20) as f64,
+        e.intensity,
+        e.rotation,
+        if e.visible {
+            "visible"
+        } else {
+            "not seen by the camera"
+        },
+        luminance(texels[brightest]),
+        d.x,
+        d.y,
+        d.z,
+        if total > 0.0 {
+            100.0 * top / total
+        } else {
+            0.0
+        }
+    )
 }

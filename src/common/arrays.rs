@@ -94,7 +94,7 @@ pub fn scene_uniforms(scene: &Scene, s: &FrameSettings, origin: DVec3) -> SceneU
     if let Some(e) = &scene.environment {
         u.env_rotation = e.rotation.to_radians();
         u.env_intensity = e.intensity;
-        u.env_visible = e.visible as u32;
+        u.env_mode = if e.visible { ENV_VISIBLE } else { ENV_HIDDEN };
         u.env_pick = env_pick(e.lights() && s.nee, u.n_lights);
     }
     let n = scene.counts();
@@ -104,6 +104,12 @@ pub fn scene_uniforms(scene: &Scene, s: &FrameSettings, origin: DVec3) -> SceneU
     u.n_triangles = n.triangles as u32;
     u
 }
+
+/// `SceneUniforms::env_mode`: no environment map, one that camera rays do not see (they see
+/// the `[sky]` behind it), one that every ray sees.
+pub const ENV_NONE: u32 = 0;
+pub const ENV_HIDDEN: u32 = 1;
+pub const ENV_VISIBLE: u32 = 2;
 
 /// The light-selection rule of next-event estimation (docs/MODEL-NOTES.md, "Environment
 /// maps"): the probability of sampling the environment map rather than the scene's lights.

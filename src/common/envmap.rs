@@ -295,6 +295,18 @@ mod tests {
     }
 
     #[test]
+    fn the_shaders_constants_are_these() {
+        use crate::common::arrays::{ENV_NONE, ENV_VISIBLE};
+        use crate::common::wgsl::u32_constant;
+        assert_eq!(
+            u32_constant("common/envmap.wgsl", "ENV_HEADER") as usize,
+            ENV_HEADER
+        );
+        assert_eq!(u32_constant("trace.wgsl", "ENV_NONE"), ENV_NONE);
+        assert_eq!(u32_constant("trace.wgsl", "ENV_VISIBLE"), ENV_VISIBLE);
+    }
+
+    #[test]
     fn rgbe_round_trips_radiance_files_and_keeps_eight_bits() {
         // Every value a .hdr file can hold (normalized: the brightest mantissa ≥ 128) packs
         // back to its own bytes.

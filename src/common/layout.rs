@@ -39,7 +39,7 @@ pub struct SceneUniforms {
     pub env_rotation: f32,
     pub env_intensity: f32,
     pub env_pick: f32,
-    pub env_visible: u32,
+    pub env_mode: u32,
 }
 
 #[repr(C)]
@@ -181,7 +181,7 @@ pub fn mirrors() -> Vec<MirrorLayout> {
                 env_rotation,
                 env_intensity,
                 env_pick,
-                env_visible,
+                env_mode,
             ]
         ),
         m!(

@@ -56,7 +56,8 @@ pub struct Uniforms {
     pub env_rotation: f32,
     pub env_intensity: f32,
     pub env_pick: f32,
-    pub env_visible: bool,
+    /// `SceneUniforms::env_mode`.
+    pub env_mode: u32,
 }
 
 impl Uniforms {
@@ -84,7 +85,7 @@ impl Uniforms {
             env_rotation: u.env_rotation,
             env_intensity: u.env_intensity,
             env_pick: u.env_pick,
-            env_visible: u.env_visible != 0,
+            env_mode: u.env_mode,
         }
     }
 }

@@ -22,6 +22,7 @@ use super::sampling::{PI, basis, random_in_disk, sin_cos_turns};
 use super::scene::CpuScene;
 use crate::common::Features;
 use crate::common::arrays::REF_INDEX as INDEX;
+use crate::common::arrays::{ENV_NONE, ENV_VISIBLE};
 use crate::common::layout::GpuLight;
 use glam::Vec3A;
 
@@ -274,7 +275,8 @@ impl<'a> Tracer<'a> {
     fn escaped(&self, dir: Vec3A, bounce: u32, prev_pdf: f32) -> Vec3A {
         let u = &self.s.u;
         if let Some(map) = self.s.env.as_ref().filter(|_| self.f.env_map)
-            && (bounce > 0 || u.env_visible)
+            && u.env_mode != ENV_NONE
+            && (bounce > 0 || u.env_mode == ENV_VISIBLE)
         {
             let d = glam::Vec3::from(dir);
             let (x, y, _) = map.distribution.texel_of(d, u.env_rotation);

@@ -99,9 +99,12 @@ fn atomic_write(
 
 /// Writes a text file (an edited scene).
 pub fn write_text(path: &Path, text: &str) -> Result<(), OutputError> {
-    atomic_write(path, |w| {
-        w.write_all(text.as_bytes()).map_err(|e| e.to_string())
-    })
+    write_bytes(path, text.as_bytes())
+}
+
+/// Writes a file of bytes (a built-in scene's map beside its edited scene).
+pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+    atomic_write(path, |w| w.write_all(bytes).map_err(|e| e.to_string()))
 }
 
 /// Writes an 8-bit (or 16-bit) PNG encoded with `transfer`.

@@ -19,6 +19,7 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
     ("weekend", include_str!("../../scenes/weekend.toml")),
     ("mesh", include_str!("../../scenes/mesh.toml")),
     ("lamp", include_str!("../../scenes/lamp.toml")),
+    ("outdoor", include_str!("../../scenes/outdoor.toml")),
 ];
 
 /// The extreme scenes of `scenes/extreme/` (numerical stability; `check --stress`).
@@ -117,3 +118,10 @@ pub const BUILTIN_FILES: &[(&str, &str)] = &[
         include_str!("../../scenes/meshes/icosphere.obj"),
     ),
 ];
+
+/// The environment maps the shipped scenes name, by their path relative to `scenes/`
+/// (scenes/maps/SOURCE.md says where each comes from).
+pub const BUILTIN_MAPS: &[(&str, &[u8])] = &[(
+    "maps/quarry_01_1k.hdr",
+    include_bytes!("../../scenes/maps/quarry_01_1k.hdr"),
+)];

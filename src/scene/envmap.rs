@@ -33,6 +33,16 @@ impl EnvMap {
         Self::from_image(img.to_rgb32f(), name)
     }
 
+    /// A map from a file's bytes (a built-in scene's); `name` for messages.
+    pub fn from_bytes(bytes: &[u8], name: &str) -> Result<EnvMap, String> {
+        let img = image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| format!("{name}: cannot read it: {e}"))?
+            .decode()
+            .map_err(|e| format!("{name}: not a Radiance HDR or OpenEXR image: {e}"))?;
+        Self::from_image(img.to_rgb32f(), name.to_string())
+    }
+
     /// A map of the pixels of `img`, checked as [`EnvMap::load`] does.
     pub fn from_image(img: image::Rgb32FImage, name: String) -> Result<EnvMap, String> {
         let (width, height) = img.dimensions();

@@ -21,7 +21,9 @@ mod reader;
 pub mod texture;
 mod write;
 
-pub use builtin::{BUILTIN_FILES, BUILTIN_SCENES, DEFAULT_SCENE, EXTREME_SCENES, builtin_source};
+pub use builtin::{
+    BUILTIN_FILES, BUILTIN_MAPS, BUILTIN_SCENES, DEFAULT_SCENE, EXTREME_SCENES, builtin_source,
+};
 pub use error::{Diagnostic, SceneError};
 pub use files::{import_model, is_gltf, is_model, is_obj};
 pub use mesh::Mesh;

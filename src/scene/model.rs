@@ -169,6 +169,21 @@ impl Environment {
         })
     }
 
+    /// A built-in scene's map, from the binary (`BUILTIN_MAPS`).
+    pub fn builtin(file: &str) -> Result<Environment, String> {
+        let (_, bytes) = super::BUILTIN_MAPS
+            .iter()
+            .find(|(n, _)| *n == file)
+            .ok_or_else(|| format!("no built-in map `{file}`"))?;
+        Ok(Environment {
+            file: file.to_string(),
+            map: std::sync::Arc::new(super::envmap::EnvMap::from_bytes(bytes, file)?),
+            intensity: 1.0,
+            rotation: 0.0,
+            visible: true,
+        })
+    }
+
     /// Whether the map sends any light: its texels are not all black and its intensity is
     /// above zero (a dark map is looked up but never sampled).
     pub fn lights(&self) -> bool {

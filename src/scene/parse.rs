@@ -257,15 +257,16 @@ fn read_environment(t: &Table, origin: &str) -> Option<Environment> {
         }
         return None;
     };
-    if origin.starts_with("builtin:") {
-        t.error("map", "a built-in scene cannot name a map file", None);
-        return None;
-    }
-    let path = Path::new(origin)
-        .parent()
-        .unwrap_or(Path::new("."))
-        .join(&file);
-    match Environment::load(&file, &path) {
+    let loaded = if origin.starts_with("builtin:") {
+        Environment::builtin(&file)
+    } else {
+        let path = Path::new(origin)
+            .parent()
+            .unwrap_or(Path::new("."))
+            .join(&file);
+        Environment::load(&file, &path)
+    };
+    match loaded {
         Ok(mut env) => {
             env.intensity = intensity.unwrap_or(1.0) as f32;
             env.rotation = rotation.unwrap_or(0.0) as f32;

@@ -55,6 +55,20 @@ pub fn write_scene(scene: &Scene) -> Result<String, String> {
                 }
             }
         }
+        if let Some(e) = &scene.environment
+            && let Some((_, bytes)) = crate::scene::BUILTIN_MAPS
+                .iter()
+                .find(|(n, _)| *n == e.file)
+        {
+            let target = dir.join(&e.file);
+            if !target.exists() {
+                if let Some(d) = target.parent() {
+                    std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
+                }
+                crate::output::write::write_bytes(&target, bytes).map_err(|e| e.to_string())?;
+                note.push_str(&format!(" and {}", target.display()));
+            }
+        }
     }
     Ok(format!("wrote {}{note}", path.display()))
 }
