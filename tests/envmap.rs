@@ -1,12 +1,21 @@
-//! Environment maps (issue 29, first part): the loader's checks, and the importance-sampling
-//! distribution both tracers will share, tested as Mitsuba tests its samplers: a chi-square
-//! test of sampled directions against the distribution's own integral over each texel, and
-//! the density a sample reports against the density of its direction.
+//! Environment maps: the loader's checks; the importance-sampling distribution both tracers
+//! share, tested as Mitsuba tests its samplers (a chi-square test of sampled directions
+//! against the distribution's own integral over each texel, and the density a sample reports
+//! against the density of its direction); and maps in the tracers: known answers (a furnace
+//! with and without map sampling, a hidden map), map sampling converging to the brute-force
+//! image, and both tracers drawing the same paths.
 
+mod common;
+use common::*;
 use glam::Vec3;
 use statrs::distribution::{ChiSquared, ContinuousCDF};
+use std::sync::Arc;
+use termtrace::common::FrameSettings;
 use termtrace::common::envmap::{Distribution, coordinates, direction, luminance};
+use termtrace::converge::metrics;
+use termtrace::render::Snapshot;
 use termtrace::scene::envmap::EnvMap;
+use termtrace::scene::{Environment, Scene};
 
 /// A small map with a bright "sun" texel, a black row and smooth variation elsewhere.
 fn test_map() -> (u32, u32, Vec<[f32; 3]>) {
@@ -205,4 +214,242 @@ fn maps_load_from_radiance_hdr_and_broken_texels_are_refused_by_position() {
     let junk = dir.path().join("junk.hdr");
     std::fs::write(&junk, b"#?RADIANCE\nbroken").unwrap();
     assert!(EnvMap::load(&junk).unwrap_err().contains("junk.hdr"));
+}
+
+// ---- Maps in the tracers ----
+
+/// `toml` with the map `map` around it (intensity 1, no rotation, `visible`).
+fn with_map(toml: &str, map: EnvMap, visible: bool) -> Scene {
+    let mut s = scene(toml);
+    s.environment = Some(Environment {
+        file: map.name.clone(),
+        map: Arc::new(map),
+        intensity: 1.0,
+        rotation: 0.0,
+        visible,
+    });
+    s
+}
+
+const FURNACE: &str = "[camera]\nlook_from = [0, 0, 0]\nlook_at = [0, 0, -3]\nvfov = 40\n\
+    [sky]\nuniform = [0.25, 0.5, 0.75]\n\
+    [[sphere]]\ncenter = [0.2, -0.1, -3]\nradius = 0.8\ncolor = [1, 1, 1]\n";
+const FW: u32 = 40;
+const FH: u32 = 40;
+
+/// The pixels the furnace's sphere covers whole, and those it misses whole.
+fn furnace_pixels(s: &Scene) -> (Vec<(u32, u32)>, Vec<(u32, u32)>) {
+    let frame = camera_frame(s, FW, FH);
+    let (mut inside, mut outside) = (Vec::new(), Vec::new());
+    for y in 0..FH {
+        for x in 0..FW {
+            match sphere_coverage(
+                &frame,
+                FW,
+                FH,
+                (x, y),
+                glam::DVec3::new(0.2, -0.1, -3.0),
+                0.8,
+            ) {
+                Some(true) => inside.push((x, y)),
+                Some(false) => outside.push((x, y)),
+                None => {}
+            }
+        }
+    }
+    assert!(inside.len() > 300 && outside.len() > 300);
+    (inside, outside)
+}
+
+fn furnace_settings(nee: bool) -> FrameSettings {
+    FrameSettings {
+        nee,
+        ..settings(FW, FH, 10)
+    }
+}
+
+#[test]
+fn a_constant_map_around_a_white_sphere_is_a_furnace_without_map_sampling() {
+    // Without light sampling every path of the white (albedo 1) convex sphere ends in the
+    // map after a bounce: exactly the map's radiance, times its intensity, on both tracers;
+    // the camera sees the map (1) around it, and not the [sky] uniform colour.
+    on_both(|| {
+        for intensity in [1.0f32, 0.5] {
+            let mut s = with_map(FURNACE, EnvMap::constant(8, 4, [1.0; 3], "one"), true);
+            s.environment.as_mut().unwrap().intensity = intensity;
+            s.environment.as_mut().unwrap().rotation = 33.0;
+            let img = snapshot(&s, furnace_settings(false), 8).image();
+            let (inside, outside) = furnace_pixels(&s);
+            for &(x, y) in inside.iter().chain(&outside) {
+                let v = img.get(x, y);
+                assert!(
+                    v.iter()
+                        .all(|c| (c - intensity).abs() <= 4.0 * f32::EPSILON),
+                    "pixel ({x},{y}) is {v:?}, not {intensity}"
+                );
+            }
+        }
+    });
+}
+
+#[test]
+fn a_constant_map_is_a_furnace_with_map_sampling_too() {
+    // With the map sampled (and MIS against the cosine lobe) a path's value is no longer
+    // exactly 1, but its expectation is: the mean of the covered pixels is 1 within four
+    // standard errors of that mean (the pixels are independent), and no pixel strays far.
+    // The camera still sees the map itself exactly.
+    on_both(|| {
+        let s = with_map(FURNACE, EnvMap::constant(8, 4, [1.0; 3], "one"), true);
+        let img = snapshot(&s, furnace_settings(true), 64).image();
+        let (inside, outside) = furnace_pixels(&s);
+        let values: Vec<f64> = inside
+            .iter()
+            .flat_map(|&(x, y)| img.get(x, y).map(|c| c as f64))
+            .collect();
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        let sd = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        let se = sd / n.sqrt();
+        eprintln!("furnace with map sampling: mean {mean:.5}, pixel sd {sd:.4}, se {se:.5}");
+        assert!(sd > 0.0, "map sampling should add some variance");
+        assert!(
+            (mean - 1.0).abs() < 4.0 * se,
+            "mean {mean} is not 1 (se {se})"
+        );
+        assert!(
+            values.iter().all(|v| (v - 1.0).abs() < 0.25),
+            "a pixel strays"
+        );
+        for &(x, y) in &outside {
+            assert_eq!(img.get(x, y), [1.0; 3], "pixel ({x},{y}) sees the map");
+        }
+    });
+}
+
+#[test]
+fn a_hidden_map_lights_the_scene_but_the_camera_sees_the_sky() {
+    on_both(|| {
+        let s = with_map(FURNACE, EnvMap::constant(8, 4, [1.0; 3], "one"), false);
+        let img = snapshot(&s, furnace_settings(false), 8).image();
+        let (inside, outside) = furnace_pixels(&s);
+        for &(x, y) in &inside {
+            let v = img.get(x, y);
+            assert!(
+                v.iter().all(|c| (c - 1.0).abs() <= 4.0 * f32::EPSILON),
+                "{v:?}"
+            );
+        }
+        for &(x, y) in &outside {
+            assert_eq!(img.get(x, y), [0.25, 0.5, 0.75], "pixel ({x},{y})");
+        }
+    });
+}
+
+/// A 16 × 8 map, black but for one texel of radiance 200: a small sun. Under it a sphere
+/// on a plane; 24 × 24 pixels.
+fn one_texel_scene() -> Scene {
+    let mut img = image::Rgb32FImage::new(16, 8);
+    img.put_pixel(5, 2, image::Rgb([200.0, 160.0, 120.0]));
+    let map = EnvMap::from_image(img, "one texel".into()).unwrap();
+    with_map(
+        "[camera]\nlook_from = [0, 1.5, 2]\nlook_at = [0, 0, -1]\nvfov = 50\n\
+         [sky]\nuniform = [0, 0, 0]\n\
+         [[sphere]]\ncenter = [0, 0, -1]\nradius = 0.6\ncolor = [0.8, 0.8, 0.8]\n\
+         [[quad]]\nq = [-4, -0.6, -5]\nu = [8, 0, 0]\nv = [0, 0, 8]\ncolor = [0.5, 0.6, 0.7]\n",
+        map,
+        true,
+    )
+}
+
+fn one_texel(nee: bool, seed: u32) -> FrameSettings {
+    FrameSettings {
+        nee,
+        seed,
+        ..settings(24, 24, 6)
+    }
+}
+
+fn brute_force(s: &Scene) -> Snapshot {
+    cpu_snapshot(s, one_texel(false, 101), 4096)
+}
+
+#[test]
+fn map_sampling_converges_to_the_brute_force_image() {
+    // A map black but for one texel: sampled by the map's distribution (with MIS), the image
+    // must be the brute-force one in expectation: no tile of the bias check (8 × 8 tiles,
+    // Welch's t-test, Bonferroni at α = 0.01) differs, on either tracer. The reference is the
+    // native CPU tracer's brute force (tests/cpu.rs shows the two tracers agree).
+    let s = one_texel_scene();
+    let reference = brute_force(&s);
+    on_both(|| {
+        let sampled = snapshot(&s, one_texel(true, 7), 512);
+        assert_eq!(sampled.invalid_samples(), 0);
+        let r = metrics::bias_check(&sampled, &reference, false, 8, 0.01);
+        eprintln!("{} tiles, smallest p {:.3}", r.tiles, r.min_p);
+        assert!(r.tiles >= 9);
+        assert!(r.significant.is_empty(), "biased in {:?}", r.significant);
+    });
+    // And map sampling is what makes this image affordable: at equal samples its error
+    // against a long map-sampled reference is far below brute force's.
+    let long = cpu_snapshot(&s, one_texel(true, 102), 4096).image();
+    let rmse = |img: &termtrace::output::LinearImage| metrics::errors(img, &long).rel_rmse();
+    let sampled = rmse(&cpu_snapshot(&s, one_texel(true, 8), 64).image());
+    let brute = rmse(&cpu_snapshot(&s, one_texel(false, 8), 64).image());
+    eprintln!("relative RMSE at 64 spp: map sampling {sampled:.4}, brute force {brute:.4}");
+    assert!(brute > 3.0 * sampled, "{brute} against {sampled}");
+}
+
+#[test]
+fn the_bias_check_sees_a_map_five_percent_too_bright() {
+    // The check above must be able to fail: the sun texel 5 % brighter is seen.
+    let s = one_texel_scene();
+    let reference = brute_force(&s);
+    let mut brighter = s.clone();
+    brighter.environment.as_mut().unwrap().intensity = 1.05;
+    let sampled = cpu_snapshot(&brighter, one_texel(true, 7), 2048);
+    let r = metrics::bias_check(&sampled, &reference, false, 12, 0.01);
+    assert!(
+        !r.significant.is_empty(),
+        "a 5 % brighter map went unnoticed (smallest p {:e})",
+        r.min_p
+    );
+}
+
+#[test]
+fn both_tracers_draw_the_same_paths_under_a_map() {
+    // The same seed on both: if env_sample, env_pdf or the light choice of the WGSL differed
+    // from the CPU's, nearly every pixel of the map-lit shipped scene would differ by the
+    // noise (another seed agrees on few pixels); a few may differ by float rounding.
+    let s = Scene::load("outdoor").unwrap();
+    let at = |b: termtrace::render::Backend, seed| {
+        let settings = FrameSettings {
+            seed,
+            ..settings(32, 24, 8)
+        };
+        termtrace::render::Renderer::new(b, &s, settings, Default::default())
+    };
+    let image = |mut r: termtrace::render::Renderer| {
+        r.render_spp(4);
+        r.snapshot().image()
+    };
+    let gpu = image(at(termtrace::render::Backend::Gpu(ctx()), 5));
+    let cpu = image(at(termtrace::render::Backend::Cpu, 5));
+    let other = image(at(termtrace::render::Backend::Cpu, 6));
+    let share = |a: &termtrace::output::LinearImage, b: &termtrace::output::LinearImage| {
+        let same = a
+            .pixels
+            .iter()
+            .zip(&b.pixels)
+            .filter(|(p, q)| rel_err(**p, **q) < 1e-3)
+            .count();
+        same as f64 / a.pixels.len() as f64
+    };
+    let (same, chance) = (share(&gpu, &cpu), share(&cpu, &other));
+    eprintln!(
+        "same seed: {:.1} % equal; another seed: {:.1} %",
+        100.0 * same,
+        100.0 * chance
+    );
+    assert!(same > 0.9, "only {:.1} % of pixels agree", 100.0 * same);
+    assert!(chance < 0.5, "{:.1} % agree by chance", 100.0 * chance);
 }

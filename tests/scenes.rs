@@ -42,6 +42,7 @@ fn shipped_scenes_write_back_to_the_same_scene() {
         assert_eq!(back.camera, scene.camera, "{name}");
         assert_eq!(back.render, scene.render, "{name}");
         assert_eq!(back.sky, scene.sky, "{name}");
+        assert_eq!(back.environment, scene.environment, "{name}");
         assert_eq!(back.materials, scene.materials, "{name}");
         assert_eq!(back.objects, scene.objects, "{name}");
     }
@@ -168,5 +169,51 @@ fn a_missing_scene_names_the_builtins() {
     assert!(
         e.contains("no-such-scene") && e.contains("weekend") && e.contains("cornell"),
         "{e}"
+    );
+}
+
+#[test]
+fn an_environment_map_writes_back_with_its_settings() {
+    // A scene file beside a map, its intensity, rotation and visibility edited: the written
+    // scene loads the same map with the same settings.
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(
+        root().join("scenes/maps/quarry_01_1k.hdr"),
+        dir.path().join("sky.hdr"),
+    )
+    .unwrap();
+    let path = dir.path().join("lit.toml");
+    std::fs::write(
+        &path,
+        "[sky]\nmap = \"sky.hdr\"\nrotation = 90\n[[sphere]]\ncenter = [0, 0, -1]\nradius = 0.5\n",
+    )
+    .unwrap();
+    let mut scene = Scene::load_file(&path).unwrap();
+    let e = scene.environment.as_mut().unwrap();
+    assert_eq!(
+        (e.file.as_str(), e.rotation, e.intensity, e.visible),
+        ("sky.hdr", 90.0, 1.0, true)
+    );
+    e.intensity = 2.5;
+    e.rotation = 195.0;
+    e.visible = false;
+    let text = to_toml(&scene);
+    let back = Scene::from_toml(&text, &path.display().to_string()).unwrap();
+    assert_eq!(back.environment, scene.environment);
+    // --sky replaces the map and keeps the settings.
+    let mut other = back.clone();
+    other
+        .set_sky_map(&root().join("scenes/maps/quarry_01_1k.hdr"))
+        .unwrap();
+    let o = other.environment.unwrap();
+    assert!(std::path::Path::new(&o.file).is_absolute());
+    assert_eq!((o.rotation, o.intensity, o.visible), (195.0, 2.5, false));
+    assert!(
+        Scene::load("basic")
+            .unwrap()
+            .set_sky_map(&dir.path().join("none.hdr"))
+            .unwrap_err()
+            .to_string()
+            .contains("none.hdr")
     );
 }

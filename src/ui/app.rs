@@ -567,6 +567,9 @@ mod tests {
         assert!(a.nee);
         assert_eq!(press(&mut a, KeyCode::Char('e')), Effect::SceneChanged);
         assert!(!a.nee);
+        // Without a map the sky keys say so and change nothing.
+        assert_eq!(press(&mut a, KeyCode::Char('.')), Effect::None);
+        assert!(a.current_message().unwrap().contains("no environment map"));
         assert_eq!(press(&mut a, KeyCode::Char('q')), Effect::Quit);
         assert_eq!(press(&mut a, KeyCode::Esc), Effect::Quit);
         let ctrl_c = KeyEvent::new(KeyCode::Char('c'), KeyModifiers::CONTROL);
@@ -597,5 +600,29 @@ mod tests {
         assert_eq!(fmt_value(1.0), "1");
         assert_eq!(fmt_value(-0.0001), "0");
         assert_eq!(fmt_value(1234.5), "1234");
+    }
+
+    #[test]
+    fn sky_keys_turn_and_scale_the_map_and_restart() {
+        let mut a = App::new(
+            Scene::load("outdoor").unwrap(),
+            "test adapter".into(),
+            CellMode::Half,
+        );
+        assert_eq!(press(&mut a, KeyCode::Char('.')), Effect::SceneChanged);
+        assert_eq!(press(&mut a, KeyCode::Char('.')), Effect::SceneChanged);
+        assert_eq!(press(&mut a, KeyCode::Char(',')), Effect::SceneChanged);
+        let e = a.scene.environment.as_ref().unwrap();
+        assert_eq!(e.rotation, 195.0);
+        assert_eq!(press(&mut a, KeyCode::Char('>')), Effect::SceneChanged);
+        assert_eq!(press(&mut a, KeyCode::Char('>')), Effect::SceneChanged);
+        assert_eq!(press(&mut a, KeyCode::Char('<')), Effect::SceneChanged);
+        let e = a.scene.environment.as_ref().unwrap();
+        assert!((e.intensity - 1.25).abs() < 1e-6, "{}", e.intensity);
+        // Turning wraps at a full turn.
+        for _ in 0..24 {
+            press(&mut a, KeyCode::Char(','));
+        }
+        assert_eq!(a.scene.environment.as_ref().unwrap().rotation, 195.0);
     }
 }
