@@ -67,9 +67,21 @@ fn sampled_directions_follow_the_map_by_a_chi_square_test() {
         let y = ((v * h as f32) as u32).min(h - 1);
         counts[(y * w + x) as usize] += 1.0;
     }
+    // A texel's weight: the mean over its area of the bilinear lookup (its own luminance ×
+    // ¾ and each neighbour's × ⅛, per axis; wrapping in x, clamped in y) × sin θ.
+    let lum = |x: u32, y: u32| luminance(t[(y * w + x) as usize]) as f64;
+    let k = [(-1i32, 0.125), (0, 0.75), (1, 0.125)];
     let weight = |x: u32, y: u32| {
         let sin_t = (std::f64::consts::PI * (y as f64 + 0.5) / h as f64).sin();
-        luminance(t[(y * w + x) as usize]) as f64 * sin_t
+        let mut m = 0.0;
+        for (dy, ky) in k {
+            for (dx, kx) in k {
+                let xx = (x as i32 + dx).rem_euclid(w as i32) as u32;
+                let yy = (y as i32 + dy).clamp(0, h as i32 - 1) as u32;
+                m += kx * ky * lum(xx, yy);
+            }
+        }
+        m * sin_t
     };
     let total: f64 = (0..h)
         .flat_map(|y| (0..w).map(move |x| (x, y)))
@@ -100,11 +112,12 @@ fn sampled_directions_follow_the_map_by_a_chi_square_test() {
     let p = 1.0 - ChiSquared::new((cells - 1) as f64).unwrap().cdf(chi2);
     assert!(p > 1e-3, "chi² {chi2} over {cells} cells: p = {p}");
     // The sun texel (one of 128) takes its share: its weight over the total, within 4σ of
-    // a binomial count.
+    // a binomial count (about ¾ × ¾ of the sun's light is its own texel's; the rest lies in
+    // its neighbours, as the bilinear lookup spreads it).
     let share = weight(11, 2) / total;
     let seen = counts[(2 * w + 11) as usize] / n as f64;
     let sigma = (share * (1.0 - share) / n as f64).sqrt();
-    assert!(share > 0.8, "the sun's weight {share}");
+    assert!(share > 0.45, "the sun's weight {share}");
     assert!(
         (seen - share).abs() < 4.0 * sigma,
         "the sun's share {seen} against {share}"
@@ -419,7 +432,9 @@ fn the_bias_check_sees_a_map_five_percent_too_bright() {
 fn both_tracers_draw_the_same_paths_under_a_map() {
     // The same seed on both: if env_sample, env_pdf or the light choice of the WGSL differed
     // from the CPU's, nearly every pixel of the map-lit shipped scene would differ by the
-    // noise (another seed agrees on few pixels); a few may differ by float rounding.
+    // noise (another seed agrees on few pixels). Equal here is within 1 %: the bilinear
+    // lookup turns the GPU's acos/atan2 rounding into small differences wherever the map
+    // varies, and a few paths may go another way by float rounding.
     let s = Scene::load("outdoor").unwrap();
     let at = |b: termtrace::render::Backend, seed| {
         let settings = FrameSettings {
@@ -440,7 +455,7 @@ fn both_tracers_draw_the_same_paths_under_a_map() {
             .pixels
             .iter()
             .zip(&b.pixels)
-            .filter(|(p, q)| rel_err(**p, **q) < 1e-3)
+            .filter(|(p, q)| rel_err(**p, **q) < 1e-2)
             .count();
         same as f64 / a.pixels.len() as f64
     };

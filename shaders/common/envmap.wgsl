@@ -102,10 +102,46 @@ fn env_density(row_p: f32, col_p: f32, v: f32) -> f32 {
     return row_p * f32(env_height()) * col_p * f32(env_width()) / (2.0 * ENV_PI * ENV_PI * s);
 }
 
-// The map's radiance seen along unit direction d.
+// The map coordinates (u, v) of unit direction d.
+fn env_coordinates(d: vec3f, rotation: f32) -> vec2f {
+    let v = acos(clamp(d.y, -1.0, 1.0)) / ENV_PI;
+    let turns = (atan2(-d.x, d.z) - rotation) / (2.0 * ENV_PI);
+    var u = turns - floor(turns);
+    if u >= 1.0 {
+        u = 0.0;
+    }
+    return vec2f(u, v);
+}
+
+// The map's radiance seen along unit direction d: bilinear between the four nearest texel
+// centres, wrapping in u, clamped at the poles (src/common/envmap.rs: bilinear). Unbiased
+// beside the piecewise-constant sampling density: where the density is 0 and the filtered
+// radiance is not (next to a black texel), the BSDF sample's MIS weight is 1.
 fn env_radiance(d: vec3f, rotation: f32) -> vec3f {
-    let t = env_texel_of(d, rotation);
-    return env_texel(t.x, t.y);
+    return env_lookup(env_coordinates(d, rotation));
+}
+
+// The radiance at map coordinates c = (u, v).
+fn env_lookup(c: vec2f) -> vec3f {
+    let w = env_width();
+    let h = env_height();
+    let fx = c.x * f32(w) - 0.5;
+    let fy = max(c.y * f32(h) - 0.5, 0.0);
+    let x0f = floor(fx);
+    let y0f = floor(fy);
+    let tx = fx - x0f;
+    let ty = fy - y0f;
+    let x0 = u32(i32(x0f) + select(0, i32(w), x0f < 0.0)) % w;
+    let x1 = (x0 + 1u) % w;
+    let y0 = min(u32(y0f), h - 1u);
+    let y1 = min(y0 + 1u, h - 1u);
+    let a = env_texel(x0, y0);
+    let b = env_texel(x1, y0);
+    let top = a + tx * (b - a);
+    let c0 = env_texel(x0, y1);
+    let c1 = env_texel(x1, y1);
+    let bottom = c0 + tx * (c1 - c0);
+    return top + ty * (bottom - top);
 }
 
 // The solid-angle density with which env_sample gives unit direction d.
@@ -133,5 +169,6 @@ fn env_sample(u: vec2f, rotation: f32) -> EnvSample {
     let su = (f32(c.i) + c.t) / f32(w);
     let sv = (f32(r.i) + r.t) / f32(h);
     let dir = env_direction(su, sv, rotation);
-    return EnvSample(dir, env_density(r.width, c.width, sv), env_texel(c.i, r.i));
+    // Looked up at the sampled (u, v), as the CPU tracer does (not through acos and atan2).
+    return EnvSample(dir, env_density(r.width, c.width, sv), env_lookup(vec2f(su, sv)));
 }

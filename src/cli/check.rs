@@ -24,11 +24,17 @@ pub fn run(a: CheckArgs, g: &super::args::GlobalArgs) -> anyhow::Result<ExitCode
     }
     let mut failed = 0;
     for name in &a.scenes {
-        match Scene::load_with_camera(name, g.camera.as_deref()) {
+        let loaded = Scene::load_with_camera(name, g.camera.as_deref())
+            .map_err(|e| format!("invalid scene\n{e}"))
+            .and_then(|mut s| match &g.sky {
+                Some(p) => s.set_sky_map(p).map(|()| s).map_err(|e| e.to_string()),
+                None => Ok(s),
+            });
+        match loaded {
             Ok(s) => println!("{}", summary(&s)),
             Err(e) => {
                 failed += 1;
-                eprintln!("error: {name}: invalid scene\n{e}\n");
+                eprintln!("error: {name}: {e}\n");
             }
         }
     }

@@ -98,11 +98,43 @@ pub fn direction(u: f32, v: f32, rotation: f32) -> Vec3 {
 }
 
 /// The map coordinates of unit direction `d` (the inverse of [`direction`]), u in [0, 1).
+/// (`env_coordinates` in shaders/common/envmap.wgsl, the same arithmetic.)
 pub fn coordinates(d: Vec3, rotation: f32) -> (f32, f32) {
     let v = d.y.clamp(-1.0, 1.0).acos() / PI;
-    let phi = (-d.x).atan2(d.z) - rotation;
-    let u = (phi / (2.0 * PI)).rem_euclid(1.0);
+    let turns = ((-d.x).atan2(d.z) - rotation) / (2.0 * PI);
+    let u = turns - turns.floor();
     (if u >= 1.0 { 0.0 } else { u }, v)
+}
+
+/// The radiance at map coordinates (u, v) of a `width × height` map whose texel (x, y) is
+/// `texel(x, y)`: bilinear between the four nearest texel centres, wrapping around in u and
+/// clamped at the poles in v (`env_lookup` in shaders/common/envmap.wgsl). Each step is
+/// a + t (b − a), so that equal texels give exactly their value.
+pub fn bilinear(
+    width: u32,
+    height: u32,
+    u: f32,
+    v: f32,
+    texel: impl Fn(u32, u32) -> [f32; 3],
+) -> [f32; 3] {
+    let fx = u * width as f32 - 0.5;
+    let fy = (v * height as f32 - 0.5).max(0.0);
+    let (x0f, y0f) = (fx.floor(), fy.floor());
+    let (tx, ty) = (fx - x0f, fy - y0f);
+    let x0 = (x0f as i64).rem_euclid(width as i64) as u32;
+    let x1 = (x0 + 1) % width;
+    let y0 = (y0f as u32).min(height - 1);
+    let y1 = (y0 + 1).min(height - 1);
+    let lerp = |a: [f32; 3], b: [f32; 3], t: f32| {
+        [
+            a[0] + t * (b[0] - a[0]),
+            a[1] + t * (b[1] - a[1]),
+            a[2] + t * (b[2] - a[2]),
+        ]
+    };
+    let top = lerp(texel(x0, y0), texel(x1, y0), tx);
+    let bottom = lerp(texel(x0, y1), texel(x1, y1), tx);
+    lerp(top, bottom, ty)
 }
 
 /// The sampling distribution of a `width × height` map: for each row the CDF of its texels
@@ -129,6 +161,9 @@ pub struct Sample {
     pub pdf: f32,
     /// The texel the sample fell in.
     pub texel: (u32, u32),
+    /// Its map coordinates (u, v), from which `dir` was made: the radiance is looked up here,
+    /// not at the coordinates recomputed from `dir` (acos and atan2 would add their rounding).
+    pub uv: (f32, f32),
 }
 
 /// Inverts a CDF of `n + 1` entries at `u`: the interval i with cdf[i] ≤ u < cdf[i + 1] (a
@@ -155,26 +190,46 @@ fn invert(cdf: &[f32], u: f32) -> (usize, f32) {
 }
 
 impl Distribution {
-    /// The distribution of `texels` (row-major, rows from the top), each weighted by its
-    /// luminance × sin θ at its row's centre (the solid angle a texel spans).
+    /// The distribution of `texels` (row-major, rows from the top), each weighted by the
+    /// luminance of the bilinear lookup averaged over its area × sin θ at its row's centre
+    /// (the solid angle it spans).
     pub fn new(width: u32, height: u32, texels: &[[f32; 3]]) -> Distribution {
         let (w, h) = (width as usize, height as usize);
         assert_eq!(texels.len(), w * h, "texels of a {width}×{height} map");
         // Rows in parallel: each row's CDF is its own.
         use rayon::prelude::*;
+        // Each texel's weight is the mean over its area of the bilinear radiance the tracers
+        // look up (`bilinear`): in each direction ¾ of the texel and ⅛ of either neighbour
+        // (wrapping in u, clamped at the poles), so that wherever the lookup sees light, the
+        // density is above zero (pbrt-v4's ImageInfiniteLight does the same).
+        let lum: Vec<f64> = texels
+            .par_iter()
+            .map(|t| luminance(*t).max(0.0) as f64)
+            .collect();
+        let across: Vec<f64> = (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let at = |x: usize| lum[y * w + x];
+                0.75 * at(x) + 0.125 * (at((x + w - 1) % w) + at((x + 1) % w))
+            })
+            .collect();
         let mut conditional = vec![0f32; h * (w + 1)];
         let rows: Vec<f64> = conditional
             .par_chunks_mut(w + 1)
             .enumerate()
             .map(|(y, cdf)| {
                 let sin_t = (std::f64::consts::PI * (y as f64 + 0.5) / h as f64).sin();
-                let row = &texels[y * w..(y + 1) * w];
+                let row = |y: usize| &across[y * w..(y + 1) * w];
+                let (above, here, below) =
+                    (row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)));
                 let mut sum = 0f64;
                 cdf[0] = 0.0;
                 // The running sums in f64 first (in place of the f32 CDF would lose them).
                 let mut acc = Vec::with_capacity(w);
-                for t in row {
-                    sum += luminance(*t).max(0.0) as f64 * sin_t;
+                for x in 0..w {
+                    let weight = 0.75 * here[x] + 0.125 * (above[x] + below[x]);
+                    sum += weight * sin_t;
                     acc.push(sum);
                 }
                 for (x, a) in acc.iter().enumerate() {
@@ -241,6 +296,7 @@ impl Distribution {
             dir,
             pdf,
             texel: (x as u32, y as u32),
+            uv: (u, v),
         }
     }
 
@@ -340,13 +396,39 @@ mod tests {
         let black = Distribution::new(4, 2, &[[0.0; 3]; 8]);
         assert_eq!(black.integral, 0.0);
         assert_eq!(black.sample(0.3, 0.6, 0.0).pdf, 0.0);
-        let mut t = vec![[1.0f32; 3]; 8];
-        t[..4].fill([0.0; 3]);
-        let d = Distribution::new(4, 2, &t);
-        for i in 0..100 {
-            let s = d.sample((i as f32 + 0.5) / 100.0, (i as f32 * 0.37) % 1.0, 0.0);
-            assert_eq!(s.texel.1, 1, "the black top row");
+        // Rows 0 and 1 black: the lookup sees no light in row 0, but some in row 1 (blended
+        // with row 2), so row 0 is never chosen and row 1 is, rarely.
+        let mut t = vec![[1.0f32; 3]; 16];
+        t[..8].fill([0.0; 3]);
+        let d = Distribution::new(4, 4, &t);
+        let mut rows = [0; 4];
+        for i in 0..1000 {
+            let s = d.sample((i as f32 + 0.5) / 1000.0, (i as f32 * 0.3719) % 1.0, 0.0);
+            rows[s.texel.1 as usize] += 1;
             assert!(s.pdf > 0.0);
         }
+        assert_eq!(rows[0], 0, "{rows:?}");
+        assert!(rows[1] > 0 && rows[1] < rows[2], "{rows:?}");
+    }
+
+    #[test]
+    fn the_density_is_above_zero_wherever_the_lookup_sees_light() {
+        // One bright texel of an 8 × 4 map: the bilinear lookup spreads it half a texel into
+        // each neighbour, which the density must cover.
+        let mut t = vec![[0.0f32; 3]; 32];
+        t[8 + 3] = [5.0; 3];
+        let d = Distribution::new(8, 4, &t);
+        let texel = |x: u32, y: u32| t[(y * 8 + x) as usize];
+        let mut lit = 0;
+        for i in 0..400 {
+            let (u, v) = ((i % 20) as f32 / 20.0 + 0.01, (i / 20) as f32 / 20.0 + 0.01);
+            let dir = direction(u, v, 0.0);
+            let (cu, cv) = coordinates(dir, 0.0);
+            if luminance(bilinear(8, 4, cu, cv, texel)) > 0.0 {
+                lit += 1;
+                assert!(d.pdf(dir, 0.0) > 0.0, "light at ({u}, {v}) but no density");
+            }
+        }
+        assert!(lit > 10, "{lit}");
     }
 }

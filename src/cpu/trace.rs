@@ -279,8 +279,7 @@ impl<'a> Tracer<'a> {
             && (bounce > 0 || u.env_mode == ENV_VISIBLE)
         {
             let d = glam::Vec3::from(dir);
-            let (x, y, _) = map.distribution.texel_of(d, u.env_rotation);
-            let l = Vec3A::from_array(map.texel(x, y)) * u.env_intensity;
+            let l = Vec3A::from_array(map.radiance(d, u.env_rotation)) * u.env_intensity;
             let pe = self.env_pick();
             if self.f.nee && prev_pdf > 0.0 && pe > 0.0 {
                 let pl = pe * map.distribution.pdf(d, u.env_rotation);
@@ -313,7 +312,7 @@ impl<'a> Tracer<'a> {
         if s.pdf <= 0.0 || cos_s <= 0.0 || (self.s.normal_maps && n_geo.dot(dir) <= 0.0) {
             return Vec3A::ZERO;
         }
-        let radiance = Vec3A::from_array(map.texel(s.texel.0, s.texel.1)) * u.env_intensity;
+        let radiance = Vec3A::from_array(map.radiance_at(s.uv.0, s.uv.1)) * u.env_intensity;
         let shadow = Ray {
             origin: offset_ray(p, n_geo),
             dir,

@@ -82,6 +82,18 @@ impl EnvMap {
         rgbe_unpack(self.rgbe[(y * self.width + x) as usize])
     }
 
+    /// The radiance the tracers see along unit direction `d` (bilinear between texels; see
+    /// `common::envmap::bilinear`), for the map turned by `rotation` radians.
+    pub fn radiance(&self, d: glam::Vec3, rotation: f32) -> [f32; 3] {
+        let (u, v) = crate::common::envmap::coordinates(d, rotation);
+        self.radiance_at(u, v)
+    }
+
+    /// The radiance at map coordinates (u, v).
+    pub fn radiance_at(&self, u: f32, v: f32) -> [f32; 3] {
+        crate::common::envmap::bilinear(self.width, self.height, u, v, |x, y| self.texel(x, y))
+    }
+
     /// Every texel decoded, row-major.
     pub fn texels(&self) -> Vec<[f32; 3]> {
         unpack_all(&self.rgbe)
