@@ -250,8 +250,10 @@ const FURNACE: &str = "[camera]\nlook_from = [0, 0, 0]\nlook_at = [0, 0, -3]\nvf
 const FW: u32 = 40;
 const FH: u32 = 40;
 
+type Pixels = Vec<(u32, u32)>;
+
 /// The pixels the furnace's sphere covers whole, and those it misses whole.
-fn furnace_pixels(s: &Scene) -> (Vec<(u32, u32)>, Vec<(u32, u32)>) {
+fn furnace_pixels(s: &Scene) -> (Pixels, Pixels) {
     let frame = camera_frame(s, FW, FH);
     let (mut inside, mut outside) = (Vec::new(), Vec::new());
     for y in 0..FH {

@@ -199,7 +199,7 @@ impl App {
                 Some(e) => {
                     e.rotation = (e.rotation + deg).rem_euclid(360.0);
                     let r = e.rotation;
-                    self.say(&format!("environment map turned to {r}°"));
+                    self.say(format!("environment map turned to {r}°"));
                     Effect::SceneChanged
                 }
                 None => self.no_map(),
@@ -208,7 +208,7 @@ impl App {
                 Some(e) => {
                     e.intensity = (e.intensity * k).clamp(1e-6, 1e6);
                     let i = e.intensity;
-                    self.say(&format!("environment map intensity {i:.3}"));
+                    self.say(format!("environment map intensity {i:.3}"));
                     Effect::SceneChanged
                 }
                 None => self.no_map(),
