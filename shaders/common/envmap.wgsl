@@ -1,4 +1,4 @@
-// The environment map (src/common/envmap.rs does the same arithmetic for the CPU tracer):
+// The environment map (src/scene/envmap_sampling.rs does the same arithmetic for the CPU tracer):
 // its texels, looked up where a ray leaves the scene, and its piecewise-constant
 // distribution (luminance × sin θ per texel), sampled by inverting the marginal CDF over rows
 // and the conditional CDF within the row (PBRT 4th ed. §A.5.6, §12.5.2).
@@ -114,7 +114,7 @@ fn env_coordinates(d: vec3f, rotation: f32) -> vec2f {
 }
 
 // The map's radiance seen along unit direction d: bilinear between the four nearest texel
-// centres, wrapping in u, clamped at the poles (src/common/envmap.rs: bilinear). Unbiased
+// centres, wrapping in u, clamped at the poles (src/scene/envmap_sampling.rs: bilinear). Unbiased
 // beside the piecewise-constant sampling density: where the density is 0 and the filtered
 // radiance is not (next to a black texel), the BSDF sample's MIS weight is 1.
 fn env_radiance(d: vec3f, rotation: f32) -> vec3f {

@@ -146,22 +146,12 @@ impl Backend {
         if let Some(why) = crate::common::textures::too_large(scene, limit) {
             anyhow::bail!("{}: {why} ({})", scene.origin, ctx.adapter_name());
         }
-        if let Some(e) = &scene.environment {
-            let bytes = crate::common::envmap::words_len(&e.map.distribution) as u64 * 4;
-            if bytes > limit {
-                anyhow::bail!(
-                    "{}: the environment map {} ({}×{}) needs {:.0} MiB in one buffer, and {} \
-                     binds at most {:.0} MiB: use a smaller map, or the CPU tracer \
-                     (--adapter cpu-native)",
-                    scene.origin,
-                    e.map.name,
-                    e.map.width,
-                    e.map.height,
-                    bytes as f64 / (1 << 20) as f64,
-                    ctx.adapter_name(),
-                    limit as f64 / (1 << 20) as f64
-                );
-            }
+        if let Some(why) = scene
+            .environment
+            .as_ref()
+            .and_then(|e| crate::common::envmap::too_large(&e.map.distribution, &e.map.name, limit))
+        {
+            anyhow::bail!("{}: {why} ({})", scene.origin, ctx.adapter_name());
         }
         Ok(())
     }

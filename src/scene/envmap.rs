@@ -2,11 +2,11 @@
 //! (Radiance `.hdr` or OpenEXR, through `image`), every texel checked on load, packed as both
 //! tracers read it, with its sampling distribution built once.
 
-use crate::common::envmap::{Distribution, rgbe_pack, rgbe_unpack};
+use super::envmap_sampling::{Distribution, rgbe_pack, rgbe_unpack};
 use std::path::Path;
 
 /// An equirectangular map of linear RGB radiance, rows from the top (the zenith), as RGBE
-/// texels (`common::envmap::rgbe_pack`), and the distribution that samples it, built from
+/// texels (`envmap_sampling::rgbe_pack`), and the distribution that samples it, built from
 /// those texels (what the tracers see).
 #[derive(Debug, PartialEq)]
 pub struct EnvMap {
@@ -83,15 +83,15 @@ impl EnvMap {
     }
 
     /// The radiance the tracers see along unit direction `d` (bilinear between texels; see
-    /// `common::envmap::bilinear`), for the map turned by `rotation` radians.
+    /// `envmap_sampling::bilinear`), for the map turned by `rotation` radians.
     pub fn radiance(&self, d: glam::Vec3, rotation: f32) -> [f32; 3] {
-        let (u, v) = crate::common::envmap::coordinates(d, rotation);
+        let (u, v) = super::envmap_sampling::coordinates(d, rotation);
         self.radiance_at(u, v)
     }
 
     /// The radiance at map coordinates (u, v).
     pub fn radiance_at(&self, u: f32, v: f32) -> [f32; 3] {
-        crate::common::envmap::bilinear(self.width, self.height, u, v, |x, y| self.texel(x, y))
+        super::envmap_sampling::bilinear(self.width, self.height, u, v, |x, y| self.texel(x, y))
     }
 
     /// Every texel decoded, row-major.

@@ -7,6 +7,7 @@
 mod builtin;
 pub mod color;
 pub mod envmap;
+pub mod envmap_sampling;
 mod error;
 mod files;
 pub mod generate;

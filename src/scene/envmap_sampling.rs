@@ -1,0 +1,397 @@
+//! An environment map's directions and its importance sampling, the same arithmetic for both
+//! tracers (`common::envmap` lays it out for the GPU; shaders/common/envmap.wgsl mirrors it):
+//! RGBE texels, the equirectangular mapping from a direction to the map's (u, v), the
+//! bilinear lookup, and a piecewise-constant 2D distribution over the texels, sampled by
+//! inverting a marginal CDF over rows and a conditional CDF within the row (Pharr, Jakob and
+//! Humphreys, "Physically Based Rendering", 4th ed., §A.5.6 and §12.5.2). CDFs rather than
+//! alias tables: the inversion is continuous (neighbouring random numbers give neighbouring
+//! directions, which stratified and Sobol samples need), and a binary search of log₂(4096) =
+//! 12 steps costs little beside a path segment.
+
+pub use super::color::luminance;
+use glam::Vec3;
+use std::f32::consts::PI;
+
+/// One texel as both tracers store it: Radiance's RGBE, three 8-bit mantissas and a shared
+/// 8-bit exponent, value = m × 2^(e − 136) (Ward, "Real Pixels", Graphics Gems II, 1991).
+/// Four bytes a texel (an 8k map is 128 MiB, not 384), a range of 2^±127 (a sun of 10⁵ next
+/// to a sky of 10⁻³ fits, which half floats do not), and lossless for `.hdr` files, which
+/// hold exactly these numbers: `image` decodes them as m × 2^(e − 136), and this packing
+/// gives the same bytes back. An EXR's channels keep 8 bits relative to the texel's
+/// brightest one (0.4 % at worst). Bytes r, g, b, e from the lowest.
+pub fn rgbe_pack(c: [f32; 3]) -> u32 {
+    let v = c[0].max(c[1]).max(c[2]);
+    // Below 2^-100 is black: both tracers then decode only normal floats.
+    if v.is_nan() || v < 2f32.powi(-100) {
+        return 0;
+    }
+    // v = f × 2^k with f in [0.5, 1): the brightest mantissa f × 256 is in [128, 256).
+    let mut k = v.log2().floor() as i32 + 1;
+    let scale = |k: i32| 2f32.powi(8 - k);
+    // log2 may round across a power of two: put v × 2^(8−k) in [128, 256) exactly.
+    while v * scale(k) >= 256.0 {
+        k += 1;
+    }
+    while v * scale(k) < 128.0 {
+        k -= 1;
+    }
+    if k + 128 > 255 {
+        // Beyond 2^127: the largest value RGBE holds.
+        return 0xffff_ffff;
+    }
+    let m = |x: f32| ((x * scale(k) + 0.5).floor() as u32).min(255);
+    let (r, g, b) = (m(c[0]), m(c[1]), m(c[2]));
+    // Rounding the brightest up to 256 is one more step of the exponent.
+    if r.max(g).max(b) > 255 || v * scale(k) + 0.5 >= 256.0 {
+        let m2 = |x: f32| ((x * scale(k + 1) + 0.5).floor() as u32).min(255);
+        return m2(c[0]) | m2(c[1]) << 8 | m2(c[2]) << 16 | ((k + 1 + 128) as u32) << 24;
+    }
+    r | g << 8 | b << 16 | ((k + 128) as u32) << 24
+}
+
+/// A packed texel's radiance (as `env_texel` in shaders/common/envmap.wgsl decodes it).
+pub fn rgbe_unpack(w: u32) -> [f32; 3] {
+    let e = w >> 24;
+    if e == 0 {
+        return [0.0; 3];
+    }
+    let f = 2f32.powi(e as i32 - 136);
+    [
+        (w & 0xff) as f32 * f,
+        (w >> 8 & 0xff) as f32 * f,
+        (w >> 16 & 0xff) as f32 * f,
+    ]
+}
+
+/// The direction of map coordinates (u, v) ∈ [0, 1]², `rotation` in radians about +y: v runs
+/// from the zenith (+y, v = 0) to the nadir; u = ½ looks down −z (the default camera's view,
+/// so a panorama's middle is seen straight ahead) and u = ¾ towards +x (its right half to
+/// the right): φ = 2πu + rotation, d = (−sin θ sin φ, cos θ, sin θ cos φ).
+pub fn direction(u: f32, v: f32, rotation: f32) -> Vec3 {
+    let (sin_t, cos_t) = (PI * v).sin_cos();
+    let (sin_p, cos_p) = (2.0 * PI * u + rotation).sin_cos();
+    Vec3::new(-sin_t * sin_p, cos_t, sin_t * cos_p)
+}
+
+/// The map coordinates of unit direction `d` (the inverse of [`direction`]), u in [0, 1).
+/// (`env_coordinates` in shaders/common/envmap.wgsl, the same arithmetic.)
+pub fn coordinates(d: Vec3, rotation: f32) -> (f32, f32) {
+    let v = d.y.clamp(-1.0, 1.0).acos() / PI;
+    let turns = ((-d.x).atan2(d.z) - rotation) / (2.0 * PI);
+    let u = turns - turns.floor();
+    (if u >= 1.0 { 0.0 } else { u }, v)
+}
+
+/// The radiance at map coordinates (u, v) of a `width × height` map whose texel (x, y) is
+/// `texel(x, y)`: bilinear between the four nearest texel centres, wrapping around in u and
+/// clamped at the poles in v (`env_lookup` in shaders/common/envmap.wgsl). Each step is
+/// a + t (b − a), so that equal texels give exactly their value.
+pub fn bilinear(
+    width: u32,
+    height: u32,
+    u: f32,
+    v: f32,
+    texel: impl Fn(u32, u32) -> [f32; 3],
+) -> [f32; 3] {
+    let fx = u * width as f32 - 0.5;
+    let fy = (v * height as f32 - 0.5).max(0.0);
+    let (x0f, y0f) = (fx.floor(), fy.floor());
+    let (tx, ty) = (fx - x0f, fy - y0f);
+    let x0 = (x0f as i64).rem_euclid(width as i64) as u32;
+    let x1 = (x0 + 1) % width;
+    let y0 = (y0f as u32).min(height - 1);
+    let y1 = (y0 + 1).min(height - 1);
+    let lerp = |a: [f32; 3], b: [f32; 3], t: f32| {
+        [
+            a[0] + t * (b[0] - a[0]),
+            a[1] + t * (b[1] - a[1]),
+            a[2] + t * (b[2] - a[2]),
+        ]
+    };
+    let top = lerp(texel(x0, y0), texel(x1, y0), tx);
+    let bottom = lerp(texel(x0, y1), texel(x1, y1), tx);
+    lerp(top, bottom, ty)
+}
+
+/// The sampling distribution of a `width × height` map: for each row the CDF of its texels
+/// (`width + 1` entries, from 0 to 1), and the CDF of the rows (`height + 1`). Built in f64,
+/// stored in f32, which is what both tracers read.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Distribution {
+    pub width: u32,
+    pub height: u32,
+    /// Row-major conditional CDFs, `height × (width + 1)`.
+    pub conditional: Vec<f32>,
+    /// The marginal CDF over rows, `height + 1`.
+    pub marginal: Vec<f32>,
+    /// The integral of the weights over [0, 1]² (their mean): the piecewise-constant density
+    /// of texel (x, y) is its weight / `integral`. Zero when the map is black.
+    pub integral: f64,
+}
+
+/// One sampled direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    pub dir: Vec3,
+    /// The density with respect to solid angle (0 where the map is black).
+    pub pdf: f32,
+    /// The texel the sample fell in.
+    pub texel: (u32, u32),
+    /// Its map coordinates (u, v), from which `dir` was made: the radiance is looked up here,
+    /// not at the coordinates recomputed from `dir` (acos and atan2 would add their rounding).
+    pub uv: (f32, f32),
+}
+
+/// Inverts a CDF of `n + 1` entries at `u`: the interval i with cdf[i] ≤ u < cdf[i + 1] (a
+/// zero-width interval is never returned while a wider one holds u) and u's place in it.
+fn invert(cdf: &[f32], u: f32) -> (usize, f32) {
+    let n = cdf.len() - 1;
+    // The last i in [0, n) with cdf[i] <= u.
+    let (mut lo, mut hi) = (0usize, n);
+    while hi - lo > 1 {
+        let mid = (lo + hi) / 2;
+        if cdf[mid] <= u {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let width = cdf[lo + 1] - cdf[lo];
+    let t = if width > 0.0 {
+        ((u - cdf[lo]) / width).clamp(0.0, 1.0)
+    } else {
+        0.5
+    };
+    (lo, t)
+}
+
+impl Distribution {
+    /// The distribution of `texels` (row-major, rows from the top), each weighted by the
+    /// luminance of the bilinear lookup averaged over its area × sin θ at its row's centre
+    /// (the solid angle it spans).
+    pub fn new(width: u32, height: u32, texels: &[[f32; 3]]) -> Distribution {
+        let (w, h) = (width as usize, height as usize);
+        assert_eq!(texels.len(), w * h, "texels of a {width}×{height} map");
+        // Rows in parallel: each row's CDF is its own.
+        use rayon::prelude::*;
+        // Each texel's weight is the mean over its area of the bilinear radiance the tracers
+        // look up (`bilinear`): in each direction ¾ of the texel and ⅛ of either neighbour
+        // (wrapping in u, clamped at the poles), so that wherever the lookup sees light, the
+        // density is above zero (pbrt-v4's ImageInfiniteLight does the same).
+        let lum: Vec<f64> = texels
+            .par_iter()
+            .map(|t| luminance(*t).max(0.0) as f64)
+            .collect();
+        let across: Vec<f64> = (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let at = |x: usize| lum[y * w + x];
+                0.75 * at(x) + 0.125 * (at((x + w - 1) % w) + at((x + 1) % w))
+            })
+            .collect();
+        let mut conditional = vec![0f32; h * (w + 1)];
+        let rows: Vec<f64> = conditional
+            .par_chunks_mut(w + 1)
+            .enumerate()
+            .map(|(y, cdf)| {
+                let sin_t = (std::f64::consts::PI * (y as f64 + 0.5) / h as f64).sin();
+                let row = |y: usize| &across[y * w..(y + 1) * w];
+                let (above, here, below) =
+                    (row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)));
+                let mut sum = 0f64;
+                cdf[0] = 0.0;
+                // The running sums in f64 first (in place of the f32 CDF would lose them).
+                let mut acc = Vec::with_capacity(w);
+                for x in 0..w {
+                    let weight = 0.75 * here[x] + 0.125 * (above[x] + below[x]);
+                    sum += weight * sin_t;
+                    acc.push(sum);
+                }
+                for (x, a) in acc.iter().enumerate() {
+                    // A black row's CDF is uniform; the marginal never picks it.
+                    cdf[x + 1] = if sum > 0.0 {
+                        (a / sum) as f32
+                    } else {
+                        (x + 1) as f32 / w as f32
+                    };
+                }
+                cdf[w] = 1.0;
+                sum / w as f64
+            })
+            .collect();
+        let total: f64 = rows.iter().sum();
+        let mut marginal = Vec::with_capacity(h + 1);
+        let mut acc = 0f64;
+        marginal.push(0f32);
+        for r in &rows {
+            acc += r;
+            marginal.push(if total > 0.0 {
+                (acc / total) as f32
+            } else {
+                0.0
+            });
+        }
+        marginal[h] = 1.0;
+        Distribution {
+            width,
+            height,
+            conditional,
+            marginal,
+            integral: total / h as f64,
+        }
+    }
+
+    /// The conditional CDF of row `y`.
+    fn row(&self, y: usize) -> &[f32] {
+        let w = self.width as usize + 1;
+        &self.conditional[y * w..(y + 1) * w]
+    }
+
+    /// The density over [0, 1]² of texel (x, y) (its weight / the integral), from the CDFs.
+    fn density_uv(&self, x: usize, y: usize) -> f32 {
+        let (w, h) = (self.width as f32, self.height as f32);
+        let row = self.row(y);
+        (self.marginal[y + 1] - self.marginal[y]) * h * (row[x + 1] - row[x]) * w
+    }
+
+    /// A direction for the random numbers (u1, u2) ∈ [0, 1)², with its solid-angle density.
+    pub fn sample(&self, u1: f32, u2: f32, rotation: f32) -> Sample {
+        let (y, ty) = invert(&self.marginal, u2);
+        let (x, tx) = invert(self.row(y), u1);
+        let u = (x as f32 + tx) / self.width as f32;
+        let v = (y as f32 + ty) / self.height as f32;
+        let dir = direction(u, v, rotation);
+        let sin_t = (PI * v).sin();
+        let pdf = if sin_t > 0.0 && self.integral > 0.0 {
+            self.density_uv(x, y) / (2.0 * PI * PI * sin_t)
+        } else {
+            0.0
+        };
+        Sample {
+            dir,
+            pdf,
+            texel: (x as u32, y as u32),
+            uv: (u, v),
+        }
+    }
+
+    /// The texel unit direction `d` falls in, and its v (`env_texel_of` in
+    /// shaders/common/envmap.wgsl, the same arithmetic).
+    pub fn texel_of(&self, d: Vec3, rotation: f32) -> (u32, u32, f32) {
+        let v = d.y.clamp(-1.0, 1.0).acos() / PI;
+        let turns = ((-d.x).atan2(d.z) - rotation) / (2.0 * PI);
+        let u = turns - turns.floor();
+        let x = ((u * self.width as f32) as u32).min(self.width - 1);
+        let y = ((v * self.height as f32) as u32).min(self.height - 1);
+        (x, y, v)
+    }
+
+    /// The solid-angle density with which [`Distribution::sample`] gives unit direction `d`.
+    pub fn pdf(&self, d: Vec3, rotation: f32) -> f32 {
+        if self.integral <= 0.0 {
+            return 0.0;
+        }
+        let (x, y, v) = self.texel_of(d, rotation);
+        let sin_t = (PI * v).sin();
+        if sin_t <= 0.0 {
+            return 0.0;
+        }
+        self.density_uv(x as usize, y as usize) / (2.0 * PI * PI * sin_t)
+    }
+
+    /// Bytes the CDFs take.
+    pub fn bytes(&self) -> usize {
+        4 * (self.conditional.len() + self.marginal.len())
+    }
+}
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn directions_and_coordinates_are_inverse_and_face_as_documented() {
+        for &(u, v) in &[(0.1, 0.2), (0.5, 0.5), (0.75, 0.5), (0.99, 0.9), (0.0, 0.3)] {
+            for rot in [0.0, 1.0, -2.5] {
+                let d = direction(u, v, rot);
+                assert!((d.length() - 1.0).abs() < 1e-5);
+                let (u2, v2) = coordinates(d, rot);
+                let du = (u2 - u).abs().min(1.0 - (u2 - u).abs());
+                assert!(du < 1e-4 && (v2 - v).abs() < 1e-4, "{u},{v} → {u2},{v2}");
+            }
+        }
+        assert!(direction(0.5, 0.5, 0.0).abs_diff_eq(Vec3::NEG_Z, 1e-6));
+        assert!(direction(0.75, 0.5, 0.0).abs_diff_eq(Vec3::X, 1e-6));
+        assert!(direction(0.3, 0.0, 0.0).abs_diff_eq(Vec3::Y, 1e-6));
+    }
+
+    #[test]
+    fn rgbe_round_trips_radiance_files_and_keeps_eight_bits() {
+        // Every value a .hdr file can hold (normalized: the brightest mantissa ≥ 128) packs
+        // back to its own bytes.
+        for e in [1u32, 100, 127, 128, 136, 150, 200, 255] {
+            for (r, g, b) in [(128, 0, 0), (255, 255, 255), (200, 13, 128), (3, 129, 77)] {
+                let w = r | g << 8 | b << 16 | e << 24;
+                if e < 36 {
+                    continue; // below 2^-100: packed as black
+                }
+                assert_eq!(rgbe_pack(rgbe_unpack(w)), w, "e {e} rgb {r} {g} {b}");
+            }
+        }
+        for c in [
+            [1.0, 1.0, 1.0],
+            [1e5, 2e4, 3e3],
+            [1e-3, 0.0, 5e-4],
+            [0.9999, 0.5, 0.25],
+        ] {
+            let d = rgbe_unpack(rgbe_pack(c));
+            let max = c[0].max(c[1]).max(c[2]);
+            for i in 0..3 {
+                assert!((d[i] - c[i]).abs() <= max / 256.0, "{c:?} → {d:?}");
+            }
+        }
+        assert_eq!(rgbe_unpack(rgbe_pack([1.0; 3])), [1.0; 3]);
+        assert_eq!(rgbe_pack([0.0; 3]), 0);
+    }
+
+    #[test]
+    fn a_black_map_samples_nothing_and_a_black_row_is_never_chosen() {
+        let black = Distribution::new(4, 2, &[[0.0; 3]; 8]);
+        assert_eq!(black.integral, 0.0);
+        assert_eq!(black.sample(0.3, 0.6, 0.0).pdf, 0.0);
+        // Rows 0 and 1 black: the lookup sees no light in row 0, but some in row 1 (blended
+        // with row 2), so row 0 is never chosen and row 1 is, rarely.
+        let mut t = vec![[1.0f32; 3]; 16];
+        t[..8].fill([0.0; 3]);
+        let d = Distribution::new(4, 4, &t);
+        let mut rows = [0; 4];
+        for i in 0..1000 {
+            let s = d.sample((i as f32 + 0.5) / 1000.0, (i as f32 * 0.3719) % 1.0, 0.0);
+            rows[s.texel.1 as usize] += 1;
+            assert!(s.pdf > 0.0);
+        }
+        assert_eq!(rows[0], 0, "{rows:?}");
+        assert!(rows[1] > 0 && rows[1] < rows[2], "{rows:?}");
+    }
+
+    #[test]
+    fn the_density_is_above_zero_wherever_the_lookup_sees_light() {
+        // One bright texel of an 8 × 4 map: the bilinear lookup spreads it half a texel into
+        // each neighbour, which the density must cover.
+        let mut t = vec![[0.0f32; 3]; 32];
+        t[8 + 3] = [5.0; 3];
+        let d = Distribution::new(8, 4, &t);
+        let texel = |x: u32, y: u32| t[(y * 8 + x) as usize];
+        let mut lit = 0;
+        for i in 0..400 {
+            let (u, v) = ((i % 20) as f32 / 20.0 + 0.01, (i / 20) as f32 / 20.0 + 0.01);
+            let dir = direction(u, v, 0.0);
+            let (cu, cv) = coordinates(dir, 0.0);
+            if luminance(bilinear(8, 4, cu, cv, texel)) > 0.0 {
+                lit += 1;
+                assert!(d.pdf(dir, 0.0) > 0.0, "light at ({u}, {v}) but no density");
+            }
+        }
+        assert!(lit > 10, "{lit}");
+    }
+}
