@@ -5,6 +5,7 @@ mod args;
 mod bench;
 mod check;
 mod converge;
+mod merge;
 mod render;
 
 use crate::output::cells::{CellMode, ColorMode};
@@ -34,6 +35,9 @@ enum Command {
     Render(render::RenderArgs),
     /// Validate scene files and print a summary of each (--stress: the stability report).
     Check(check::CheckArgs),
+    /// Merge the shards of a render (`render --shard I/K`, `.tta` files) into its image, bit
+    /// for bit the image of the whole render.
+    Merge(merge::MergeArgs),
     /// List the GPU adapters this machine offers, best first.
     Adapters,
     /// Measure samples/s and path segments/s on the chosen adapter.
@@ -165,6 +169,7 @@ pub fn main() -> ExitCode {
         Some(Command::View(v)) => view(v, &cli.global),
         Some(Command::Render(a)) => render::run(a, &cli.global),
         Some(Command::Check(a)) => check::run(a, &cli.global),
+        Some(Command::Merge(a)) => merge::run(a),
         Some(Command::Adapters) => adapters::run(),
         Some(Command::Bench(a)) => bench::run(a, &cli.global),
         Some(Command::Converge(a)) => converge::run(a, &cli.global),

@@ -58,6 +58,13 @@ pub struct RenderArgs {
     /// estimation, no multiple importance sampling, no Russian roulette).
     #[arg(long)]
     pub no_nee: bool,
+    /// Render one shard of the samples, for `termtrace merge`: `I/K` traces shard I (from 0)
+    /// of K, samples ⌊I·spp/K⌋ to ⌊(I+1)·spp/K⌋ of every pixel, and writes their exact sums
+    /// to a `.tta` file [default: SCENE-part-I-of-K.tta]. `K` alone takes I from the
+    /// scheduler: SLURM_ARRAY_TASK_ID (a Slurm job array, `--array=0-(K-1)`) or
+    /// JOB_COMPLETION_INDEX (a Kubernetes Indexed Job).
+    #[arg(long, value_name = "I/K", conflicts_with_all = ["time", "target_error"])]
+    pub shard: Option<String>,
     /// Stop once the estimated relative RMSE (from the difference of two independent halves
     /// of the samples) falls below this, e.g. 0.01 for 1 %.
     #[arg(long, value_name = "E", value_parser = super::args::positive)]
@@ -109,6 +116,10 @@ pub(crate) fn frame_settings(
 
 pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.scene, g.camera.as_deref(), g.sky.as_deref())?;
+    let to_tta = a.output.as_ref().is_some_and(|o| is_tta(o));
+    if a.shard.is_some() || to_tta {
+        return run_shard(&a, g, &scene);
+    }
     let out = a
         .output
         .clone()
@@ -357,4 +368,154 @@ pub(crate) fn rate_text(samples_per_second: f64) -> String {
         (samples_per_second, "")
     };
     format!("{v:.2} {unit}samples/s")
+}
+
+fn is_tta(p: &Path) -> bool {
+    p.extension()
+        .is_some_and(|e| e.to_string_lossy().eq_ignore_ascii_case("tta"))
+}
+
+/// `--shard I/K` or `--shard K` (I from the scheduler's environment, `env`) as (I, K).
+pub(crate) fn shard_spec(
+    spec: &str,
+    env: impl Fn(&str) -> Option<String>,
+) -> anyhow::Result<(u32, u32)> {
+    let number = |s: &str, what: &str| -> anyhow::Result<u32> {
+        s.trim()
+            .parse::<u32>()
+            .map_err(|_| anyhow::anyhow!("--shard {spec}: {what} `{s}` is not a whole number"))
+    };
+    let (i, k) = match spec.split_once('/') {
+        Some((i, k)) => (number(i, "the shard")?, number(k, "the count")?),
+        None => {
+            let k = number(spec, "the count")?;
+            let (var, value) = ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX"]
+                .iter()
+                .find_map(|v| env(v).map(|x| (*v, x)))
+                .ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "--shard {spec} takes the shard from SLURM_ARRAY_TASK_ID or \
+                         JOB_COMPLETION_INDEX, and neither is set; give it as --shard I/{spec}"
+                    )
+                })?;
+            let i = value.trim().parse::<u32>().map_err(|_| {
+                anyhow::anyhow!("--shard {spec}: {var} is `{value}`, not a whole number")
+            })?;
+            if i >= k {
+                anyhow::bail!(
+                    "--shard {spec}: {var} is {i}, and the shards are 0 to {} (a Slurm array \
+                     --array=0-{})",
+                    k.saturating_sub(1),
+                    k.saturating_sub(1)
+                );
+            }
+            (i, k)
+        }
+    };
+    anyhow::ensure!(k >= 1, "--shard {spec}: the count must be at least 1");
+    anyhow::ensure!(i < k, "--shard {spec}: shards are numbered 0 to {}", k - 1);
+    Ok((i, k))
+}
+
+/// `render --shard I/K` (or `-o part.tta`): traces the shard's samples and writes their exact
+/// sums (`render::shard`). An interrupted shard writes nothing: a part without all its
+/// samples could not be merged.
+fn run_shard(
+    a: &RenderArgs,
+    g: &GlobalArgs,
+    scene: &crate::scene::Scene,
+) -> anyhow::Result<ExitCode> {
+    use crate::render::shard::{Header, Part, scene_hash, write};
+    let (i, k) = match &a.shard {
+        Some(spec) => shard_spec(spec, |v| std::env::var(v).ok())?,
+        None => (0, 1),
+    };
+    let spp = a.spp.unwrap_or(scene.render.spp);
+    anyhow::ensure!(
+        k <= spp,
+        "--shard {i}/{k}: {k} shards of {spp} samples per pixel leave some empty; use at most {spp}"
+    );
+    let out = a
+        .output
+        .clone()
+        .unwrap_or_else(|| PathBuf::from(format!("{}-part-{i}-of-{k}.tta", scene.short_name())));
+    anyhow::ensure!(
+        is_tta(&out),
+        "{}: a shard is written as exact sums to a .tta file (`termtrace merge` makes the image)",
+        out.display()
+    );
+    anyhow::ensure!(
+        a.exr.is_none() && !a.png16,
+        "--exr and --png16 are options of the image; `termtrace merge` writes it from the shards"
+    );
+    check_writable(&out)?;
+    let settings = FrameSettings {
+        nee: !a.no_nee,
+        ..frame_settings(scene, a.width, a.height, a.max_bounces, a.seed)
+    };
+    let (first, end) = Header::range(i, k, spp);
+    let ctx = Backend::open(g.adapter.as_deref())?;
+    ctx.check_fits(scene)?;
+    let options = RenderOptions {
+        generic: a.generic,
+        first_sample: first,
+        ..Default::default()
+    };
+    let mut r = Renderer::new(ctx.clone(), scene, settings, options);
+    install_ctrlc();
+    if !a.quiet {
+        eprintln!(
+            "rendering shard {i} of {k} of {} at {}x{}: samples {first}..{end} of {spp} on {}",
+            scene.origin,
+            settings.width,
+            settings.height,
+            ctx.describe()
+        );
+    }
+    let n = end - first;
+    let pb = progress_bar(a.quiet, None, n);
+    let start = Instant::now();
+    while r.samples() < n {
+        r.step(Duration::from_millis(250), n);
+        pb.set_position(r.samples() as u64);
+        if INTERRUPTED.load(Ordering::SeqCst) {
+            pb.finish_and_clear();
+            eprintln!(
+                "interrupted: shard {i} of {k} has {} of its {n} samples; nothing written \
+                 (render it again)",
+                r.samples()
+            );
+            return Ok(ExitCode::from(130));
+        }
+    }
+    pb.finish_and_clear();
+    let (even, odd, invalid) = r.exact_sums();
+    let part = Part {
+        header: Header {
+            termtrace: env!("CARGO_PKG_VERSION").to_string(),
+            scene: scene.origin.clone(),
+            scene_hash: scene_hash(scene),
+            width: settings.width,
+            height: settings.height,
+            max_bounces: settings.max_bounces,
+            seed: settings.seed,
+            nee: settings.nee,
+            spp,
+            shard: i,
+            shards: k,
+            first_sample: first,
+            end_sample: end,
+            invalid,
+        },
+        even,
+        odd,
+    };
+    write(&out, &part)?;
+    eprintln!(
+        "wrote {} (shard {i} of {k}: samples {first}..{end}, {:.1} s, {} bytes)",
+        out.display(),
+        start.elapsed().as_secs_f64(),
+        std::fs::metadata(&out).map(|m| m.len()).unwrap_or(0)
+    );
+    Ok(ExitCode::SUCCESS)
 }

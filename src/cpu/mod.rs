@@ -331,6 +331,11 @@ impl CpuEngine {
         counters
     }
 
+    /// The exact sums (even, odd) and the invalid samples.
+    pub fn exact_sums(&self) -> (Vec<u32>, Vec<u32>, u64) {
+        (self.even.clone(), self.odd.clone(), self.counters.invalid)
+    }
+
     /// The sums on the host, as the GPU's readback gives them.
     pub fn read(&self) -> AccumData {
         AccumData {

@@ -76,8 +76,19 @@ impl Accumulation {
         queue.write_buffer(&self.counters, 0, &[0u8; COUNTER_BYTES as usize]);
     }
 
-    /// Copies everything back to the host and decodes the fixed-point sums.
-    pub fn read(&self, ctx: &GpuContext) -> AccumData {
+    /// Copies the exact sums (even, odd) and the invalid count back to the host, undecoded.
+    pub fn read_words(&self, ctx: &GpuContext) -> (Vec<u32>, Vec<u32>, u64) {
+        let d = self.read_raw(ctx);
+        let n = self.pixels as usize * ACCUM_WORDS;
+        (
+            d.0[..n].to_vec(),
+            d.0[n..].to_vec(),
+            d.1[0] as u64 | (d.1[1] as u64) << 32,
+        )
+    }
+
+    /// The words of both halves and the counters' words, from the GPU.
+    fn read_raw(&self, ctx: &GpuContext) -> (Vec<u32>, Vec<u32>) {
         let half = self.pixels * PIXEL_BYTES;
         let mut enc = ctx
             .device
@@ -102,22 +113,27 @@ impl Accumulation {
         let data = slice
             .get_mapped_range()
             .expect("the readback buffer is mapped");
-        let words: &[u32] = bytemuck::cast_slice(&data[..(2 * half) as usize]);
+        let words: Vec<u32> = bytemuck::cast_slice(&data[..(2 * half) as usize]).to_vec();
+        let counters: Vec<u32> = bytemuck::cast_slice(&data[(2 * half) as usize..]).to_vec();
+        drop(data);
+        self.staging.unmap();
+        (words, counters)
+    }
+
+    /// Copies everything back to the host and decodes the fixed-point sums.
+    pub fn read(&self, ctx: &GpuContext) -> AccumData {
+        let (words, c) = self.read_raw(ctx);
         let n = self.pixels as usize;
         let even = decode(&words[..n * ACCUM_WORDS]);
         let odd = decode(&words[n * ACCUM_WORDS..]);
-        let c: &[u32] = bytemuck::cast_slice(&data[(2 * half) as usize..]);
         let u64_of = |lo: u32, hi: u32| lo as u64 | (hi as u64) << 32;
-        let out = AccumData {
+        AccumData {
             even,
             odd,
             invalid: u64_of(c[0], c[1]),
             segments: u64_of(c[2], c[3]),
             node_visits: u64_of(c[4], c[5]),
             primitive_tests: u64_of(c[6], c[7]),
-        };
-        drop(data);
-        self.staging.unmap();
-        out
+        }
     }
 }

@@ -12,6 +12,7 @@
 //! submission there is traced on every core before `submit` returns.
 
 mod schedule;
+pub mod shard;
 mod snapshot;
 pub mod tune;
 
@@ -65,6 +66,10 @@ pub struct RenderOptions {
     /// Always trace with the scene's specialized pipeline, never measure it against the
     /// generic one (`tune`); tests that compare the two use it.
     pub no_tune: bool,
+    /// The index of the first sample of every pixel (0: a whole render): a shard of a render
+    /// traces samples `first_sample..` with their own random streams, as the whole render
+    /// would (`render --shard`).
+    pub first_sample: u32,
 }
 
 impl RenderOptions {
@@ -91,6 +96,7 @@ impl Default for RenderOptions {
             lanes: None,
             first_look: false,
             no_tune: false,
+            first_sample: 0,
         }
     }
 }
@@ -567,7 +573,7 @@ impl Renderer {
         };
         let lanes = self.lanes(rows, round.k);
         let d = DispatchUniforms {
-            sample_base: self.samples,
+            sample_base: self.options.first_sample + self.samples,
             sample_count: round.k,
             row_offset: round.next_row,
             row_count: rows,
@@ -697,6 +703,15 @@ impl Renderer {
         match &self.engine {
             Engine::Gpu(_) => None,
             Engine::Cpu(c) => Some(c.resolve(factor)),
+        }
+    }
+
+    /// The exact sums (`ACCUM_WORDS` words per pixel, even then odd half) and the samples
+    /// discarded as invalid, as the tracer holds them: what a shard writes (`render::shard`).
+    pub fn exact_sums(&self) -> (Vec<u32>, Vec<u32>, u64) {
+        match &self.engine {
+            Engine::Gpu(g) => g.accum.read_words(&g.ctx),
+            Engine::Cpu(c) => c.exact_sums(),
         }
     }
 

@@ -1,0 +1,270 @@
+//! Exact-sum snapshots (`.tta`): the accumulation words of a render or of one shard of it
+//! (a range of every pixel's samples), with what they belong to, so that shards rendered
+//! anywhere merge into the image one device would have made, bit for bit.
+//!
+//! A file is `TTACCUM\n`, the format version (u32), the header's length (u32) and the header
+//! (TOML: the scene's hash, the frame settings, the whole render's samples per pixel, the
+//! shard and the sample range it holds), then the even and the odd halves' words (u32,
+//! `ACCUM_WORDS` per pixel, little-endian), then the CRC-32 of everything before it. Written
+//! atomically; read with every field checked.
+
+use crate::common::accum::ACCUM_WORDS;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+const MAGIC: &[u8; 8] = b"TTACCUM\n";
+/// The format version this build reads and writes.
+pub const VERSION: u32 = 1;
+
+/// What a snapshot's sums belong to, and which of them it holds.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Header {
+    /// The termtrace version that traced it: another build may trace other paths.
+    pub termtrace: String,
+    /// The scene, for messages.
+    pub scene: String,
+    /// A hash of everything the image depends on (`render::shard::scene_hash`).
+    pub scene_hash: String,
+    pub width: u32,
+    pub height: u32,
+    pub max_bounces: u32,
+    pub seed: u32,
+    pub nee: bool,
+    /// Samples per pixel of the whole render.
+    pub spp: u32,
+    /// This part is shard `shard` of `shards`.
+    pub shard: u32,
+    pub shards: u32,
+    /// The samples of every pixel it holds: `[first, end)`.
+    pub first_sample: u32,
+    pub end_sample: u32,
+    /// Samples discarded as NaN or infinite.
+    pub invalid: u64,
+}
+
+impl Header {
+    /// The samples shard `i` of `k` holds of a render of `spp`: `[⌊i·spp/k⌋, ⌊(i+1)·spp/k⌋)`.
+    pub fn range(i: u32, k: u32, spp: u32) -> (u32, u32) {
+        let at = |i: u32| (i as u64 * spp as u64 / k as u64) as u32;
+        (at(i), at(i + 1))
+    }
+
+    /// What makes two parts of one render: everything but the shard, its range and its
+    /// invalid count.
+    fn render_key(&self) -> Header {
+        Header {
+            shard: 0,
+            first_sample: 0,
+            end_sample: 0,
+            invalid: 0,
+            ..self.clone()
+        }
+    }
+}
+
+/// A snapshot: its header and the words of both halves.
+#[derive(Clone, Debug)]
+pub struct Part {
+    pub header: Header,
+    pub even: Vec<u32>,
+    pub odd: Vec<u32>,
+}
+
+/// A hash of everything an image depends on besides the frame settings: the scene as its
+/// file says it (`to_toml`: camera, sky, materials, objects, placements), the geometry
+/// (triangles included), the texture words and the environment map's texels; two CRC-32s
+/// over different halves of that, as 16 hex digits.
+pub fn scene_hash(scene: &crate::scene::Scene) -> String {
+    let mut a = crc32fast::Hasher::new();
+    a.update(crate::scene::to_toml(scene).as_bytes());
+    a.update(&crate::common::arrays::geometry_hash(scene).to_le_bytes());
+    let mut b = crc32fast::Hasher::new();
+    if let Some(words) = crate::common::textures::words(scene) {
+        b.update(bytemuck::cast_slice(&words));
+    }
+    if let Some(e) = &scene.environment {
+        b.update(bytemuck::cast_slice(&e.map.rgbe));
+    }
+    format!("{:08x}{:08x}", a.finalize(), b.finalize())
+}
+
+fn words_of(h: &Header) -> usize {
+    h.width as usize * h.height as usize * ACCUM_WORDS
+}
+
+/// Writes `part` to `path` atomically.
+pub fn write(path: &Path, part: &Part) -> Result<(), crate::output::OutputError> {
+    let header = toml::to_string(&part.header).expect("a header serializes");
+    let mut bytes = Vec::with_capacity(16 + header.len() + 8 * part.even.len() + 4);
+    bytes.extend_from_slice(MAGIC);
+    bytes.extend_from_slice(&VERSION.to_le_bytes());
+    bytes.extend_from_slice(&(header.len() as u32).to_le_bytes());
+    bytes.extend_from_slice(header.as_bytes());
+    for w in part.even.iter().chain(&part.odd) {
+        bytes.extend_from_slice(&w.to_le_bytes());
+    }
+    let crc = crc32fast::hash(&bytes);
+    bytes.extend_from_slice(&crc.to_le_bytes());
+    crate::output::write::write_bytes(path, &bytes)
+}
+
+/// Reads a snapshot, refusing (with the file's name) anything that is not one, a version this
+/// build does not read, a header that does not parse, a size that does not match it, or
+/// bytes that do not match their checksum.
+pub fn read(path: &Path) -> Result<Part, String> {
+    let name = path.display();
+    let bytes = std::fs::read(path).map_err(|e| format!("{name}: cannot read it: {e}"))?;
+    parse(&bytes).map_err(|e| format!("{name}: {e}"))
+}
+
+/// [`read`] from memory.
+pub fn parse(bytes: &[u8]) -> Result<Part, String> {
+    if bytes.len() < 20 || &bytes[..8] != MAGIC {
+        return Err("not a termtrace snapshot (.tta)".into());
+    }
+    let u32_at = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"));
+    let version = u32_at(8);
+    if version != VERSION {
+        return Err(format!(
+            "a snapshot of format version {version}; this termtrace reads version {VERSION}"
+        ));
+    }
+    let (body, tail) = bytes.split_at(bytes.len() - 4);
+    let crc = u32::from_le_bytes(tail.try_into().expect("4 bytes"));
+    if crc32fast::hash(body) != crc {
+        return Err("corrupted: its checksum does not match its bytes".into());
+    }
+    let len = u32_at(12) as usize;
+    let text = body
+        .get(16..16 + len)
+        .and_then(|t| std::str::from_utf8(t).ok())
+        .ok_or("corrupted: its header is cut short or not text")?;
+    let header: Header = toml::from_str(text).map_err(|e| format!("its header: {e}"))?;
+    let n = words_of(&header);
+    let payload = &body[16 + len..];
+    if payload.len() != 8 * n {
+        return Err(format!(
+            "holds {} bytes of sums where a {}×{} image has {}",
+            payload.len(),
+            header.width,
+            header.height,
+            8 * n
+        ));
+    }
+    let words: Vec<u32> = payload
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes(c.try_into().expect("4 bytes")))
+        .collect();
+    let odd = words[n..].to_vec();
+    let mut even = words;
+    even.truncate(n);
+    Ok(Part { header, even, odd })
+}
+
+/// Adds the sums `b` to `a`, word for word as the tracers add samples: per pixel three
+/// 96-bit fixed-point channels (fraction, low, high) and a sample count.
+pub fn add_words(a: &mut [u32], b: &[u32]) {
+    for (p, q) in a
+        .chunks_exact_mut(ACCUM_WORDS)
+        .zip(b.chunks_exact(ACCUM_WORDS))
+    {
+        for c in 0..3 {
+            let v = |w: &[u32]| {
+                w[3 * c] as u128 | (w[3 * c + 1] as u128) << 32 | (w[3 * c + 2] as u128) << 64
+            };
+            let s = (v(p) + v(q)) & ((1u128 << 96) - 1);
+            p[3 * c] = s as u32;
+            p[3 * c + 1] = (s >> 32) as u32;
+            p[3 * c + 2] = (s >> 64) as u32;
+        }
+        p[ACCUM_WORDS - 1] = p[ACCUM_WORDS - 1].wrapping_add(q[ACCUM_WORDS - 1]);
+    }
+}
+
+/// Merges the parts of one render (in any order) into the whole: refused, naming the files,
+/// if a part belongs to another render (scene, settings, version), a shard is missing or
+/// given twice, or a part's range is not its shard's.
+pub fn merge(parts: &[(PathBuf, Part)]) -> Result<Part, String> {
+    let Some((first_path, first)) = parts.first() else {
+        return Err("no parts to merge".into());
+    };
+    let key = first.header.render_key();
+    let k = key.shards;
+    let mut seen: Vec<Option<&Path>> = vec![None; k as usize];
+    for (path, p) in parts {
+        let h = &p.header;
+        if h.render_key() != key {
+            return Err(format!(
+                "{} is not a part of the render {} belongs to: {}",
+                path.display(),
+                first_path.display(),
+                difference(&key, &h.render_key())
+            ));
+        }
+        if h.shard >= k {
+            return Err(format!("{}: shard {} of {k}", path.display(), h.shard));
+        }
+        if Header::range(h.shard, k, key.spp) != (h.first_sample, h.end_sample) {
+            return Err(format!(
+                "{}: shard {} holds samples {}..{}, not its share of {} spp",
+                path.display(),
+                h.shard,
+                h.first_sample,
+                h.end_sample,
+                key.spp
+            ));
+        }
+        if let Some(other) = seen[h.shard as usize] {
+            return Err(format!(
+                "shard {} of {k} is given twice: {} and {}",
+                h.shard,
+                other.display(),
+                path.display()
+            ));
+        }
+        seen[h.shard as usize] = Some(path);
+    }
+    let missing: Vec<String> = (0..k)
+        .filter(|i| seen[*i as usize].is_none())
+        .map(|i| i.to_string())
+        .collect();
+    if !missing.is_empty() {
+        return Err(format!(
+            "{} of the {k} shards of {} are missing: {}",
+            missing.len(),
+            key.scene,
+            missing.join(", ")
+        ));
+    }
+    let mut whole = Part {
+        header: Header {
+            shard: 0,
+            shards: 1,
+            first_sample: 0,
+            end_sample: key.spp,
+            invalid: 0,
+            ..key
+        },
+        even: vec![0; first.even.len()],
+        odd: vec![0; first.odd.len()],
+    };
+    for (_, p) in parts {
+        add_words(&mut whole.even, &p.even);
+        add_words(&mut whole.odd, &p.odd);
+        whole.header.invalid += p.header.invalid;
+    }
+    Ok(whole)
+}
+
+/// The fields in which two renders' headers differ, for messages.
+fn difference(a: &Header, b: &Header) -> String {
+    let ta = toml::to_string(a).unwrap_or_default();
+    let tb = toml::to_string(b).unwrap_or_default();
+    let diffs: Vec<String> = ta
+        .lines()
+        .zip(tb.lines())
+        .filter(|(x, y)| x != y)
+        .map(|(x, y)| format!("{y} where it has {x}"))
+        .collect();
+    diffs.join("; ")
+}
