@@ -159,12 +159,8 @@ pub const BINDINGS: &[Binding] = &[
         help: "zoom in / out (field of view)",
     },
     Binding {
-        keys: ", / .",
-        help: "turn the environment map left / right (15°)",
-    },
-    Binding {
-        keys: "< / >",
-        help: "dim / brighten the environment map (×0.8 / ×1.25)",
+        keys: ", . < >",
+        help: "turn the environment map 15° left, right; dim, brighten it",
     },
     Binding {
         keys: "f",
