@@ -178,11 +178,9 @@ impl Distribution {
         // look up (`bilinear`): in each direction ¾ of the texel and ⅛ of either neighbour
         // (wrapping in u, clamped at the poles), so that wherever the lookup sees light, the
         // density is above zero (pbrt-v4's ImageInfiniteLight does the same).
-        let lum: Vec<f64> = texels
-            .par_iter()
-            .map(|t| luminance(*t).max(0.0) as f64)
-            .collect();
-        let across: Vec<f64> = (0..w * h)
+        // In f32 (an 8k map's two passes take 256 MiB, not 512); the sums below are f64.
+        let lum: Vec<f32> = texels.par_iter().map(|t| luminance(*t).max(0.0)).collect();
+        let across: Vec<f32> = (0..w * h)
             .into_par_iter()
             .map(|i| {
                 let (x, y) = (i % w, i / w);
@@ -204,7 +202,8 @@ impl Distribution {
                 // The running sums in f64 first (in place of the f32 CDF would lose them).
                 let mut acc = Vec::with_capacity(w);
                 for x in 0..w {
-                    let weight = 0.75 * here[x] + 0.125 * (above[x] + below[x]);
+                    let weight =
+                        0.75 * here[x] as f64 + 0.125 * (above[x] as f64 + below[x] as f64);
                     sum += weight * sin_t;
                     acc.push(sum);
                 }
