@@ -26,22 +26,7 @@ fn part(b: Backend, scene: &Scene, i: u32, k: u32) -> Part {
     r.render_spp(end - first);
     let (even, odd, invalid) = r.exact_sums();
     Part {
-        header: Header {
-            termtrace: "test".into(),
-            scene: scene.origin.clone(),
-            scene_hash: shard::scene_hash(scene),
-            width: s.width,
-            height: s.height,
-            max_bounces: s.max_bounces,
-            seed: s.seed,
-            nee: s.nee,
-            spp: SPP,
-            shard: i,
-            shards: k,
-            first_sample: first,
-            end_sample: end,
-            invalid,
-        },
+        header: Header::new(scene, &s, SPP, (i, k), invalid),
         even,
         odd,
     }

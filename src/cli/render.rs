@@ -425,7 +425,7 @@ fn run_shard(
     g: &GlobalArgs,
     scene: &crate::scene::Scene,
 ) -> anyhow::Result<ExitCode> {
-    use crate::render::shard::{Header, Part, scene_hash, write};
+    use crate::render::shard::{Header, Part, write};
     let (i, k) = match &a.shard {
         Some(spec) => shard_spec(spec, |v| std::env::var(v).ok())?,
         None => (0, 1),
@@ -491,22 +491,7 @@ fn run_shard(
     pb.finish_and_clear();
     let (even, odd, invalid) = r.exact_sums();
     let part = Part {
-        header: Header {
-            termtrace: env!("CARGO_PKG_VERSION").to_string(),
-            scene: scene.origin.clone(),
-            scene_hash: scene_hash(scene),
-            width: settings.width,
-            height: settings.height,
-            max_bounces: settings.max_bounces,
-            seed: settings.seed,
-            nee: settings.nee,
-            spp,
-            shard: i,
-            shards: k,
-            first_sample: first,
-            end_sample: end,
-            invalid,
-        },
+        header: Header::new(scene, &settings, spp, (i, k), invalid),
         even,
         odd,
     };

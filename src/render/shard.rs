@@ -43,6 +43,34 @@ pub struct Header {
 }
 
 impl Header {
+    /// The header of shard `shard` of `shards` of `scene` rendered with `s` at `spp` samples
+    /// per pixel by this termtrace, `invalid` samples discarded.
+    pub fn new(
+        scene: &crate::scene::Scene,
+        s: &crate::common::FrameSettings,
+        spp: u32,
+        (shard, shards): (u32, u32),
+        invalid: u64,
+    ) -> Header {
+        let (first_sample, end_sample) = Header::range(shard, shards, spp);
+        Header {
+            termtrace: env!("CARGO_PKG_VERSION").to_string(),
+            scene: scene.origin.clone(),
+            scene_hash: scene_hash(scene),
+            width: s.width,
+            height: s.height,
+            max_bounces: s.max_bounces,
+            seed: s.seed,
+            nee: s.nee,
+            spp,
+            shard,
+            shards,
+            first_sample,
+            end_sample,
+            invalid,
+        }
+    }
+
     /// The samples shard `i` of `k` holds of a render of `spp`: `[⌊i·spp/k⌋, ⌊(i+1)·spp/k⌋)`.
     pub fn range(i: u32, k: u32, spp: u32) -> (u32, u32) {
         let at = |i: u32| (i as u64 * spp as u64 / k as u64) as u32;
