@@ -40,10 +40,7 @@ fn every_shipped_scene_converges_to_the_gpu_image_on_the_cpu() {
 
 /// The share of pixels whose colours agree to a relative 10⁻³.
 fn agreeing(a: &LinearImage, b: &LinearImage) -> f64 {
-    let same = (a.pixels.iter().zip(&b.pixels))
-        .filter(|(p, q)| rel_err(**p, **q) < 1e-3)
-        .count();
-    same as f64 / a.pixels.len() as f64
+    agreeing_within(a, b, 1e-3)
 }
 
 #[test]

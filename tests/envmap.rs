@@ -452,16 +452,10 @@ fn both_tracers_draw_the_same_paths_under_a_map() {
     let gpu = image(at(termtrace::render::Backend::Gpu(ctx()), 5));
     let cpu = image(at(termtrace::render::Backend::Cpu, 5));
     let other = image(at(termtrace::render::Backend::Cpu, 6));
-    let share = |a: &termtrace::output::LinearImage, b: &termtrace::output::LinearImage| {
-        let same = a
-            .pixels
-            .iter()
-            .zip(&b.pixels)
-            .filter(|(p, q)| rel_err(**p, **q) < 1e-2)
-            .count();
-        same as f64 / a.pixels.len() as f64
-    };
-    let (same, chance) = (share(&gpu, &cpu), share(&cpu, &other));
+    let (same, chance) = (
+        agreeing_within(&gpu, &cpu, 1e-2),
+        agreeing_within(&cpu, &other, 1e-2),
+    );
     eprintln!(
         "same seed: {:.1} % equal; another seed: {:.1} %",
         100.0 * same,

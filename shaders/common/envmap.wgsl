@@ -50,14 +50,12 @@ struct EnvTexel {
 }
 
 fn env_texel_of(d: vec3f, rotation: f32) -> EnvTexel {
-    let v = acos(clamp(d.y, -1.0, 1.0)) / ENV_PI;
-    let turns = (atan2(-d.x, d.z) - rotation) / (2.0 * ENV_PI);
-    let u = turns - floor(turns);
+    let c = env_coordinates(d, rotation);
     let w = env_width();
     let h = env_height();
-    let x = min(u32(u * f32(w)), w - 1u);
-    let y = min(u32(v * f32(h)), h - 1u);
-    return EnvTexel(x, y, v);
+    let x = min(u32(c.x * f32(w)), w - 1u);
+    let y = min(u32(c.y * f32(h)), h - 1u);
+    return EnvTexel(x, y, c.y);
 }
 
 fn env_cdf(word: u32) -> f32 {

@@ -1,7 +1,8 @@
 //! What every subcommand shares: the global options and the value parsers.
 
+use crate::output::{ImageFile, Transfer, check_writable};
 use clap::Args;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Options every command takes.
 #[derive(Args, Debug, Clone)]
@@ -32,6 +33,44 @@ pub struct GlobalArgs {
     /// More detail in the logs (-v info, -vv debug).
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
     pub verbose: u8,
+}
+
+/// The image options `render` and `merge` share.
+#[derive(Args, Debug, Clone)]
+pub struct ImageArgs {
+    /// Also write the linear radiance as 32-bit float OpenEXR (a name ending in `.exr`).
+    #[arg(long, value_name = "EXR")]
+    pub exr: Option<PathBuf>,
+    /// Write a 16-bit PNG.
+    #[arg(long)]
+    pub png16: bool,
+    /// Transfer function of the PNG.
+    #[arg(long, value_enum, default_value_t = Transfer::Srgb)]
+    pub transfer: Transfer,
+}
+
+impl ImageArgs {
+    /// Refuses, before any work, what does not fit an image of `kind` written to `out`:
+    /// `--png16` for an OpenEXR file, an `--exr` name that is not one, an unwritable `--exr`.
+    pub fn check(&self, out: &Path, kind: ImageFile) -> anyhow::Result<()> {
+        if kind == ImageFile::Exr && self.png16 {
+            anyhow::bail!(
+                "--png16 asks for a 16-bit PNG, but {} is an OpenEXR file (32-bit float)",
+                out.display()
+            );
+        }
+        if let Some(exr) = &self.exr {
+            // A name without an extension is a PNG's (`ImageFile::of`).
+            if ImageFile::of(exr)? != ImageFile::Exr {
+                anyhow::bail!(
+                    "--exr {}: the OpenEXR file's name must end in .exr",
+                    exr.display()
+                );
+            }
+            check_writable(exr)?;
+        }
+        Ok(())
+    }
 }
 
 /// A fraction in (0, 1] (`--scale`).

@@ -2,9 +2,10 @@
 //! image, bit for bit the image one device would have made; parts missing, given twice, from
 //! another render or corrupted are refused by name, and nothing is written.
 
+use super::args::ImageArgs;
 use crate::common::AccumData;
 use crate::common::accum::decode;
-use crate::output::{ImageFile, Transfer, check_writable, write_exr, write_png};
+use crate::output::{ImageFile, check_writable, write_exr, write_png};
 use crate::render::Snapshot;
 use crate::render::shard::{self, Part};
 use clap::Args;
@@ -19,15 +20,8 @@ pub struct MergeArgs {
     /// The image: a PNG, linear OpenEXR (`.exr`), or the merged exact sums (`.tta`).
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
-    /// Also write the linear radiance as OpenEXR.
-    #[arg(long, value_name = "EXR")]
-    pub exr: Option<PathBuf>,
-    /// Write a 16-bit PNG.
-    #[arg(long)]
-    pub png16: bool,
-    /// Transfer function of the PNG.
-    #[arg(long, value_enum, default_value_t = Transfer::Srgb)]
-    pub transfer: Transfer,
+    #[command(flatten)]
+    pub image: ImageArgs,
 }
 
 /// The image of merged sums, decoded as a render's snapshot is.
@@ -47,24 +41,13 @@ pub fn image_of(whole: &Part) -> crate::output::LinearImage {
 
 pub fn run(a: MergeArgs) -> anyhow::Result<ExitCode> {
     let start = std::time::Instant::now();
-    let tta = a
-        .output
-        .extension()
-        .is_some_and(|e| e.to_string_lossy().eq_ignore_ascii_case("tta"));
-    let kind = if tta {
+    let kind = if shard::is_part_file(&a.output) {
         None
     } else {
         Some(ImageFile::of(&a.output)?)
     };
     check_writable(&a.output)?;
-    if let Some(exr) = &a.exr {
-        anyhow::ensure!(
-            ImageFile::of(exr)? == ImageFile::Exr,
-            "--exr {}: the OpenEXR file's name must end in .exr",
-            exr.display()
-        );
-        check_writable(exr)?;
-    }
+    a.image.check(&a.output, kind.unwrap_or(ImageFile::Png))?;
     let mut parts = Vec::with_capacity(a.parts.len());
     let mut errors = Vec::new();
     let mut bytes = 0u64;
@@ -82,13 +65,17 @@ pub fn run(a: MergeArgs) -> anyhow::Result<ExitCode> {
     }
     let whole = shard::merge(&parts).map_err(|e| anyhow::anyhow!("{e}; nothing written"))?;
     let h = &whole.header;
-    match kind {
-        None => shard::write(&a.output, &whole)?,
-        Some(ImageFile::Png) => write_png(&a.output, &image_of(&whole), a.transfer, a.png16)?,
-        Some(ImageFile::Exr) => write_exr(&a.output, &image_of(&whole))?,
+    // Decoded once, where an image is written.
+    let image = (kind.is_some() || a.image.exr.is_some()).then(|| image_of(&whole));
+    match (kind, &image) {
+        (Some(ImageFile::Png), Some(img)) => {
+            write_png(&a.output, img, a.image.transfer, a.image.png16)?
+        }
+        (Some(ImageFile::Exr), Some(img)) => write_exr(&a.output, img)?,
+        _ => shard::write(&a.output, &whole)?,
     }
-    if let Some(exr) = &a.exr {
-        write_exr(exr, &image_of(&whole))?;
+    if let (Some(exr), Some(img)) = (&a.image.exr, &image) {
+        write_exr(exr, img)?;
     }
     eprintln!(
         "wrote {} from {} parts of {} ({}x{}, {} spp, {} invalid samples; {:.1} MiB read, {:.2} s)",

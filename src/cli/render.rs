@@ -1,9 +1,9 @@
 //! `termtrace render`: a headless render to PNG (and linear EXR), with a progress bar,
 //! Ctrl-C that stops early and still saves, and atomic output files.
 
-use super::args::GlobalArgs;
+use super::args::{GlobalArgs, ImageArgs};
 use crate::common::FrameSettings;
-use crate::output::{ImageFile, LinearImage, Transfer, check_writable, write_exr, write_png};
+use crate::output::{ImageFile, LinearImage, check_writable, write_exr, write_png};
 use crate::render::Backend;
 use crate::render::{RenderOptions, Renderer};
 use crate::scene::MAX_IMAGE_SIDE;
@@ -42,15 +42,8 @@ pub struct RenderArgs {
     /// Maximum scatterings per path [default: the scene's].
     #[arg(long, value_parser = clap::value_parser!(u32).range(..=crate::scene::MAX_BOUNCES as i64))]
     pub max_bounces: Option<u32>,
-    /// Also write the linear radiance as 32-bit float OpenEXR (a name ending in `.exr`).
-    #[arg(long, value_name = "EXR")]
-    pub exr: Option<PathBuf>,
-    /// Write a 16-bit PNG.
-    #[arg(long)]
-    pub png16: bool,
-    /// Transfer function of the PNG.
-    #[arg(long, value_enum, default_value_t = Transfer::Srgb)]
-    pub transfer: Transfer,
+    #[command(flatten)]
+    pub image: ImageArgs,
     /// Use the generic tracer instead of one specialized for the scene.
     #[arg(long)]
     pub generic: bool,
@@ -116,7 +109,10 @@ pub(crate) fn frame_settings(
 
 pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.scene, g.camera.as_deref(), g.sky.as_deref())?;
-    let to_tta = a.output.as_ref().is_some_and(|o| is_tta(o));
+    let to_tta = a
+        .output
+        .as_deref()
+        .is_some_and(crate::render::shard::is_part_file);
     if a.shard.is_some() || to_tta {
         return run_shard(&a, g, &scene);
     }
@@ -126,22 +122,7 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         .unwrap_or_else(|| PathBuf::from(format!("{}.png", scene.short_name())));
     let kind = ImageFile::of(&out)?;
     check_writable(&out)?;
-    if kind == ImageFile::Exr && a.png16 {
-        anyhow::bail!(
-            "--png16 asks for a 16-bit PNG, but {} is an OpenEXR file (32-bit float)",
-            out.display()
-        );
-    }
-    if let Some(exr) = &a.exr {
-        // A name without an extension is a PNG's (`ImageFile::of`).
-        if ImageFile::of(exr)? != ImageFile::Exr {
-            anyhow::bail!(
-                "--exr {}: the OpenEXR file's name must end in .exr",
-                exr.display()
-            );
-        }
-        check_writable(exr)?;
-    }
+    a.image.check(&out, kind)?;
     let settings = FrameSettings {
         nee: !a.no_nee,
         ..frame_settings(&scene, a.width, a.height, a.max_bounces, a.seed)
@@ -266,11 +247,13 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let image = snap.image();
     let estimate = snap.noise_estimate();
     let written = match kind {
-        ImageFile::Png => save(&out, &image, |p| write_png(p, &image, a.transfer, a.png16))?,
+        ImageFile::Png => save(&out, &image, |p| {
+            write_png(p, &image, a.image.transfer, a.image.png16)
+        })?,
         ImageFile::Exr => save(&out, &image, |p| write_exr(p, &image))?,
     };
     let mut outputs = vec![written.display().to_string()];
-    if let Some(exr) = &a.exr {
+    if let Some(exr) = &a.image.exr {
         outputs.push(
             save(exr, &image, |p| write_exr(p, &image))?
                 .display()
@@ -370,11 +353,6 @@ pub(crate) fn rate_text(samples_per_second: f64) -> String {
     format!("{v:.2} {unit}samples/s")
 }
 
-fn is_tta(p: &Path) -> bool {
-    p.extension()
-        .is_some_and(|e| e.to_string_lossy().eq_ignore_ascii_case("tta"))
-}
-
 /// `--shard I/K` or `--shard K` (I from the scheduler's environment, `env`) as (I, K).
 pub(crate) fn shard_spec(
     spec: &str,
@@ -440,12 +418,12 @@ fn run_shard(
         .clone()
         .unwrap_or_else(|| PathBuf::from(format!("{}-part-{i}-of-{k}.tta", scene.short_name())));
     anyhow::ensure!(
-        is_tta(&out),
+        crate::render::shard::is_part_file(&out),
         "{}: a shard is written as exact sums to a .tta file (`termtrace merge` makes the image)",
         out.display()
     );
     anyhow::ensure!(
-        a.exr.is_none() && !a.png16,
+        a.image.exr.is_none() && !a.image.png16,
         "--exr and --png16 are options of the image; `termtrace merge` writes it from the shards"
     );
     check_writable(&out)?;

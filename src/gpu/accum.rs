@@ -78,17 +78,19 @@ impl Accumulation {
 
     /// Copies the exact sums (even, odd) and the invalid count back to the host, undecoded.
     pub fn read_words(&self, ctx: &GpuContext) -> (Vec<u32>, Vec<u32>, u64) {
-        let d = self.read_raw(ctx);
         let n = self.pixels as usize * ACCUM_WORDS;
-        (
-            d.0[..n].to_vec(),
-            d.0[n..].to_vec(),
-            d.1[0] as u64 | (d.1[1] as u64) << 32,
-        )
+        self.read_with(ctx, |words, c| {
+            (
+                words[..n].to_vec(),
+                words[n..].to_vec(),
+                c[0] as u64 | (c[1] as u64) << 32,
+            )
+        })
     }
 
-    /// The words of both halves and the counters' words, from the GPU.
-    fn read_raw(&self, ctx: &GpuContext) -> (Vec<u32>, Vec<u32>) {
+    /// Copies the sums and counters back and gives `f` the words of both halves and the
+    /// counters' words, in place in the mapped readback buffer.
+    fn read_with<R>(&self, ctx: &GpuContext, f: impl FnOnce(&[u32], &[u32]) -> R) -> R {
         let half = self.pixels * PIXEL_BYTES;
         let mut enc = ctx
             .device
@@ -113,27 +115,28 @@ impl Accumulation {
         let data = slice
             .get_mapped_range()
             .expect("the readback buffer is mapped");
-        let words: Vec<u32> = bytemuck::cast_slice(&data[..(2 * half) as usize]).to_vec();
-        let counters: Vec<u32> = bytemuck::cast_slice(&data[(2 * half) as usize..]).to_vec();
+        let out = f(
+            bytemuck::cast_slice(&data[..(2 * half) as usize]),
+            bytemuck::cast_slice(&data[(2 * half) as usize..]),
+        );
         drop(data);
         self.staging.unmap();
-        (words, counters)
+        out
     }
 
     /// Copies everything back to the host and decodes the fixed-point sums.
     pub fn read(&self, ctx: &GpuContext) -> AccumData {
-        let (words, c) = self.read_raw(ctx);
-        let n = self.pixels as usize;
-        let even = decode(&words[..n * ACCUM_WORDS]);
-        let odd = decode(&words[n * ACCUM_WORDS..]);
-        let u64_of = |lo: u32, hi: u32| lo as u64 | (hi as u64) << 32;
-        AccumData {
-            even,
-            odd,
-            invalid: u64_of(c[0], c[1]),
-            segments: u64_of(c[2], c[3]),
-            node_visits: u64_of(c[4], c[5]),
-            primitive_tests: u64_of(c[6], c[7]),
-        }
+        let n = self.pixels as usize * ACCUM_WORDS;
+        self.read_with(ctx, |words, c| {
+            let u64_of = |lo: u32, hi: u32| lo as u64 | (hi as u64) << 32;
+            AccumData {
+                even: decode(&words[..n]),
+                odd: decode(&words[n..]),
+                invalid: u64_of(c[0], c[1]),
+                segments: u64_of(c[2], c[3]),
+                node_visits: u64_of(c[4], c[5]),
+                primitive_tests: u64_of(c[6], c[7]),
+            }
+        })
     }
 }

@@ -116,6 +116,12 @@ pub fn scene_hash(scene: &crate::scene::Scene) -> String {
     format!("{:08x}{:08x}", a.finalize(), b.finalize())
 }
 
+/// Whether `path` names a snapshot file (`.tta`, any case).
+pub fn is_part_file(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("tta"))
+}
+
 fn words_of(h: &Header) -> usize {
     h.width as usize * h.height as usize * ACCUM_WORDS
 }

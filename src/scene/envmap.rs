@@ -24,13 +24,8 @@ impl EnvMap {
     /// hide that, and one such texel would bias every image it lights).
     pub fn load(path: &Path) -> Result<EnvMap, String> {
         let name = path.display().to_string();
-        let img = image::ImageReader::open(path)
-            .map_err(|e| format!("{name}: cannot read it: {e}"))?
-            .with_guessed_format()
-            .map_err(|e| format!("{name}: cannot read it: {e}"))?
-            .decode()
-            .map_err(|e| format!("{name}: not a Radiance HDR or OpenEXR image: {e}"))?;
-        Self::from_image(img.to_rgb32f(), name)
+        let bytes = std::fs::read(path).map_err(|e| format!("{name}: cannot read it: {e}"))?;
+        Self::from_bytes(&bytes, &name)
     }
 
     /// A map from a file's bytes (a built-in scene's); `name` for messages.

@@ -278,9 +278,7 @@ impl Distribution {
     /// The texel unit direction `d` falls in, and its v (`env_texel_of` in
     /// shaders/common/envmap.wgsl, the same arithmetic).
     pub fn texel_of(&self, d: Vec3, rotation: f32) -> (u32, u32, f32) {
-        let v = d.y.clamp(-1.0, 1.0).acos() / PI;
-        let turns = ((-d.x).atan2(d.z) - rotation) / (2.0 * PI);
-        let u = turns - turns.floor();
+        let (u, v) = coordinates(d, rotation);
         let x = ((u * self.width as f32) as u32).min(self.width - 1);
         let y = ((v * self.height as f32) as u32).min(self.height - 1);
         (x, y, v)

@@ -160,13 +160,21 @@ impl Environment {
     /// The map of `file` (as written) at `path`, with the defaults: intensity 1, no rotation,
     /// visible.
     pub fn load(file: &str, path: &Path) -> Result<Environment, String> {
-        Ok(Environment {
+        Ok(Self::with_defaults(
+            file,
+            super::envmap::EnvMap::load(path)?,
+        ))
+    }
+
+    /// `map`, named `file`, with intensity 1, no rotation, visible.
+    fn with_defaults(file: &str, map: super::envmap::EnvMap) -> Environment {
+        Environment {
             file: file.to_string(),
-            map: std::sync::Arc::new(super::envmap::EnvMap::load(path)?),
+            map: std::sync::Arc::new(map),
             intensity: 1.0,
             rotation: 0.0,
             visible: true,
-        })
+        }
     }
 
     /// A built-in scene's map, from the binary (`BUILTIN_MAPS`).
@@ -175,13 +183,10 @@ impl Environment {
             .iter()
             .find(|(n, _)| *n == file)
             .ok_or_else(|| format!("no built-in map `{file}`"))?;
-        Ok(Environment {
-            file: file.to_string(),
-            map: std::sync::Arc::new(super::envmap::EnvMap::from_bytes(bytes, file)?),
-            intensity: 1.0,
-            rotation: 0.0,
-            visible: true,
-        })
+        Ok(Self::with_defaults(
+            file,
+            super::envmap::EnvMap::from_bytes(bytes, file)?,
+        ))
     }
 
     /// Whether the map sends any light: its texels are not all black and its intensity is

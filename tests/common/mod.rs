@@ -165,6 +165,14 @@ pub fn first_sample_dirs(u: &SceneUniforms, w: u32, h: u32) -> Vec<(u32, u32, DV
     out
 }
 
+/// The share of pixels whose colours agree to a relative `tol`.
+pub fn agreeing_within(a: &LinearImage, b: &LinearImage, tol: f64) -> f64 {
+    let same = (a.pixels.iter().zip(&b.pixels))
+        .filter(|(p, q)| rel_err(**p, **q) < tol)
+        .count();
+    same as f64 / a.pixels.len() as f64
+}
+
 /// Largest relative difference between two colours.
 pub fn rel_err(a: [f32; 3], b: [f32; 3]) -> f64 {
     (0..3)
