@@ -872,3 +872,123 @@ fn trace(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_in
         }
     }
 }
+
+// ---- The denoiser's guides (src/denoise; docs/MODEL-NOTES.md, "Denoising") ----
+// Per pixel, the albedo and the shading normal of the first surface that is not a perfect
+// specular one, seen through mirrors and clear glass as Open Image Denoise defines its guides:
+// `GUIDE_WORDS` words, the fixed-point sums (1/65535 steps, exact in any order) of the albedo's
+// three channels and of the normal's mapped to [0, 1], and the sample count. Their own random
+// streams (the seed xor GUIDE_SEED), so that they are independent of both halves of the
+// radiance. Entry point `guides`, compiled only where a render denoises.
+const GUIDE_WORDS: u32 = 7u;
+const GUIDE_SEED: u32 = 0x6a09e667u;
+const GUIDE_SPECULAR_DEPTH: u32 = 4u;
+
+@group(1) @binding(0) var<storage, read_write> guide_sums: array<u32>;
+
+struct Guide {
+    albedo: vec3f,
+    normal: vec3f,
+}
+
+fn guide_of(primary: Ray) -> Guide {
+    var ray = primary;
+    var tint = vec3f(1.0);
+    for (var depth = 0u; depth <= GUIDE_SPECULAR_DEPTH; depth++) {
+        let hit = intersect_scene(ray);
+        if hit.kind == KIND_NONE {
+            return Guide(tint, vec3f(0.0));
+        }
+        let surf = surface_at(hit, ray);
+        var m = materials[surf.material];
+        var rec = TEX_NONE;
+        var bary = vec2f(0.0);
+        var uv = vec2f(0.0);
+        if HAS_TEXTURES && hit.kind == KIND_TRIANGLE {
+            rec = tex_record(surf.material);
+            if rec != TEX_NONE {
+                let tri = triangles[hit.index];
+                bary = triangle_barycentrics(tri, surf.point.position - tri.v0);
+                uv = tex_uv_at(hit.index, bary);
+                m = tex_material(m, rec, uv);
+            }
+        }
+        let n_out = surf.point.normal;
+        let front = dot(ray.dir, n_out) < 0.0;
+        let n = select(-n_out, n_out, front);
+        if HAS_EMITTERS && m.light > 0.0 {
+            return Guide(tint * m.color, n);
+        }
+        let last = depth == GUIDE_SPECULAR_DEPTH;
+        if HAS_DIELECTRICS && m.smoothness < 0.0 {
+            if m.absorption > 0.0 || last {
+                return Guide(tint * m.color, n);
+            }
+            // Clear glass: through it where it refracts, else by total internal reflection.
+            let ratio = select(m.ior, 1.0 / m.ior, front);
+            let cos_theta = min(dot(-ray.dir, n), 1.0);
+            let sin_theta = sqrt(max(0.0, 1.0 - cos_theta * cos_theta));
+            var dir = normalize(reflect(ray.dir, n));
+            if ratio * sin_theta <= 1.0 {
+                dir = normalize(refract_dir(ray.dir, n, cos_theta, ratio));
+            }
+            tint *= m.color;
+            let side = select(-n_out, n_out, dot(dir, n_out) > 0.0);
+            ray = Ray(offset_ray(surf.point.position, side), dir);
+            continue;
+        }
+        var ns = n;
+        if HAS_NORMAL_MAPS && hit.kind == KIND_TRIANGLE && tex_has_normal_map(rec) {
+            ns = tex_shading_normal(rec, hit.index, bary, uv, n_out);
+            ns = select(-ns, ns, dot(ns, n) >= 0.0);
+        }
+        if m.specular >= 1.0 && m.smoothness >= 1.0 && m.absorption == 0.0 && !last {
+            // A perfect mirror.
+            tint *= m.specular_color;
+            let dir = reflect(ray.dir, ns);
+            let side = select(-n_out, n_out, dot(dir, n_out) > 0.0);
+            ray = Ray(offset_ray(surf.point.position, side), dir);
+            continue;
+        }
+        let s = clamp(m.specular, 0.0, 1.0);
+        return Guide(tint * mix(m.color, m.specular_color, s), ns);
+    }
+    return Guide(tint, vec3f(0.0));
+}
+
+fn guide_quantize(v: f32) -> u32 {
+    return u32(clamp(v, 0.0, 1.0) * 65535.0 + 0.5);
+}
+
+// One invocation per pixel of the image: adds guide samples sample_base .. + sample_count to
+// the pixel's sums (restarted when `accumulate` is 0).
+@compute @workgroup_size(8, 8, 1)
+fn guides(@builtin(global_invocation_id) gid: vec3u) {
+    if gid.x >= scene.width || gid.y >= scene.height {
+        return;
+    }
+    let px = gid.xy;
+    let pixel = px.y * scene.width + px.x;
+    let b = pixel * GUIDE_WORDS;
+    var sums: array<u32, 7>;
+    if batch.accumulate != 0u {
+        for (var i = 0u; i < GUIDE_WORDS; i++) {
+            sums[i] = guide_sums[b + i];
+        }
+    }
+    for (var i = 0u; i < batch.sample_count; i++) {
+        var state = rng_init(pixel, batch.sample_base + i, scene.seed ^ GUIDE_SEED);
+        let g = guide_of(camera_ray(px, &state));
+        let nm = g.normal * 0.5 + 0.5;
+        sums[0] += guide_quantize(g.albedo.x);
+        sums[1] += guide_quantize(g.albedo.y);
+        sums[2] += guide_quantize(g.albedo.z);
+        sums[3] += guide_quantize(nm.x);
+        sums[4] += guide_quantize(nm.y);
+        sums[5] += guide_quantize(nm.z);
+        sums[6] += 1u;
+    }
+    for (var i = 0u; i < GUIDE_WORDS; i++) {
+        guide_sums[b + i] = sums[i];
+    }
+}

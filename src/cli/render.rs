@@ -62,6 +62,12 @@ pub struct RenderArgs {
     /// of the samples) falls below this, e.g. 0.01 for 1 %.
     #[arg(long, value_name = "E", value_parser = super::args::positive)]
     pub target_error: Option<f64>,
+    /// Write the denoised image (guided by the albedo and normal of the first surfaces the
+    /// camera sees; tile by tile the raw image wherever that is estimated better), and beside
+    /// it the raw linear image and the guides as OpenEXR: NAME-raw.exr, NAME-albedo.exr,
+    /// NAME-normal.exr.
+    #[arg(long, conflicts_with = "shard")]
+    pub denoise: bool,
     /// No progress bar.
     #[arg(short, long)]
     pub quiet: bool,
@@ -244,8 +250,42 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     pb.finish_and_clear();
     let elapsed = start.elapsed();
     let snap = r.snapshot();
-    let image = snap.image();
+    let mut image = snap.image();
     let estimate = snap.noise_estimate();
+    let mut extra = Vec::new();
+    let mut denoised_text = String::new();
+    if a.denoise {
+        let guides = r.guides().clone();
+        let d = crate::denoise::denoise(&snap.data.even, &snap.data.odd, &guides);
+        let side = |suffix: &str| {
+            let stem = out.file_stem().unwrap_or_default().to_string_lossy();
+            out.with_file_name(format!("{stem}-{suffix}.exr"))
+        };
+        let as_image = |pixels: Vec<[f32; 3]>| LinearImage {
+            width: settings.width,
+            height: settings.height,
+            pixels,
+        };
+        let n = d.tiles.iter().filter(|&&t| t).count();
+        denoised_text = format!(
+            ", denoised {} in {n} of {} tiles",
+            pct(Some(d.rel_rmse(d.shown_sums()))),
+            d.tiles.len()
+        );
+        for (suffix, img) in [
+            ("raw", image.clone()),
+            ("albedo", as_image(guides.albedo.clone())),
+            ("normal", as_image(guides.normal.clone())),
+        ] {
+            let path = side(suffix);
+            extra.push(
+                save(&path, &img, |p| write_exr(p, &img))?
+                    .display()
+                    .to_string(),
+            );
+        }
+        image = as_image(d.shown());
+    }
     let written = match kind {
         ImageFile::Png => save(&out, &image, |p| {
             write_png(p, &image, a.image.transfer, a.image.png16)
@@ -253,6 +293,7 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         ImageFile::Exr => save(&out, &image, |p| write_exr(p, &image))?,
     };
     let mut outputs = vec![written.display().to_string()];
+    outputs.extend(extra);
     if let Some(exr) = &a.image.exr {
         outputs.push(
             save(exr, &image, |p| write_exr(p, &image))?
@@ -262,7 +303,7 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     }
     let rate = paths as f64 / elapsed.as_secs_f64().max(1e-9);
     eprintln!(
-        "{}{} ({}x{}, {} spp, {:.1} s, {} on {}, estimated error {}, {} invalid samples)",
+        "{}{} ({}x{}, {} spp, {:.1} s, {} on {}, estimated error {}{denoised_text}, {} invalid samples)",
         if interrupted {
             "interrupted; wrote "
         } else if reached {
@@ -277,10 +318,15 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         elapsed.as_secs_f64(),
         rate_text(rate),
         ctx.describe(),
-        estimate.map_or("–".into(), |e| format!("{:.3}%", e * 100.0)),
+        pct(estimate),
         snap.invalid_samples(),
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// An estimated relative error as a percentage (– where not known).
+fn pct(e: Option<f64>) -> String {
+    e.map_or("–".into(), |e| format!("{:.3}%", e * 100.0))
 }
 
 /// Writes with `write`; if that fails, saves the image to the temporary directory instead so

@@ -1,6 +1,6 @@
 //! What both tracers stand on, backend-neutral: the scene's arrays and the Pod mirrors of
 //! the WGSL structs they are made of, the exact-sum accumulation format and its decoding, the
-//! resolved preview frame, the frame settings, the feature set that drives specialization,
+//! resolved preview frame, the denoiser's guides, the frame settings, the feature set that drives specialization,
 //! an environment map's directions and sampling distribution, and the WGSL text the shared
 //! constants are read from. `gpu` uploads these arrays and
 //! `cpu` reads them as they are; neither imports the other.
@@ -9,6 +9,7 @@ pub mod accum;
 pub mod arrays;
 pub mod envmap;
 pub mod features;
+pub mod guides;
 pub mod layout;
 pub mod resolved;
 pub mod textures;
@@ -17,4 +18,5 @@ pub mod wgsl;
 pub use accum::AccumData;
 pub use arrays::FrameSettings;
 pub use features::Features;
+pub use guides::Guides;
 pub use resolved::Resolved;

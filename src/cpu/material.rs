@@ -22,12 +22,12 @@ fn schlick(cosine: f32, ratio: f32) -> f32 {
     r0 + (1.0 - r0) * (x2 * x2 * x)
 }
 
-fn reflect(d: Vec3A, n: Vec3A) -> Vec3A {
+pub(super) fn reflect(d: Vec3A, n: Vec3A) -> Vec3A {
     d - 2.0 * d.dot(n) * n
 }
 
 /// Snell's law in the lecture's form (r_perp, r_par), `n` facing the incoming `d`.
-fn refract_dir(d: Vec3A, n: Vec3A, cos_theta: f32, ratio: f32) -> Vec3A {
+pub(super) fn refract_dir(d: Vec3A, n: Vec3A, cos_theta: f32, ratio: f32) -> Vec3A {
     let r_perp = ratio * (d + cos_theta * n);
     let r_par = -(1.0 - r_perp.dot(r_perp)).abs().sqrt() * n;
     r_perp + r_par

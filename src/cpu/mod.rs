@@ -28,6 +28,7 @@ pub mod trace;
 
 use crate::common::Resolved;
 use crate::common::accum::{ACCUM_WORDS, AccumData, decode, decode_pixel};
+use crate::common::guides::{GUIDE_SEED, GUIDE_WORDS, Guides};
 use crate::common::layout::DispatchUniforms;
 use crate::common::{Features, FrameSettings};
 use crate::scene::Scene;
@@ -329,6 +330,35 @@ impl CpuEngine {
                 store(&sums, (e, o));
             });
         counters
+    }
+
+    /// The denoiser's guide sums (`GUIDE_WORDS` words per pixel) of guide samples
+    /// `samples` of every pixel, as `fn guides` in trace.wgsl makes them, rows in parallel.
+    pub fn guides(&self, f: Features, samples: std::ops::Range<u32>) -> Vec<u32> {
+        let spheres_only = !(f.quads || f.boxes || f.triangles);
+        let width = self.width as usize;
+        let mut words = vec![0u32; width * self.height as usize * GUIDE_WORDS];
+        let scene = &self.scene;
+        words
+            .par_chunks_mut(width * GUIDE_WORDS)
+            .enumerate()
+            .for_each(|(y, row)| {
+                let mut t = Tracer::new(scene, f);
+                for (x, w) in row.chunks_exact_mut(GUIDE_WORDS).enumerate() {
+                    let pixel = (y * width + x) as u32;
+                    for sample in samples.clone() {
+                        let mut rng = Rng::new(pixel, sample, scene.u.seed ^ GUIDE_SEED);
+                        let ray = t.camera_ray(x as u32, y as u32, &mut rng);
+                        let (albedo, normal) = if spheres_only {
+                            t.guide::<SPHERES>(ray)
+                        } else {
+                            t.guide::<ANY>(ray)
+                        };
+                        Guides::add(w, albedo, normal);
+                    }
+                }
+            });
+        words
     }
 
     /// The exact sums (even, odd) and the invalid samples.

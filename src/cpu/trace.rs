@@ -14,7 +14,7 @@ use super::bvh::{Stack, Tally};
 #[cfg(target_arch = "x86_64")]
 use super::bvh8::Stack8;
 use super::intersect::*;
-use super::material::{Scatter, scatter_dielectric, scatter_surface};
+use super::material::{Scatter, reflect, refract_dir, scatter_dielectric, scatter_surface};
 #[cfg(target_arch = "x86_64")]
 use super::packet::Packets;
 use super::rng::Rng;
@@ -660,6 +660,90 @@ impl<'a> Tracer<'a> {
             bounce += 1;
         }
         (radiance, segments)
+    }
+}
+
+/// Mirrors and clear glass the guides look through before they give up (the sky's guide).
+const GUIDE_SPECULAR_DEPTH: u32 = 4;
+
+impl Tracer<'_> {
+    /// The denoiser's guide sample of a camera ray: the albedo and shading normal of the
+    /// first surface that is not a perfect mirror or clear glass (`guide_of` in trace.wgsl;
+    /// the sky's normal is zero).
+    pub fn guide<const P: u32>(&mut self, primary: Ray) -> ([f32; 3], [f32; 3]) {
+        let mut ray = primary;
+        let mut tint = Vec3A::ONE;
+        let mut skip = NONE;
+        for depth in 0..=GUIDE_SPECULAR_DEPTH {
+            let Some(hit) = self.intersect::<P>(&ray, skip) else {
+                return (tint.to_array(), [0.0; 3]);
+            };
+            let (point, material) = self.surface_at(hit, &ray);
+            let mut m = &self.s.materials[material as usize];
+            let textured;
+            let mut mapped = None;
+            if !self.s.tex.is_empty()
+                && hit.r >> 30 == 3
+                && let Some(rec) = super::texture::record(&self.s.tex, material)
+            {
+                let i = hit.r & INDEX;
+                let tri = &self.s.triangles[i as usize];
+                let bary = triangle_barycentrics(tri, point.position - tri.v0);
+                let uv = super::texture::uv_at(&self.s.tex, i, bary);
+                textured = super::texture::material(&self.s.tex, m, rec, uv);
+                m = &textured;
+                mapped = Some((rec, bary, uv));
+            }
+            let n_out = point.normal;
+            let front = ray.dir.dot(n_out) < 0.0;
+            let n = if front { n_out } else { -n_out };
+            if self.f.emitters && m.light > 0.0 {
+                return ((tint * m.color).to_array(), n.to_array());
+            }
+            let last = depth == GUIDE_SPECULAR_DEPTH;
+            let dir;
+            if self.f.dielectrics && m.smoothness < 0.0 {
+                if m.absorption > 0.0 || last {
+                    return ((tint * m.color).to_array(), n.to_array());
+                }
+                let ratio = if front { 1.0 / m.ior } else { m.ior };
+                let cos_theta = (-ray.dir).dot(n).min(1.0);
+                let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+                dir = if ratio * sin_theta <= 1.0 {
+                    refract_dir(ray.dir, n, cos_theta, ratio).normalize()
+                } else {
+                    reflect(ray.dir, n).normalize()
+                };
+                tint *= m.color;
+            } else {
+                let mut ns = n;
+                if self.s.normal_maps
+                    && let Some((rec, bary, uv)) = mapped
+                    && super::texture::has_normal_map(&self.s.tex, rec)
+                {
+                    let i = hit.r & INDEX;
+                    ns = super::texture::shading_normal(&self.s.tex, rec, i, bary, uv, n_out);
+                    if ns.dot(n) < 0.0 {
+                        ns = -ns;
+                    }
+                }
+                if !(m.specular >= 1.0 && m.smoothness >= 1.0 && m.absorption == 0.0) || last {
+                    let s = m.specular.clamp(0.0, 1.0);
+                    let albedo = tint * m.color.lerp(m.specular_color, s);
+                    return (albedo.to_array(), ns.to_array());
+                }
+                tint *= m.specular_color;
+                dir = reflect(ray.dir, ns);
+            }
+            let out = dir.dot(n_out) > 0.0;
+            let side = if out { n_out } else { -n_out };
+            skip = self.leaving(hit.r, out);
+            ray = Ray {
+                origin: offset_ray(point.position, side),
+                dir,
+            };
+        }
+        (tint.to_array(), [0.0; 3])
     }
 }
 

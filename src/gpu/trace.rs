@@ -221,6 +221,16 @@ impl TracePass {
         )
     }
 
+    /// The shader module (the guide pass compiles its entry point `guides` from it).
+    pub fn module(&self) -> &wgpu::ShaderModule {
+        &self.module
+    }
+
+    /// The layout of group 0, the scene's and accumulation's buffers.
+    pub fn layout(&self) -> &wgpu::BindGroupLayout {
+        &self.layout
+    }
+
     /// The per-submission uniforms buffer (the reduce pass reads it too).
     pub fn dispatch_buffer(&self) -> &wgpu::Buffer {
         &self.dispatch

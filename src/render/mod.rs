@@ -20,9 +20,11 @@ pub use schedule::Schedule;
 pub use snapshot::{ErrorEstimate, Snapshot};
 
 use crate::common::Resolved;
+use crate::common::guides::{GUIDE_SAMPLES, Guides};
 use crate::common::layout::DispatchUniforms;
 use crate::common::{Features, FrameSettings};
 use crate::cpu::CpuEngine;
+use crate::gpu::guides::GuidePass;
 use crate::gpu::reduce::ReducePass;
 use crate::gpu::timer::GpuTimer;
 use crate::gpu::trace::TraceDispatch;
@@ -198,6 +200,8 @@ struct GpuEngine {
     reduce: ReducePass,
     reduce_bind_group: wgpu::BindGroup,
     timer: Option<GpuTimer>,
+    /// Made on the first denoised frame.
+    guides: Option<GuidePass>,
 }
 
 enum Engine {
@@ -276,6 +280,8 @@ pub struct Renderer {
     last_pipeline: Option<Features>,
     /// When the GPU last finished a submission (as seen by `wait`).
     last_done: Instant,
+    /// The denoiser's guides of the current scene and settings, once asked for.
+    guides: Option<Guides>,
 }
 
 impl Renderer {
@@ -308,6 +314,7 @@ impl Renderer {
             tune_from: 0,
             last_pipeline: None,
             last_done: Instant::now(),
+            guides: None,
         };
         r.retune();
         r
@@ -535,7 +542,37 @@ impl Renderer {
             Engine::Cpu(c) => c.set_scene(scene, &settings),
         }
         self.settings = settings;
+        self.guides = None;
         self.reset();
+    }
+
+    /// The denoiser's guides (albedo and normal of every pixel, `GUIDE_SAMPLES` samples
+    /// each), made by the tracer on the first call after the scene or settings change.
+    pub fn guides(&mut self) -> &Guides {
+        if self.guides.is_none() {
+            let (w, h) = (self.settings.width, self.settings.height);
+            let samples = 0..GUIDE_SAMPLES;
+            let features = self.features;
+            let words = match &mut self.engine {
+                Engine::Gpu(g) => {
+                    let pass = g
+                        .guides
+                        .get_or_insert_with(|| GuidePass::new(&g.ctx.device, g.trace.layout()));
+                    pass.run(
+                        &g.ctx,
+                        g.trace.module(),
+                        &g.bind_group,
+                        g.trace.dispatch_buffer(),
+                        features,
+                        (w, h),
+                        samples,
+                    )
+                }
+                Engine::Cpu(c) => c.guides(features, samples),
+            };
+            self.guides = Some(Guides::decode(w, h, &words));
+        }
+        self.guides.as_ref().expect("guides just made")
     }
 
     /// Queues the next submission (part of a round: some rows at `k` samples per pixel) and
@@ -778,6 +815,7 @@ impl GpuEngine {
             reduce,
             reduce_bind_group,
             timer,
+            guides: None,
         }
     }
 

@@ -1,0 +1,279 @@
+//! The denoiser: filters each half of the samples on its own (`atrous`), guided by the
+//! albedo and normal the tracers make (`common::Guides`), shows their mean, and estimates its
+//! error from the halves, tile by tile, showing the raw image wherever that is estimated
+//! better.
+//!
+//! The estimator. Each pixel keeps two independent means of its samples, A and B (the even
+//! and odd halves), of variances v_A and v_B, unbiased for the true value μ. D(X) is the
+//! filter applied to X alone (its weights come from X and from guides traced with their own
+//! random streams), so D(A) is independent of B and D(B) of A. With a = D(A) − μ and
+//! b = D(B) − μ:
+//! - E[(D(A) − B)²] = E[a²] + v_B, E[(D(B) − A)²] = E[b²] + v_A, and E[(A − B)²] = v_A + v_B,
+//!   so ½(D(A) − B)² + ½(D(B) − A)² − ½(A − B)² estimates ½(E[a²] + E[b²]) without bias;
+//! - the image shown is D̄ = ½(D(A) + D(B)), whose squared error is
+//!   ¼(a + b)² = ½(a² + b²) − ¼(a − b)², and a − b = D(A) − D(B) is observed.
+//!
+//! So e = ½(D(A) − B)² + ½(D(B) − A)² − ½(A − B)² − ¼(D(A) − D(B))² is an unbiased estimate
+//! of D̄'s squared error at every pixel (one term per channel), whatever the filter. It is
+//! noisy pixel by pixel, and is summed over tiles. Two biases remain, both small: the
+//! filter's luminance weights read a noise variance that is a 7×7 mean of (A − B)², so D(A)
+//! depends on B through it (1/49 of a pixel's term); and choosing per tile the lower of two
+//! noisy estimates understates the shown image's error a little (the minimum of two
+//! estimates is biased low), most where the two are close.
+//!
+//! The raw image's estimate is `render::Snapshot::error_estimate`'s: (A − B)²·n_A·n_B/(n_A +
+//! n_B)². Both are reported as pbrt's relative MSE, each channel's term divided by the
+//! estimated reference² (A·B, unbiased) + 0.01, as the preview's noise figure is.
+
+pub mod atrous;
+
+use crate::common::Guides;
+use crate::common::resolved::REL_MSE_EPSILON;
+use atrous::{Guide, box_blur, filter, luminance};
+
+/// Traced pixels per side of the tiles whose raw or denoised image is chosen.
+pub const TILE: usize = 16;
+/// Radius of the box over which the halves' difference gives the filter its noise variance.
+const VARIANCE_RADIUS: usize = 3;
+/// Added to the albedo before the radiance is divided by it (demodulation), so that a black
+/// surface keeps its (zero) radiance finite.
+const ALBEDO_EPSILON: f32 = 0.01;
+/// `Mode::Auto` stops denoising once the raw image's estimated relative RMSE is below this.
+pub const AUTO_FLOOR: f64 = 0.01;
+
+/// When the denoiser runs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Mode {
+    /// While the raw image's estimated error is above 1 % (relative RMSE).
+    #[default]
+    Auto,
+    On,
+    Off,
+}
+
+impl Mode {
+    /// Whether to denoise an image whose raw estimated relative RMSE is `raw` (`None`: not
+    /// known yet, too few samples).
+    pub fn wants(self, raw: Option<f64>) -> bool {
+        match self {
+            Mode::On => true,
+            Mode::Off => false,
+            Mode::Auto => raw.is_none_or(|r| r > AUTO_FLOOR),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Auto => "auto",
+            Mode::On => "on",
+            Mode::Off => "off",
+        }
+    }
+}
+
+/// Estimated squared errors, summed over pixels and channels: absolute and relative.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sums {
+    pub mse: f64,
+    pub rel: f64,
+}
+
+impl Sums {
+    fn add(&mut self, o: Sums) {
+        self.mse += o.mse;
+        self.rel += o.rel;
+    }
+}
+
+/// A denoised frame at the traced size.
+#[derive(Clone, Debug)]
+pub struct Denoised {
+    pub width: u32,
+    pub height: u32,
+    /// The pooled mean of both halves (the unbiased image).
+    pub raw: Vec<[f32; 3]>,
+    /// ½(D(A) + D(B)) everywhere.
+    pub denoised: Vec<[f32; 3]>,
+    /// Per tile (row-major, `tiles_x` a row) whether the denoised image is shown there.
+    pub tiles: Vec<bool>,
+    pub tiles_x: usize,
+    /// Per tile, the estimated error sums of the raw and the denoised image.
+    pub tile_raw: Vec<Sums>,
+    pub tile_denoised: Vec<Sums>,
+    /// Channels the sums are over (3 × pixels).
+    pub channels: usize,
+}
+
+impl Denoised {
+    /// The image shown: per tile, whichever of the raw and the denoised one is estimated
+    /// better.
+    pub fn shown(&self) -> Vec<[f32; 3]> {
+        let w = self.width as usize;
+        (0..self.raw.len())
+            .map(|p| {
+                let t = (p / w / TILE) * self.tiles_x + (p % w) / TILE;
+                if self.tiles[t] {
+                    self.denoised[p]
+                } else {
+                    self.raw[p]
+                }
+            })
+            .collect()
+    }
+
+    fn total(&self, pick: impl Fn(usize) -> Sums) -> Sums {
+        let mut s = Sums::default();
+        for t in 0..self.tiles.len() {
+            s.add(pick(t));
+        }
+        s
+    }
+
+    /// The raw image's estimated error sums.
+    pub fn raw_sums(&self) -> Sums {
+        self.total(|t| self.tile_raw[t])
+    }
+
+    /// The denoised image's (everywhere) estimated error sums.
+    pub fn denoised_sums(&self) -> Sums {
+        self.total(|t| self.tile_denoised[t])
+    }
+
+    /// The shown image's estimated error sums.
+    pub fn shown_sums(&self) -> Sums {
+        self.total(|t| {
+            if self.tiles[t] {
+                self.tile_denoised[t]
+            } else {
+                self.tile_raw[t]
+            }
+        })
+    }
+
+    /// Relative RMSE from sums (pbrt's relative MSE's root; a negative estimate counts 0).
+    pub fn rel_rmse(&self, s: Sums) -> f64 {
+        (s.rel.max(0.0) / self.channels.max(1) as f64).sqrt()
+    }
+
+    /// RMSE from sums, in linear radiance.
+    pub fn rmse(&self, s: Sums) -> f64 {
+        (s.mse.max(0.0) / self.channels.max(1) as f64).sqrt()
+    }
+}
+
+/// The mean of a half's sums, `[r, g, b, samples]` (0 with no samples).
+fn mean(s: [f32; 4]) -> [f32; 3] {
+    if s[3] > 0.0 {
+        [s[0] / s[3], s[1] / s[3], s[2] / s[3]]
+    } else {
+        [0.0; 3]
+    }
+}
+
+/// Denoises the image whose even and odd halves' sums are `even` and `odd` (`[r, g, b,
+/// samples]` per pixel, as `common::AccumData` holds them), guided by `guides` (same size).
+pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised {
+    let (w, h) = (guides.width as usize, guides.height as usize);
+    assert_eq!(even.len(), w * h, "halves and guides of one size");
+    let a: Vec<[f32; 3]> = even.iter().map(|&s| mean(s)).collect();
+    let b: Vec<[f32; 3]> = odd.iter().map(|&s| mean(s)).collect();
+    let raw: Vec<[f32; 3]> = even
+        .iter()
+        .zip(odd)
+        .map(|(e, o)| {
+            let n = e[3] + o[3];
+            if n > 0.0 {
+                std::array::from_fn(|c| ((e[c] as f64 + o[c] as f64) / n as f64) as f32)
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect();
+    // Demodulation: the filter smooths the light arriving, not the texture it lights.
+    let modulation: Vec<[f32; 3]> = guides
+        .albedo
+        .iter()
+        .map(|a| a.map(|v| v + ALBEDO_EPSILON))
+        .collect();
+    let demod = |x: &[[f32; 3]]| -> Vec<[f32; 3]> {
+        x.iter()
+            .zip(&modulation)
+            .map(|(c, m)| std::array::from_fn(|i| c[i] / m[i]))
+            .collect()
+    };
+    let (da, db) = (demod(&a), demod(&b));
+    // The variance of one half's demodulated luminance: E[(A − B)²] = v_A + v_B, halved, and
+    // averaged over a 7×7 box.
+    let per_pixel: Vec<f32> = da
+        .iter()
+        .zip(&db)
+        .map(|(x, y)| 0.5 * (luminance(*x) - luminance(*y)).powi(2))
+        .collect();
+    let variance = box_blur(&per_pixel, w, h, VARIANCE_RADIUS);
+    let g = Guide {
+        width: w,
+        height: h,
+        albedo: &guides.albedo,
+        normal: &guides.normal,
+    };
+    let remod = |x: Vec<[f32; 3]>| -> Vec<[f32; 3]> {
+        x.iter()
+            .zip(&modulation)
+            .map(|(c, m)| std::array::from_fn(|i| c[i] * m[i]))
+            .collect()
+    };
+    let (fa, fb) = rayon::join(
+        || remod(filter(&g, &da, &variance)),
+        || remod(filter(&g, &db, &variance)),
+    );
+    let denoised: Vec<[f32; 3]> = fa
+        .iter()
+        .zip(&fb)
+        .map(|(x, y)| std::array::from_fn(|c| 0.5 * (x[c] + y[c])))
+        .collect();
+    let tiles_x = w.div_ceil(TILE);
+    let tiles_y = h.div_ceil(TILE);
+    let mut tile_raw = vec![Sums::default(); tiles_x * tiles_y];
+    let mut tile_denoised = tile_raw.clone();
+    for p in 0..w * h {
+        let t = (p / w / TILE) * tiles_x + (p % w) / TILE;
+        let (ne, no) = (even[p][3] as f64, odd[p][3] as f64);
+        if ne < 1.0 || no < 1.0 {
+            continue;
+        }
+        let k = ne * no / ((ne + no) * (ne + no));
+        for c in 0..3 {
+            let (x, y) = (a[p][c] as f64, b[p][c] as f64);
+            let (dx, dy) = (fa[p][c] as f64, fb[p][c] as f64);
+            let scale = 1.0 / ((x * y).max(0.0) + REL_MSE_EPSILON);
+            let r = (x - y).powi(2) * k;
+            let e = 0.5 * (dx - y).powi(2) + 0.5 * (dy - x).powi(2)
+                - 0.5 * (x - y).powi(2)
+                - 0.25 * (dx - dy).powi(2);
+            tile_raw[t].add(Sums {
+                mse: r,
+                rel: r * scale,
+            });
+            tile_denoised[t].add(Sums {
+                mse: e,
+                rel: e * scale,
+            });
+        }
+    }
+    let tiles = tile_raw
+        .iter()
+        .zip(&tile_denoised)
+        .map(|(r, d)| d.rel < r.rel)
+        .collect();
+    Denoised {
+        width: w as u32,
+        height: h as u32,
+        raw,
+        denoised,
+        tiles,
+        tiles_x,
+        tile_raw,
+        tile_denoised,
+        channels: 3 * w * h,
+    }
+}
