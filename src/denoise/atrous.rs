@@ -3,15 +3,30 @@
 //! 2010), its weights stopped by the normal and albedo guides and by luminance differences
 //! measured in units of the pixel's own noise, with that noise's variance carried through
 //! the iterations (Schied et al., "Spatiotemporal Variance-Guided Filtering", HPG 2017).
+//! Both halves are filtered in one pass: the guides' part of every weight is computed once
+//! for the two (shaders/denoise.wgsl does the same on the GPU).
 
 use rayon::prelude::*;
 
-/// Iterations, the taps 1, 2, 4, 8, 16 pixels apart: a 5×5 B3-spline kernel each.
+/// Iterations, the taps 1, 2, 4, 8, 16 pixels apart.
 pub const ITERATIONS: u32 = 5;
-/// The B3 spline's taps (1, 4, 6, 4, 1) / 16.
-const KERNEL: [f32; 5] = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
-/// The normal weight's exponent (SVGF's σn).
-const NORMAL_POWER: i32 = 128;
+/// The kernel of each iteration, separable: the B3 spline's (1, 4, 6, 4, 1) / 16 (5×5
+/// taps), or with TERMTRACE_DENOISE_KERNEL=3 (a benchmark's switch) the linear B-spline's
+/// (1, 2, 1) / 4 (3×3).
+const KERNEL5: [f32; 5] = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
+const KERNEL3: [f32; 5] = [0.0, 1.0 / 4.0, 1.0 / 2.0, 1.0 / 4.0, 0.0];
+
+fn kernel() -> &'static [f32; 5] {
+    static K: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    if *K.get_or_init(|| std::env::var("TERMTRACE_DENOISE_KERNEL").is_ok_and(|v| v == "3")) {
+        &KERNEL3
+    } else {
+        &KERNEL5
+    }
+}
+/// The normal weight is the cosine between the normals to this power (SVGF's σn = 128),
+/// as seven squarings.
+const NORMAL_SQUARINGS: u32 = 7;
 /// The albedo weight's scale: a difference of this much (Euclidean, linear) costs e⁻¹.
 const ALBEDO_SIGMA: f32 = 0.1;
 /// The luminance weight's scale in standard deviations of the pixel's noise (SVGF's σl).
@@ -21,6 +36,7 @@ const LUMINANCE_SIGMA: f32 = 4.0;
 const LUMINANCE_EPSILON: f32 = 1e-6;
 
 /// Rec. 709 luminance of linear RGB.
+#[inline(always)]
 pub fn luminance(c: [f32; 3]) -> f32 {
     0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
@@ -33,92 +49,186 @@ pub struct Guide<'a> {
     pub normal: &'a [[f32; 3]],
 }
 
-/// The normal weight: 1 between two sky pixels (zero normals), 0 between the sky and a
-/// surface, else the cosine between the normals to the power 128.
+/// A pixel's guide as the weights read it: albedo, and the normal made unit length (zero
+/// for the sky: a guide normal shorter than 0.1).
+#[derive(Clone, Copy)]
+struct Texel {
+    albedo: [f32; 3],
+    normal: [f32; 3],
+    sky: bool,
+}
+
+fn texels(g: &Guide) -> Vec<Texel> {
+    g.albedo
+        .iter()
+        .zip(g.normal)
+        .map(|(&albedo, n)| {
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            let sky = len < 0.1;
+            let normal = if sky { [0.0; 3] } else { n.map(|v| v / len) };
+            Texel {
+                albedo,
+                normal,
+                sky,
+            }
+        })
+        .collect()
+}
+
+/// e^x for x ≤ 0 (and 0 below −80), to 10⁻⁴ relative: the integer part of x·log2(e)
+/// in the exponent bits, 2^fraction by a degree-5 polynomial. libm's expf was a third of the
+/// filter's time.
 #[inline(always)]
-fn normal_weight(a: [f32; 3], b: [f32; 3]) -> f32 {
-    let la = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
-    let lb = b[0] * b[0] + b[1] * b[1] + b[2] * b[2];
-    const SKY: f32 = 0.01;
-    match (la < SKY, lb < SKY) {
-        (true, true) => 1.0,
-        (false, false) => {
-            let c = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / (la * lb).sqrt();
-            c.max(0.0).powi(NORMAL_POWER)
-        }
-        _ => 0.0,
+fn exp_neg(x: f32) -> f32 {
+    if x < -80.0 {
+        return 0.0;
+    }
+    let t = x * std::f32::consts::LOG2_E;
+    // floor(t) without libm (x86-64's baseline has no rounding instruction).
+    let i = t as i32 - i32::from(t < (t as i32) as f32);
+    let f = t - i as f32;
+    // 2^f on [0, 1): the Taylor terms of e^(f ln 2) to the fifth.
+    let p = 1.0
+        + f * (0.693_147_2
+            + f * (0.240_226_5 + f * (0.055_504_11 + f * (0.009_618_129 + f * 0.001_333_355))));
+    p * f32::from_bits(((i + 127) as u32) << 23)
+}
+
+/// The guides' part of the weight between pixels p and q (the kernel's tap not included):
+/// 1 between two sky pixels, 0 between the sky and a surface, else the normals' cosine to the
+/// power 128 times e^(−|Δalbedo|²/σ²).
+#[inline(always)]
+fn guide_weight(p: &Texel, q: &Texel) -> f32 {
+    if p.sky || q.sky {
+        return if p.sky && q.sky { 1.0 } else { 0.0 };
+    }
+    let mut c = (p.normal[0] * q.normal[0] + p.normal[1] * q.normal[1] + p.normal[2] * q.normal[2])
+        .max(0.0);
+    for _ in 0..NORMAL_SQUARINGS {
+        c *= c;
+    }
+    if c < 1e-6 {
+        return 0.0;
+    }
+    let da = (p.albedo[0] - q.albedo[0]).powi(2)
+        + (p.albedo[1] - q.albedo[1]).powi(2)
+        + (p.albedo[2] - q.albedo[2]).powi(2);
+    c * exp_neg(-da / (ALBEDO_SIGMA * ALBEDO_SIGMA))
+}
+
+/// One image being filtered: per pixel its colour, luminance and luminance variance
+/// (together, so that a tap reads one place).
+#[derive(Clone)]
+struct Layer(Vec<[f32; 5]>);
+
+impl Layer {
+    fn new(color: &[[f32; 3]], var: &[f32]) -> Layer {
+        Layer(
+            color
+                .iter()
+                .zip(var)
+                .map(|(&c, &v)| [c[0], c[1], c[2], luminance(c), v])
+                .collect(),
+        )
+    }
+
+    fn color(&self) -> Vec<[f32; 3]> {
+        self.0.iter().map(|p| [p[0], p[1], p[2]]).collect()
     }
 }
 
-/// One iteration, taps `step` pixels apart: the filtered image and its variance.
-fn iterate(
-    g: &Guide,
-    color: &[[f32; 3]],
-    variance: &[f32],
-    step: usize,
-) -> (Vec<[f32; 3]>, Vec<f32>) {
+/// Accumulates one image's taps at one pixel.
+#[derive(Default)]
+struct Sum {
+    c: [f32; 3],
+    w: f32,
+    v: f32,
+}
+
+impl Sum {
+    #[inline(always)]
+    fn tap(&mut self, q: &[f32; 5], lp: f32, scale: f32, g: f32) {
+        let w = g * exp_neg(-(lp - q[3]).abs() * scale);
+        self.c[0] += w * q[0];
+        self.c[1] += w * q[1];
+        self.c[2] += w * q[2];
+        self.w += w;
+        self.v += w * w * q[4];
+    }
+
+    fn result(&self) -> [f32; 5] {
+        let k = 1.0 / self.w;
+        let c = self.c.map(|v| v * k);
+        [c[0], c[1], c[2], luminance(c), self.v * k * k]
+    }
+}
+
+/// One iteration over both layers, taps `step` pixels apart.
+fn iterate(g: &Guide, t: &[Texel], layers: &[Layer; 2], step: usize) -> [Layer; 2] {
     let (w, h) = (g.width, g.height);
-    let mut out = vec![[0.0f32; 3]; w * h];
-    let mut out_var = vec![0.0f32; w * h];
-    out.par_chunks_mut(w)
-        .zip(out_var.par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(y, (row, row_var))| {
+    let rows: Vec<[Vec<[f32; 5]>; 2]> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut out = [Vec::with_capacity(w), Vec::with_capacity(w)];
             for x in 0..w {
                 let p = y * w + x;
-                let (cp, np, ap) = (color[p], g.normal[p], g.albedo[p]);
-                let lp = luminance(cp);
-                let scale =
-                    1.0 / (LUMINANCE_SIGMA * variance[p].max(0.0).sqrt() + LUMINANCE_EPSILON);
-                let (mut sum, mut sum_w, mut sum_v) = ([0.0f32; 3], 0.0f32, 0.0f32);
-                for (j, ky) in KERNEL.iter().enumerate() {
+                let tp = &t[p];
+                let lp = [layers[0].0[p][3], layers[1].0[p][3]];
+                let scale = [0, 1].map(|i| {
+                    1.0 / (LUMINANCE_SIGMA * layers[i].0[p][4].max(0.0).sqrt() + LUMINANCE_EPSILON)
+                });
+                let mut sums = [Sum::default(), Sum::default()];
+                let kernel = kernel();
+                for (j, &ky) in kernel.iter().enumerate() {
+                    if ky == 0.0 {
+                        continue;
+                    }
                     let qy = y as isize + (j as isize - 2) * step as isize;
                     if qy < 0 || qy >= h as isize {
                         continue;
                     }
-                    for (i, kx) in KERNEL.iter().enumerate() {
+                    for (i, &kx) in kernel.iter().enumerate() {
+                        if kx == 0.0 {
+                            continue;
+                        }
                         let qx = x as isize + (i as isize - 2) * step as isize;
                         if qx < 0 || qx >= w as isize {
                             continue;
                         }
                         let q = qy as usize * w + qx as usize;
-                        let wt = if q == p {
-                            ky * kx
-                        } else {
-                            let wn = normal_weight(np, g.normal[q]);
-                            if wn == 0.0 {
-                                continue;
-                            }
-                            let aq = g.albedo[q];
-                            let da = (ap[0] - aq[0]).powi(2)
-                                + (ap[1] - aq[1]).powi(2)
-                                + (ap[2] - aq[2]).powi(2);
-                            let dl = (lp - luminance(color[q])).abs() * scale;
-                            ky * kx * wn * (-(da / (ALBEDO_SIGMA * ALBEDO_SIGMA)) - dl).exp()
-                        };
-                        let c = color[q];
-                        sum[0] += wt * c[0];
-                        sum[1] += wt * c[1];
-                        sum[2] += wt * c[2];
-                        sum_w += wt;
-                        sum_v += wt * wt * variance[q];
+                        let gw = ky * kx * if q == p { 1.0 } else { guide_weight(tp, &t[q]) };
+                        if gw == 0.0 {
+                            continue;
+                        }
+                        for k in 0..2 {
+                            sums[k].tap(&layers[k].0[q], lp[k], scale[k], gw);
+                        }
                     }
                 }
-                row[x] = [sum[0] / sum_w, sum[1] / sum_w, sum[2] / sum_w];
-                row_var[x] = sum_v / (sum_w * sum_w);
+                out[0].push(sums[0].result());
+                out[1].push(sums[1].result());
             }
-        });
-    (out, out_var)
+            out
+        })
+        .collect();
+    let layer = |k: usize| Layer(rows.iter().flat_map(|r| r[k].iter().copied()).collect());
+    [layer(0), layer(1)]
 }
 
-/// The filtered image of `color`, whose luminance has per-pixel noise variance `variance`.
-pub fn filter(g: &Guide, color: &[[f32; 3]], variance: &[f32]) -> Vec<[f32; 3]> {
-    let mut c = color.to_vec();
-    let mut v = variance.to_vec();
+/// Both images filtered, each by its own luminance (`a` and `b` with per-pixel luminance
+/// noise variance `variance`).
+pub fn filter_pair(
+    g: &Guide,
+    a: &[[f32; 3]],
+    b: &[[f32; 3]],
+    variance: &[f32],
+) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+    let t = texels(g);
+    let mut layers = [Layer::new(a, variance), Layer::new(b, variance)];
     for i in 0..ITERATIONS {
-        (c, v) = iterate(g, &c, &v, 1 << i);
+        layers = iterate(g, &t, &layers, 1 << i);
     }
-    c
+    (layers[0].color(), layers[1].color())
 }
 
 /// A box filter of radius `r` (clamped at the borders) over a `w × h` image of scalars.
@@ -138,4 +248,20 @@ pub fn box_blur(v: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
     };
     let t = pass(v, w, h);
     pass(&t, h, w)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_fast_exponential_is_close() {
+        let mut worst = 0.0f64;
+        for i in 0..100_000 {
+            let x = -(i as f32) * 0.0008;
+            let (a, b) = (super::exp_neg(x) as f64, (x as f64).exp());
+            worst = worst.max((a - b).abs() / b);
+        }
+        assert!(worst < 1e-4, "relative error {worst:e}");
+        assert_eq!(super::exp_neg(-100.0), 0.0);
+        assert_eq!(super::exp_neg(0.0), 1.0);
+    }
 }

@@ -29,7 +29,7 @@ pub mod atrous;
 
 use crate::common::Guides;
 use crate::common::resolved::REL_MSE_EPSILON;
-use atrous::{Guide, box_blur, filter, luminance};
+use atrous::{Guide, box_blur, filter_pair, luminance};
 
 /// Traced pixels per side of the tiles whose raw or denoised image is chosen.
 pub const TILE: usize = 16;
@@ -222,10 +222,8 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
             .map(|(c, m)| std::array::from_fn(|i| c[i] * m[i]))
             .collect()
     };
-    let (fa, fb) = rayon::join(
-        || remod(filter(&g, &da, &variance)),
-        || remod(filter(&g, &db, &variance)),
-    );
+    let (fa, fb) = filter_pair(&g, &da, &db, &variance);
+    let (fa, fb) = (remod(fa), remod(fb));
     let denoised: Vec<[f32; 3]> = fa
         .iter()
         .zip(&fb)

@@ -1,0 +1,101 @@
+//! The denoiser's cost per frame (`denoise::denoise`: both halves filtered, the estimate and
+//! the tile choice) on real frames: a scene traced at the preview's size for 120×40 cells in
+//! half blocks (120×76 pixels) and at the widest graphics image (960×608), on the default
+//! backend, then denoised on the host's threads (`--threads`-like: RAYON_NUM_THREADS).
+//!
+//! `cargo bench --bench denoise [-- SCENE]` (default: showcase).
+
+use std::time::Instant;
+use termtrace::common::FrameSettings;
+use termtrace::denoise::denoise;
+use termtrace::output::LinearImage;
+use termtrace::render::{Backend, RenderOptions, Renderer};
+use termtrace::scene::Scene;
+
+/// True relative RMSE (pbrt's relMSE, reference² + 0.01) of `img` against `reference`.
+fn true_error(img: &[[f32; 3]], reference: &LinearImage) -> f64 {
+    let mut s = 0.0;
+    for (p, r) in img.iter().zip(&reference.pixels) {
+        for c in 0..3 {
+            s += (p[c] as f64 - r[c] as f64).powi(2) / ((r[c] as f64).powi(2) + 0.01);
+        }
+    }
+    (s / (3 * img.len()) as f64).sqrt()
+}
+
+/// At 120×76: the raw and denoised images' true errors against a reference of 4096 spp (on
+/// the CPU tracer), and their estimates, at 4 to 256 spp.
+fn quality(scene: &Scene, backend: &Backend) {
+    let settings = FrameSettings::new(120, 76, scene.render.max_bounces, 1);
+    let reference_settings = FrameSettings::new(120, 76, scene.render.max_bounces, 7);
+    let mut r = Renderer::new(
+        Backend::Cpu,
+        scene,
+        reference_settings,
+        RenderOptions::default(),
+    );
+    r.render_spp(4096);
+    let reference = r.snapshot().image();
+    println!(
+        "120×76 against 4096 spp: spp, raw true / estimated, denoised true / estimated (relative RMSE)"
+    );
+    let mut r = Renderer::new(backend.clone(), scene, settings, RenderOptions::default());
+    for spp in [4, 16, 64, 256] {
+        r.render_spp(spp);
+        let snap = r.snapshot();
+        let guides = r.guides().clone();
+        let d = denoise(&snap.data.even, &snap.data.odd, &guides);
+        println!(
+            "  {spp:>4} spp   raw {:>6.2} % / {:>6.2} %   denoised {:>6.2} % / {:>6.2} %   shown {:>6.2} % / {:>6.2} % ({} of {} tiles)",
+            100.0 * true_error(&d.raw, &reference),
+            100.0 * d.rel_rmse(d.raw_sums()),
+            100.0 * true_error(&d.denoised, &reference),
+            100.0 * d.rel_rmse(d.denoised_sums()),
+            100.0 * true_error(&d.shown(), &reference),
+            100.0 * d.rel_rmse(d.shown_sums()),
+            d.tiles.iter().filter(|&&t| t).count(),
+            d.tiles.len()
+        );
+    }
+}
+
+fn main() {
+    let name = std::env::args()
+        .skip(1)
+        .find(|a| !a.starts_with('-'))
+        .unwrap_or_else(|| "showcase".into());
+    let scene = Scene::load(&name).unwrap_or_else(|e| panic!("{e}"));
+    let backend = Backend::open(std::env::var("TERMTRACE_ADAPTER").ok().as_deref())
+        .unwrap_or_else(|e| panic!("{e}"));
+    println!(
+        "{name} on {}, {} threads",
+        backend.describe(),
+        rayon::current_num_threads()
+    );
+    quality(&scene, &backend);
+    for (w, h) in [(120, 76), (960, 608)] {
+        let settings = FrameSettings::new(w, h, scene.render.max_bounces, 1);
+        let mut r = Renderer::new(backend.clone(), &scene, settings, RenderOptions::default());
+        r.render_spp(4);
+        let t = Instant::now();
+        let guides = r.guides().clone();
+        let guide_ms = t.elapsed().as_secs_f64() * 1e3;
+        let snap = r.snapshot();
+        let mut best = f64::INFINITY;
+        let mut out = None;
+        for _ in 0..5 {
+            let t = Instant::now();
+            out = Some(denoise(&snap.data.even, &snap.data.odd, &guides));
+            best = best.min(t.elapsed().as_secs_f64());
+        }
+        let d = out.expect("denoised");
+        println!(
+            "{w:>4}×{h:<4} denoise {:>7.2} ms (best of 5)   guides ({} samples) {guide_ms:>7.2} ms   \
+             estimated error at 4 spp: raw {:.2} %, denoised {:.2} %",
+            best * 1e3,
+            termtrace::common::guides::GUIDE_SAMPLES,
+            100.0 * d.rel_rmse(d.raw_sums()),
+            100.0 * d.rel_rmse(d.shown_sums())
+        );
+    }
+}
