@@ -89,7 +89,7 @@ fn exp_neg(x: f32) -> f32 {
     let f = t - i as f32;
     // 2^f on [0, 1): the Taylor terms of e^(f ln 2) to the fifth.
     let p = 1.0
-        + f * (0.693_147_2
+        + f * (std::f32::consts::LN_2
             + f * (0.240_226_5 + f * (0.055_504_11 + f * (0.009_618_129 + f * 0.001_333_355))));
     p * f32::from_bits(((i + 127) as u32) << 23)
 }
