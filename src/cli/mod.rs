@@ -84,6 +84,11 @@ pub struct ViewArgs {
     /// Use the generic tracer instead of one specialized for the scene.
     #[arg(long)]
     pub generic: bool,
+    /// Denoise the preview (guided by albedo and normal; tile by tile the raw image wherever
+    /// that is estimated better): `auto` while the raw image's estimated error is above 1 %,
+    /// `on` always, `off` never. The `d` key switches it off and on.
+    #[arg(long, value_enum, default_value_t = crate::denoise::Mode::Auto)]
+    pub denoise: crate::denoise::Mode,
     /// Quit after this many seconds (scripted runs, benchmarks).
     #[arg(long, value_name = "SECONDS", value_parser = positive)]
     pub exit_after: Option<f64>,
@@ -198,6 +203,7 @@ fn view(a: ViewArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         max_spp: a.max_spp,
         threshold: a.threshold,
         generic: a.generic,
+        denoise: a.denoise,
         adapter: g.adapter.clone(),
         log: g.log.clone(),
         exit_after: a.exit_after.map(std::time::Duration::from_secs_f64),

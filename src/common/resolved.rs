@@ -20,6 +20,8 @@ pub struct Resolved {
     /// Per image pixel, the estimated standard error of its linear value (the two halves'
     /// estimate, averaged over channels and the block); 0 where not yet known.
     pub sigma: Vec<f32>,
+    /// The estimated relative RMSE of the image when it is a denoised one (`denoise`).
+    pub denoised: Option<f64>,
 }
 
 impl Resolved {
@@ -54,6 +56,7 @@ impl Resolved {
             noise: (fewest >= 1.0).then(|| (rel / channels).sqrt()),
             invalid,
             sigma,
+            denoised: None,
         }
     }
 }

@@ -27,8 +27,9 @@
 
 pub mod atrous;
 
-use crate::common::Guides;
 use crate::common::resolved::REL_MSE_EPSILON;
+use crate::common::{Guides, Resolved};
+use crate::output::LinearImage;
 use atrous::{Guide, box_blur, filter_pair, luminance};
 
 /// Traced pixels per side of the tiles whose raw or denoised image is chosen.
@@ -148,6 +149,56 @@ impl Denoised {
                 self.tile_raw[t]
             }
         })
+    }
+
+    /// The preview's frame: the shown image averaged over `factor × factor` blocks, the raw
+    /// image's estimated error as its noise and the shown image's as `denoised`, and per
+    /// output pixel a standard error from its tile's estimate.
+    pub fn resolved(&self, factor: u32, invalid: u64) -> Resolved {
+        let f = factor.max(1) as usize;
+        let (w, h) = (self.width as usize, self.height as usize);
+        let out = ((w / f).max(1), (h / f).max(1));
+        let shown = self.shown();
+        let tile_of = |x: usize, y: usize| (y / TILE) * self.tiles_x + x / TILE;
+        let tile_pixels = |t: usize| {
+            let (tx, ty) = (t % self.tiles_x, t / self.tiles_x);
+            ((w - tx * TILE).min(TILE) * (h - ty * TILE).min(TILE)) as f64
+        };
+        let mut pixels = Vec::with_capacity(out.0 * out.1);
+        let mut sigma = Vec::with_capacity(out.0 * out.1);
+        for oy in 0..out.1 {
+            for ox in 0..out.0 {
+                let mut c = [0.0f32; 3];
+                let mut n = 0.0f32;
+                for y in oy * f..((oy + 1) * f).min(h) {
+                    for x in ox * f..((ox + 1) * f).min(w) {
+                        let p = shown[y * w + x];
+                        c = [c[0] + p[0], c[1] + p[1], c[2] + p[2]];
+                        n += 1.0;
+                    }
+                }
+                pixels.push(c.map(|v| v / n.max(1.0)));
+                let t = tile_of((ox * f).min(w - 1), (oy * f).min(h - 1));
+                let s = if self.tiles[t] {
+                    self.tile_denoised[t]
+                } else {
+                    self.tile_raw[t]
+                };
+                let per_value = s.mse.max(0.0) / (3.0 * tile_pixels(t));
+                sigma.push((per_value.sqrt() / f as f64) as f32);
+            }
+        }
+        Resolved {
+            image: LinearImage {
+                width: out.0 as u32,
+                height: out.1 as u32,
+                pixels,
+            },
+            noise: Some(self.rel_rmse(self.raw_sums())),
+            invalid,
+            sigma,
+            denoised: Some(self.rel_rmse(self.shown_sums())),
+        }
     }
 
     /// Relative RMSE from sums (pbrt's relative MSE's root; a negative estimate counts 0).

@@ -28,6 +28,8 @@ pub enum Effect {
     Relayout,
     SavePng,
     WriteScene,
+    /// The denoiser's mode changed: tell the renderer (the accumulation goes on).
+    Denoise(crate::denoise::Mode),
     Quit,
 }
 
@@ -41,6 +43,8 @@ pub struct Stats {
     pub elapsed: Duration,
     /// Estimated relative RMSE of the image, when known.
     pub noise: Option<f64>,
+    /// Estimated relative RMSE of the denoised image shown, when it is denoised.
+    pub denoised: Option<f64>,
     pub invalid: u64,
 }
 
@@ -63,6 +67,11 @@ pub struct App {
     pub cells: CellMode,
     /// Next-event estimation (light sampling) in the preview.
     pub nee: bool,
+    /// When the preview is denoised (`d` switches between off and the mode it started
+    /// in, or `auto`).
+    pub denoise: crate::denoise::Mode,
+    /// The mode `d` turns back on.
+    pub denoise_on: crate::denoise::Mode,
     /// The adapter, as the status line names it.
     pub adapter: String,
     /// How the image reaches the terminal (`sixel`, `kitty via tmux`, `cells`), in the
@@ -93,6 +102,8 @@ impl App {
             mode: Mode::Preview,
             cells,
             nee: true,
+            denoise: crate::denoise::Mode::Off,
+            denoise_on: crate::denoise::Mode::Auto,
             adapter,
             graphics: "cells".into(),
             stats: Stats::default(),
@@ -237,6 +248,18 @@ impl App {
                     "light sampling off (brute force)"
                 });
                 Effect::SceneChanged
+            }
+            Action::ToggleDenoise => {
+                use crate::denoise::Mode;
+                if self.denoise == Mode::Off {
+                    self.denoise = self.denoise_on;
+                    self.say(format!("denoiser on ({})", self.denoise.name()));
+                } else {
+                    self.denoise_on = self.denoise;
+                    self.denoise = Mode::Off;
+                    self.say("denoiser off: the raw image");
+                }
+                Effect::Denoise(self.denoise)
             }
             Action::ToggleHelp => {
                 self.mode = Mode::Help;
@@ -624,5 +647,26 @@ mod tests {
             press(&mut a, KeyCode::Char(','));
         }
         assert_eq!(a.scene.environment.as_ref().unwrap().rotation, 195.0);
+    }
+
+    #[test]
+    fn d_switches_the_denoiser_off_and_back_to_its_mode() {
+        use crate::denoise::Mode;
+        let mut a = app();
+        a.denoise = Mode::On;
+        a.denoise_on = Mode::On;
+        assert_eq!(
+            press(&mut a, KeyCode::Char('d')),
+            Effect::Denoise(Mode::Off)
+        );
+        assert_eq!(press(&mut a, KeyCode::Char('d')), Effect::Denoise(Mode::On));
+        // Started off, `d` turns it to auto.
+        a.denoise = Mode::Off;
+        a.denoise_on = Mode::Auto;
+        assert_eq!(
+            press(&mut a, KeyCode::Char('d')),
+            Effect::Denoise(Mode::Auto)
+        );
+        assert_eq!(a.scene, a.original, "the scene is untouched");
     }
 }

@@ -100,6 +100,8 @@ pub enum Action {
     CycleCells,
     /// Next-event estimation on or off.
     ToggleNee,
+    /// The denoiser off, or back on.
+    ToggleDenoise,
     ToggleHelp,
     /// Esc: closes the help, else quits.
     Back,
@@ -185,6 +187,10 @@ pub const BINDINGS: &[Binding] = &[
     Binding {
         keys: "e",
         help: "light sampling (next-event estimation) on / off",
+    },
+    Binding {
+        keys: "d",
+        help: "denoiser off / on (status: noise raw → denoised)",
     },
     Binding {
         keys: "?",
@@ -273,6 +279,7 @@ pub fn action(key: KeyEvent) -> Option<Action> {
         KeyCode::Char('w') => WriteScene,
         KeyCode::Char('c') => CycleCells,
         KeyCode::Char('e') => ToggleNee,
+        KeyCode::Char('d') => ToggleDenoise,
         KeyCode::Char('?') => ToggleHelp,
         KeyCode::Char('q') => Quit,
         KeyCode::Esc => Back,

@@ -55,6 +55,7 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
             fps: opts.fps,
             max_spp: opts.max_spp,
             generic: opts.generic,
+            denoise: opts.denoise,
         },
         tx,
     );
@@ -63,7 +64,14 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
         bytes.clone(),
     )))?;
     let mut ui = Ui {
-        app: App::new(setup.scene, setup.adapter, setup.cells),
+        app: App {
+            denoise: opts.denoise,
+            denoise_on: match opts.denoise {
+                crate::denoise::Mode::Off => crate::denoise::Mode::Auto,
+                m => m,
+            },
+            ..App::new(setup.scene, setup.adapter, setup.cells)
+        },
         opts: opts.clone(),
         color: setup.color,
         graphics,

@@ -181,6 +181,9 @@ impl Ui {
                     Effect::Reset => {
                         let _ = self.to_worker.send(Request::Reset);
                     }
+                    Effect::Denoise(mode) => {
+                        let _ = self.to_worker.send(Request::Denoise(mode));
+                    }
                     Effect::SavePng => self.save_png(),
                     Effect::WriteScene => match write_scene(&self.app.scene) {
                         Ok(m) => self.app.say(m),

@@ -53,6 +53,7 @@ pub struct ViewOptions {
     /// A cell whose colour moved by at most this (per 8-bit channel) is not resent.
     pub threshold: u8,
     pub generic: bool,
+    pub denoise: crate::denoise::Mode,
     pub adapter: Option<String>,
     pub log: Option<PathBuf>,
     /// Quit by itself after this long (scripted runs and benchmarks).

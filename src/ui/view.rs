@@ -193,9 +193,13 @@ pub fn stats_line(app: &App, width: u16) -> Line<'static> {
         (rate(s.samples_per_second), 0),
         (duration(s.elapsed), 4),
     ];
-    match s.noise {
-        Some(n) => parts.push((format!("noise {:.2}%", n * 100.0), 0)),
-        None => parts.push(("noise –".into(), 0)),
+    // The raw image's estimated error, and the denoised image's after an arrow.
+    match (s.noise, s.denoised) {
+        (Some(n), Some(d)) => {
+            parts.push((format!("noise {:.2}% → {:.2}%", n * 100.0, d * 100.0), 0))
+        }
+        (Some(n), None) => parts.push((format!("noise {:.2}%", n * 100.0), 0)),
+        (None, _) => parts.push(("noise –".into(), 0)),
     }
     if s.invalid > 0 {
         parts.push((format!("{} invalid", s.invalid), 0));

@@ -42,6 +42,8 @@ pub enum Request {
     Reset,
     /// Render `scene` at its own resolution and spp in the background, then write `path`.
     Save { scene: Box<Scene>, path: PathBuf },
+    /// Denoise frames in this mode from now on (the accumulation goes on).
+    Denoise(crate::denoise::Mode),
     /// Stop; a background save in progress writes what it has.
     Quit,
 }
@@ -52,6 +54,7 @@ pub struct WorkerOptions {
     /// The preview stops accumulating here (and the GPU idles).
     pub max_spp: u32,
     pub generic: bool,
+    pub denoise: crate::denoise::Mode,
 }
 
 struct SaveJob {
@@ -80,6 +83,11 @@ struct Preview {
     paths: u64,
     /// When the last frame was requested, and how many paths it showed.
     last_frame: Option<(Instant, u64)>,
+    /// The raw image's estimated error in the last frame (the denoiser's `auto` reads it).
+    noise: Option<f64>,
+    /// When the last denoised frame was made, and what making it took (denoised frames are
+    /// spaced so that the denoiser takes at most a quarter of the time).
+    last_denoise: Option<(Instant, Duration)>,
 }
 
 struct Worker {
@@ -198,6 +206,13 @@ impl Worker {
                         generation,
                     } => self.set_scene(&scene, settings, factor, generation),
                     Request::Reset => self.reset(),
+                    Request::Denoise(mode) => {
+                        self.opts.denoise = mode;
+                        // Show the change at once, even when the accumulation has stopped.
+                        if let Some(p) = &mut self.preview {
+                            p.last_frame = None;
+                        }
+                    }
                     Request::Save { scene, path } => self.start_save(&scene, path),
                     Request::Quit => return self.finish_save(),
                 }
@@ -234,6 +249,8 @@ impl Worker {
                     since_reset: Instant::now(),
                     paths: 0,
                     last_frame: None,
+                    noise: None,
+                    last_denoise: None,
                 })
             }
         }
@@ -256,6 +273,8 @@ impl Worker {
             p.since_reset = Instant::now();
             p.paths = 0;
             p.last_frame = None;
+            p.noise = None;
+            p.last_denoise = None;
         }
     }
 
@@ -283,7 +302,21 @@ impl Worker {
             spp,
             paths: p.paths,
         };
-        if let Some(resolved) = p.renderer.resolve_on_host(p.factor) {
+        // Denoised frames need a sample in each half of every pixel.
+        let denoise = self.opts.denoise.wants(p.noise) && spp >= 2;
+        if denoise {
+            if let Some((at, took)) = p.last_denoise
+                && busy
+                && at.elapsed() < 3 * took
+            {
+                return;
+            }
+            let start = Instant::now();
+            let snap = p.renderer.snapshot();
+            let d = crate::denoise::denoise(&snap.data.even, &snap.data.odd, p.renderer.guides());
+            self.host_frame = Some((tag, d.resolved(p.factor, snap.data.invalid)));
+            p.last_denoise = Some((Instant::now(), start.elapsed()));
+        } else if let Some(resolved) = p.renderer.resolve_on_host(p.factor) {
             self.host_frame = Some((tag, resolved));
         } else {
             let s = p.renderer.settings();
@@ -346,10 +379,13 @@ impl Worker {
     /// Sends a frame of the current state (one of an older epoch is dropped); false when the
     /// UI has gone.
     fn send_frame(&mut self, tag: FrameTag, resolved: Resolved) -> bool {
-        let Some(p) = &self.preview else { return true };
+        let Some(p) = &mut self.preview else {
+            return true;
+        };
         if tag.epoch != self.epoch {
             return true;
         }
+        p.noise = resolved.noise.or(p.noise);
         let elapsed = p.since_reset.elapsed();
         tracing::debug!(
             "frame at {} spp delivered {:.1} ms after the reset",
@@ -368,6 +404,7 @@ impl Worker {
                 samples_per_second: tag.paths as f64 / elapsed.as_secs_f64().max(1e-9),
                 elapsed,
                 noise: resolved.noise,
+                denoised: resolved.denoised,
                 invalid: resolved.invalid,
             },
             generation: tag.generation,
