@@ -68,6 +68,11 @@ pub struct ConvergeArgs {
     /// Seed of the first run (the next runs count up from it).
     #[arg(long)]
     pub seed: Option<u32>,
+    /// Also denoise the image at every checkpoint (`denoise`): a second curve per variant,
+    /// `LABEL denoised`, its time including the denoiser's, and its estimated error beside the
+    /// true one.
+    #[arg(long)]
+    pub denoise: bool,
     /// No progress bars.
     #[arg(short, long)]
     pub quiet: bool,
@@ -198,6 +203,7 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         scene: &scene,
         settings,
         reference: &reference.image,
+        denoise: a.denoise,
     };
     let mut all = Vec::new();
     let mut summaries = Vec::new();
@@ -224,7 +230,38 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         }
         summaries.push(converge::summarize(&v.label, &runs));
         finals.push(runs[0].last.clone());
-        all.push(runs);
+        if a.denoise {
+            // The denoised images as a variant of their own.
+            let denoised: Vec<converge::Run> = runs
+                .iter()
+                .map(|r| converge::Run {
+                    checkpoints: r.denoised.iter().map(|d| d.0.clone()).collect(),
+                    denoised: Vec::new(),
+                    last: r.last.clone(),
+                })
+                .collect();
+            for r in &runs {
+                if let Some(worst) = r.denoised.iter().map(|d| d.1).reduce(f64::max) {
+                    let n = r.denoised.len() as f64;
+                    let mean = r.denoised.iter().map(|d| d.1).sum::<f64>() / n;
+                    println!(
+                        "{} run {}: the denoiser took {:.2} ms a frame on average, {:.2} ms at most (guides included in the first)",
+                        v.label,
+                        r.checkpoints.first().map_or(0, |c| c.run),
+                        mean * 1e3,
+                        worst * 1e3
+                    );
+                }
+            }
+            summaries.push(converge::summarize(
+                &format!("{} denoised", v.label),
+                &denoised,
+            ));
+            all.push(runs);
+            all.push(denoised);
+        } else {
+            all.push(runs);
+        }
     }
 
     // The time to a first sample (pipeline build, upload) once, not as error rows.

@@ -66,6 +66,10 @@ pub struct Checkpoint {
 
 pub struct Run {
     pub checkpoints: Vec<Checkpoint>,
+    /// With `Setup::denoise`: the denoised image at every checkpoint with a sample in each
+    /// half, as checkpoints of the variant `LABEL denoised` whose seconds include the
+    /// denoiser's time and the guides' (`denoise_seconds` of each).
+    pub denoised: Vec<(Checkpoint, f64)>,
     pub last: Snapshot,
 }
 
@@ -78,6 +82,8 @@ pub struct Setup<'a> {
     /// The reference's own per-pixel variance, when it is a rendered one: taken out of the
     /// measured errors ([`metrics::errors_against_noisy`]).
     pub reference_variance: Option<&'a [[f32; 3]]>,
+    /// Also measure the denoised image (`denoise`) at every checkpoint.
+    pub denoise: bool,
 }
 
 /// Renders `variant` from zero for `time` seconds of rendering and measures it against the
@@ -105,6 +111,10 @@ pub fn run_once(
     let mut seconds = 0.0;
     let mut first_sample = None;
     let mut checkpoints = Vec::new();
+    let mut denoised = Vec::new();
+    // Time the denoiser has taken so far in this run (the guides' included): the denoised
+    // curve's time axis is the tracer's plus this.
+    let mut denoise_total = 0.0;
     loop {
         let left = (next - seconds).max(0.0);
         let step = r.step(Duration::from_secs_f64(left.min(0.25)), next_spp);
@@ -134,9 +144,33 @@ pub fn run_once(
                 first_sample: first,
             });
         }
+        if setup.denoise && snap.min_samples() >= 2 {
+            let start = std::time::Instant::now();
+            let d = crate::denoise::denoise(&snap.data.even, &snap.data.odd, r.guides());
+            let shown = crate::output::LinearImage {
+                width: s.width,
+                height: s.height,
+                pixels: d.shown(),
+            };
+            let took = start.elapsed().as_secs_f64();
+            denoise_total += took;
+            denoised.push((
+                Checkpoint {
+                    label: format!("{} denoised", variant.label),
+                    run,
+                    seconds: seconds + denoise_total,
+                    spp: snap.min_samples(),
+                    errors: errors_against_noisy(&shown, setup.reference, setup.reference_variance),
+                    estimated_rel_rmse: Some(d.rel_rmse(d.shown_sums())),
+                    first_sample: first,
+                },
+                took,
+            ));
+        }
         if seconds >= total {
             return Run {
                 checkpoints,
+                denoised,
                 last: snap,
             };
         }

@@ -10,20 +10,11 @@ use rayon::prelude::*;
 
 /// Iterations, the taps 1, 2, 4, 8, 16 pixels apart.
 pub const ITERATIONS: u32 = 5;
-/// The kernel of each iteration, separable: the B3 spline's (1, 4, 6, 4, 1) / 16 (5×5
-/// taps), or with TERMTRACE_DENOISE_KERNEL=3 (a benchmark's switch) the linear B-spline's
-/// (1, 2, 1) / 4 (3×3).
-const KERNEL5: [f32; 5] = [1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
-const KERNEL3: [f32; 5] = [0.0, 1.0 / 4.0, 1.0 / 2.0, 1.0 / 4.0, 0.0];
-
-fn kernel() -> &'static [f32; 5] {
-    static K: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    if *K.get_or_init(|| std::env::var("TERMTRACE_DENOISE_KERNEL").is_ok_and(|v| v == "3")) {
-        &KERNEL3
-    } else {
-        &KERNEL5
-    }
-}
+/// The kernel of each iteration, separable: the linear B-spline's (1, 2, 1) / 4, 3×3 taps.
+/// The B3 spline's 5×5 (1, 4, 6, 4, 1) / 16 of Dammertz et al. and SVGF was measured on
+/// cornell at 120×76 on 2 cores: 1.8× the time (22 against 13 ms a frame) for a larger error
+/// (2.68 against 2.54 % at 1 s; BENCHMARKS.md, "Denoising").
+const KERNEL: [f32; 3] = [0.25, 0.5, 0.25];
 /// The normal weight is the cosine between the normals to this power (SVGF's σn = 128),
 /// as seven squarings.
 const NORMAL_SQUARINGS: u32 = 7;
@@ -178,20 +169,13 @@ fn iterate(g: &Guide, t: &[Texel], layers: &[Layer; 2], step: usize) -> [Layer; 
                     1.0 / (LUMINANCE_SIGMA * layers[i].0[p][4].max(0.0).sqrt() + LUMINANCE_EPSILON)
                 });
                 let mut sums = [Sum::default(), Sum::default()];
-                let kernel = kernel();
-                for (j, &ky) in kernel.iter().enumerate() {
-                    if ky == 0.0 {
-                        continue;
-                    }
-                    let qy = y as isize + (j as isize - 2) * step as isize;
+                for (j, &ky) in KERNEL.iter().enumerate() {
+                    let qy = y as isize + (j as isize - 1) * step as isize;
                     if qy < 0 || qy >= h as isize {
                         continue;
                     }
-                    for (i, &kx) in kernel.iter().enumerate() {
-                        if kx == 0.0 {
-                            continue;
-                        }
-                        let qx = x as isize + (i as isize - 2) * step as isize;
+                    for (i, &kx) in KERNEL.iter().enumerate() {
+                        let qx = x as isize + (i as isize - 1) * step as isize;
                         if qx < 0 || qx >= w as isize {
                             continue;
                         }
@@ -215,6 +199,47 @@ fn iterate(g: &Guide, t: &[Texel], layers: &[Layer; 2], step: usize) -> [Layer; 
     [layer(0), layer(1)]
 }
 
+/// Neighbours each way of the window whose luminance statistics bound a pixel's
+/// (`clamp_outliers`).
+const OUTLIER_RADIUS: isize = 2;
+/// A pixel's luminance may exceed its neighbours' mean by this many of their standard
+/// deviations.
+const OUTLIER_SIGMAS: f32 = 3.0;
+
+/// Clamps outliers (fireflies: a rare path that found a light, many standard deviations
+/// above its neighbours) to the mean plus three standard deviations of the luminance of the
+/// 24 pixels around them in the same image, scaling the colour. A firefly would otherwise
+/// stop every luminance weight and stay as it is. Biased, as any filter is; the estimate
+/// measures it, and the raw image wins back a tile where it is better.
+fn clamp_outliers(w: usize, h: usize, color: &[[f32; 3]]) -> Vec<[f32; 3]> {
+    let lum: Vec<f32> = color.iter().map(|&c| luminance(c)).collect();
+    (0..w * h)
+        .into_par_iter()
+        .map(|p| {
+            let (x, y) = ((p % w) as isize, (p / w) as isize);
+            let (mut n, mut s, mut s2) = (0.0f32, 0.0f32, 0.0f32);
+            for qy in (y - OUTLIER_RADIUS).max(0)..=(y + OUTLIER_RADIUS).min(h as isize - 1) {
+                for qx in (x - OUTLIER_RADIUS).max(0)..=(x + OUTLIER_RADIUS).min(w as isize - 1) {
+                    if (qx, qy) != (x, y) {
+                        let l = lum[qy as usize * w + qx as usize];
+                        n += 1.0;
+                        s += l;
+                        s2 += l * l;
+                    }
+                }
+            }
+            let mean = s / n.max(1.0);
+            let sd = (s2 / n.max(1.0) - mean * mean).max(0.0).sqrt();
+            let limit = mean + OUTLIER_SIGMAS * sd;
+            if lum[p] > limit && lum[p] > 0.0 {
+                color[p].map(|c| c * (limit / lum[p]))
+            } else {
+                color[p]
+            }
+        })
+        .collect()
+}
+
 /// Both images filtered, each by its own luminance (`a` and `b` with per-pixel luminance
 /// noise variance `variance`).
 pub fn filter_pair(
@@ -224,7 +249,11 @@ pub fn filter_pair(
     variance: &[f32],
 ) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
     let t = texels(g);
-    let mut layers = [Layer::new(a, variance), Layer::new(b, variance)];
+    let (a, b) = (
+        clamp_outliers(g.width, g.height, a),
+        clamp_outliers(g.width, g.height, b),
+    );
+    let mut layers = [Layer::new(&a, variance), Layer::new(&b, variance)];
     for i in 0..ITERATIONS {
         layers = iterate(g, &t, &layers, 1 << i);
     }
