@@ -405,3 +405,49 @@ fn both_tracers_make_the_same_guides() {
         share * 100.0
     );
 }
+
+#[test]
+fn a_bound_is_shown_where_the_estimate_is_within_its_noise_and_it_covers_the_truth() {
+    // A flat image at 1 sample a half and 60 % noise: the filter removes most of the noise,
+    // and the estimate of what is left is mostly its own noise. Where the status line shows
+    // a bound ("<x%"), the true error must be below it in at least 36 of 40 frames; where it
+    // shows a value, the value must be positive.
+    use termtrace::common::resolved::Estimate;
+    let (w, h) = (64u32, 48u32);
+    let truth = vec![[0.4f32, 0.4, 0.4]; (w * h) as usize];
+    let s = Synthetic {
+        w,
+        h,
+        truth,
+        guides: Guides {
+            width: w,
+            height: h,
+            albedo: vec![[0.5; 3]; (w * h) as usize],
+            normal: vec![[0.0, 0.0, 1.0]; (w * h) as usize],
+        },
+    };
+    let mut rng = Normal(4242);
+    let (mut bounds, mut covered) = (0, 0);
+    for _ in 0..40 {
+        let (a, b) = s.halves(&mut rng, 0.6, 1);
+        let d = denoise(&a, &b, &s.guides);
+        let truth = s.true_sse(&d.shown()) / d.channels as f64;
+        // The relative error of a flat 0.4 image: squared error over 0.4² + 0.01.
+        let true_rel = (truth / (0.16 + 0.01)).sqrt();
+        match d.shown_estimate() {
+            Estimate::Below(v) => {
+                bounds += 1;
+                if true_rel <= v {
+                    covered += 1;
+                }
+            }
+            Estimate::Value(v) => assert!(v > 0.0, "a value of {v}"),
+        }
+    }
+    eprintln!("{bounds} bounds of 40, {covered} covering the true error");
+    assert!(bounds >= 10, "only {bounds} frames gave a bound");
+    assert!(
+        covered * 40 >= bounds * 36,
+        "{covered} of {bounds} bounds covered the truth"
+    );
+}

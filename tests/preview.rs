@@ -207,7 +207,7 @@ fn app() -> App {
         samples_per_second: 1.25e6,
         elapsed: std::time::Duration::from_millis(3400),
         noise: Some(0.0312),
-        denoised: Some(0.0087),
+        denoised: Some(termtrace::common::resolved::Estimate::Value(0.0087)),
         invalid: 0,
     };
     a

@@ -269,7 +269,7 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         let n = d.tiles.iter().filter(|&&t| t).count();
         denoised_text = format!(
             ", denoised {} in {n} of {} tiles",
-            pct(Some(d.rel_rmse(d.shown_sums()))),
+            d.shown_estimate().text(),
             d.tiles.len()
         );
         for (suffix, img) in [

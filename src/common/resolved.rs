@@ -8,6 +8,24 @@ use crate::output::LinearImage;
 /// by zero (pbrt-v4, `imgtool diff --metric relmse`); both tracers' noise estimates use it.
 pub const REL_MSE_EPSILON: f64 = 0.01;
 
+/// An estimated relative RMSE as the status line shows it: the value, or, where the
+/// estimate is within two standard errors of zero (its noise as large as itself: few
+/// samples, or a filter that removed nearly all the noise), only a bound above.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Estimate {
+    Value(f64),
+    Below(f64),
+}
+
+impl Estimate {
+    pub fn text(self) -> String {
+        match self {
+            Estimate::Value(v) => format!("{:.2}%", v * 100.0),
+            Estimate::Below(v) => format!("<{:.2}%", v * 100.0),
+        }
+    }
+}
+
 /// One resolved frame on the host.
 #[derive(Clone, Debug)]
 pub struct Resolved {
@@ -21,7 +39,7 @@ pub struct Resolved {
     /// estimate, averaged over channels and the block); 0 where not yet known.
     pub sigma: Vec<f32>,
     /// The estimated relative RMSE of the image when it is a denoised one (`denoise`).
-    pub denoised: Option<f64>,
+    pub denoised: Option<Estimate>,
 }
 
 impl Resolved {

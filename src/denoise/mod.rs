@@ -27,6 +27,7 @@
 
 pub mod atrous;
 
+use crate::common::resolved::Estimate;
 use crate::common::resolved::REL_MSE_EPSILON;
 use crate::common::{Guides, Resolved};
 use crate::output::LinearImage;
@@ -77,12 +78,24 @@ impl Mode {
 pub struct Sums {
     pub mse: f64,
     pub rel: f64,
+    /// The sum of the squares of the pixels' relative terms (their three channels together)
+    /// and the pixels counted: the spread that gives the estimate's standard error.
+    pub rel2: f64,
+    pub pixels: f64,
 }
 
 impl Sums {
     fn add(&mut self, o: Sums) {
         self.mse += o.mse;
         self.rel += o.rel;
+        self.rel2 += o.rel2;
+        self.pixels += o.pixels;
+    }
+
+    /// The standard error of `rel`, the pixels' terms taken as independent.
+    pub fn rel_standard_error(&self) -> f64 {
+        let n = self.pixels.max(1.0);
+        (self.rel2 - self.rel * self.rel / n).max(0.0).sqrt()
     }
 }
 
@@ -197,7 +210,19 @@ impl Denoised {
             noise: Some(self.rel_rmse(self.raw_sums())),
             invalid,
             sigma,
-            denoised: Some(self.rel_rmse(self.shown_sums())),
+            denoised: Some(self.shown_estimate()),
+        }
+    }
+
+    /// The shown image's estimated relative RMSE, or a bound on it where the estimate is
+    /// within two standard errors of zero.
+    pub fn shown_estimate(&self) -> Estimate {
+        let s = self.shown_sums();
+        let se = s.rel_standard_error();
+        if s.rel < 2.0 * se {
+            Estimate::Below(((s.rel.max(0.0) + 2.0 * se) / self.channels.max(1) as f64).sqrt())
+        } else {
+            Estimate::Value(self.rel_rmse(s))
         }
     }
 
@@ -291,6 +316,7 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
             continue;
         }
         let k = ne * no / ((ne + no) * (ne + no));
+        let (mut pixel_r, mut pixel_d) = (0.0, 0.0);
         for c in 0..3 {
             let (x, y) = (a[p][c] as f64, b[p][c] as f64);
             let (dx, dy) = (fa[p][c] as f64, fb[p][c] as f64);
@@ -302,11 +328,22 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
             tile_raw[t].add(Sums {
                 mse: r,
                 rel: r * scale,
+                ..Sums::default()
             });
             tile_denoised[t].add(Sums {
                 mse: e,
                 rel: e * scale,
+                ..Sums::default()
             });
+            pixel_r += r * scale;
+            pixel_d += e * scale;
+        }
+        for (s, v) in [
+            (&mut tile_raw[t], pixel_r),
+            (&mut tile_denoised[t], pixel_d),
+        ] {
+            s.rel2 += v * v;
+            s.pixels += 1.0;
         }
     }
     let tiles = tile_raw

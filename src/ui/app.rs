@@ -44,7 +44,7 @@ pub struct Stats {
     /// Estimated relative RMSE of the image, when known.
     pub noise: Option<f64>,
     /// Estimated relative RMSE of the denoised image shown, when it is denoised.
-    pub denoised: Option<f64>,
+    pub denoised: Option<crate::common::resolved::Estimate>,
     pub invalid: u64,
 }
 

