@@ -85,8 +85,9 @@ pub struct ViewArgs {
     #[arg(long)]
     pub generic: bool,
     /// Denoise the preview (guided by albedo and normal; tile by tile the raw image wherever
-    /// that is estimated better): `auto` while the raw image's estimated error is above 1 %,
-    /// `on` always, `off` never. The `d` key switches it off and on.
+    /// that is estimated better): `auto` while the raw image's estimated error is above 1 %
+    /// and the accumulation goes on (the final image at --max-spp is the raw one), `on`
+    /// always, `off` never. The `d` key switches it off and on.
     #[arg(long, value_enum, default_value_t = crate::denoise::Mode::Auto)]
     pub denoise: crate::denoise::Mode,
     /// Quit after this many seconds (scripted runs, benchmarks).

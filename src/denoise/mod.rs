@@ -46,7 +46,8 @@ pub const AUTO_FLOOR: f64 = 0.01;
 /// When the denoiser runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Mode {
-    /// While the raw image's estimated error is above 1 % (relative RMSE).
+    /// While the raw image's estimated error is above 1 % (relative RMSE) and the preview is
+    /// accumulating (its final image at `--max-spp` is the raw one).
     #[default]
     Auto,
     On,

@@ -302,8 +302,11 @@ impl Worker {
             spp,
             paths: p.paths,
         };
-        // Denoised frames need a sample in each half of every pixel.
-        let denoise = self.opts.denoise.wants(p.noise) && spp >= 2;
+        // Denoised frames need a sample in each half of every pixel; once the accumulation
+        // stops (`--max-spp`), `auto` shows the final, unbiased image.
+        let denoise = self.opts.denoise.wants(p.noise)
+            && spp >= 2
+            && (busy || self.opts.denoise == crate::denoise::Mode::On);
         if denoise {
             if let Some((at, took)) = p.last_denoise
                 && busy
