@@ -7,6 +7,7 @@ pub const SOURCES: &[(&str, &str)] = &[
     ("probe.wgsl", include_str!("../../shaders/probe.wgsl")),
     ("reduce.wgsl", include_str!("../../shaders/reduce.wgsl")),
     ("resolve.wgsl", include_str!("../../shaders/resolve.wgsl")),
+    ("denoise.wgsl", include_str!("../../shaders/denoise.wgsl")),
     (
         "common/fixed.wgsl",
         include_str!("../../shaders/common/fixed.wgsl"),

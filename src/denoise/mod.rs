@@ -173,13 +173,7 @@ impl Denoised {
         let (w, h) = (self.width as usize, self.height as usize);
         let out = ((w / f).max(1), (h / f).max(1));
         let shown = self.shown();
-        let tile_of = |x: usize, y: usize| (y / TILE) * self.tiles_x + x / TILE;
-        let tile_pixels = |t: usize| {
-            let (tx, ty) = (t % self.tiles_x, t / self.tiles_x);
-            ((w - tx * TILE).min(TILE) * (h - ty * TILE).min(TILE)) as f64
-        };
         let mut pixels = Vec::with_capacity(out.0 * out.1);
-        let mut sigma = Vec::with_capacity(out.0 * out.1);
         for oy in 0..out.1 {
             for ox in 0..out.0 {
                 let mut c = [0.0f32; 3];
@@ -192,6 +186,25 @@ impl Denoised {
                     }
                 }
                 pixels.push(c.map(|v| v / n.max(1.0)));
+            }
+        }
+        self.frame(pixels, factor, invalid)
+    }
+
+    /// The preview's frame of an image already averaged by `factor` (`pixels`, row-major),
+    /// with the estimates and standard errors from the tiles.
+    fn frame(&self, pixels: Vec<[f32; 3]>, factor: u32, invalid: u64) -> Resolved {
+        let f = factor.max(1) as usize;
+        let (w, h) = (self.width as usize, self.height as usize);
+        let out = ((w / f).max(1), (h / f).max(1));
+        let tile_of = |x: usize, y: usize| (y / TILE) * self.tiles_x + x / TILE;
+        let tile_pixels = |t: usize| {
+            let (tx, ty) = (t % self.tiles_x, t / self.tiles_x);
+            ((w - tx * TILE).min(TILE) * (h - ty * TILE).min(TILE)) as f64
+        };
+        let mut sigma = Vec::with_capacity(out.0 * out.1);
+        for oy in 0..out.1 {
+            for ox in 0..out.0 {
                 let t = tile_of((ox * f).min(w - 1), (oy * f).min(h - 1));
                 let s = if self.tiles[t] {
                     self.tile_denoised[t]
@@ -236,6 +249,39 @@ impl Denoised {
     pub fn rmse(&self, s: Sums) -> f64 {
         (s.mse.max(0.0) / self.channels.max(1) as f64).sqrt()
     }
+}
+
+/// The preview's frame from the GPU's denoiser (`gpu::denoise`): its image, and the tiles'
+/// sums made into the same estimates and choice as [`denoise`]'s.
+pub fn from_gpu(
+    g: &crate::gpu::denoise::GpuDenoised,
+    (width, height): (u32, u32),
+    factor: u32,
+    invalid: u64,
+) -> Resolved {
+    let sums = |t: &[f32; 8], at: usize| Sums {
+        mse: t[at] as f64,
+        rel: t[at + 1] as f64,
+        rel2: t[at + 2] as f64,
+        pixels: t[6] as f64,
+    };
+    let tile_raw: Vec<Sums> = g.tiles.iter().map(|t| sums(t, 0)).collect();
+    let tile_denoised: Vec<Sums> = g.tiles.iter().map(|t| sums(t, 3)).collect();
+    // The shader's choice, in f32 as it made it.
+    let tiles = g.tiles.iter().map(|t| t[4] < t[1]).collect();
+    let d = Denoised {
+        width,
+        height,
+        raw: Vec::new(),
+        denoised: Vec::new(),
+        tiles,
+        tiles_x: g.tiles_x as usize,
+        tile_raw,
+        tile_denoised,
+        channels: 3 * width as usize * height as usize,
+    };
+    let pixels = g.blocks.iter().map(|b| [b[0], b[1], b[2]]).collect();
+    d.frame(pixels, factor, invalid)
 }
 
 /// The mean of a half's sums, `[r, g, b, samples]` (0 with no samples).

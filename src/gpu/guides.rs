@@ -39,6 +39,12 @@ impl GuidePass {
         }
     }
 
+    /// The sums of the last run (`GUIDE_WORDS` words a pixel), where the GPU's denoiser reads
+    /// them.
+    pub fn sums(&self) -> Option<&wgpu::Buffer> {
+        self.sums.as_ref().map(|s| &s.0)
+    }
+
     /// Traces guide samples `samples` of every pixel of the `width × height` image into fresh
     /// sums and reads them back (`GUIDE_WORDS` words per pixel). `dispatch` is the tracer's
     /// uniforms buffer, which group 0 binds; nothing else may be encoded meanwhile.

@@ -1,9 +1,10 @@
 //! The GPU stage: adapter and device, the scene's buffers (the arrays of [`crate::common`]
 //! uploaded), the tracer pass, the accumulation it writes, the reduce pass that merges lanes,
-//! the preview's resolve pass and the denoiser's guide pass.
+//! the preview's resolve pass and the denoiser's guide and filter passes.
 
 pub mod accum;
 pub mod context;
+pub mod denoise;
 pub mod guides;
 pub mod reduce;
 pub mod resolve;

@@ -546,6 +546,16 @@ impl Renderer {
         self.reset();
     }
 
+    /// The guides' sums on the GPU once [`Renderer::guides`] has made them, for the GPU's
+    /// denoiser; `None` on the CPU.
+    pub fn guide_buffer(&self) -> Option<&wgpu::Buffer> {
+        self.guides.as_ref()?;
+        match &self.engine {
+            Engine::Gpu(g) => g.guides.as_ref().and_then(|p| p.sums()),
+            Engine::Cpu(_) => None,
+        }
+    }
+
     /// The denoiser's guides (albedo and normal of every pixel, `GUIDE_SAMPLES` samples
     /// each), made by the tracer on the first call after the scene or settings change.
     pub fn guides(&mut self) -> &Guides {

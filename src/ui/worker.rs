@@ -12,6 +12,7 @@ use super::app::Stats;
 use super::event::{Event, Frame};
 use crate::common::FrameSettings;
 use crate::common::Resolved;
+use crate::gpu::denoise::DenoisePass;
 use crate::gpu::resolve::{ResolvePass, SLOTS};
 use crate::output::{Transfer, write_png};
 use crate::render::{Backend, RenderOptions, Renderer};
@@ -85,6 +86,9 @@ struct Preview {
     last_frame: Option<(Instant, u64)>,
     /// The raw image's estimated error in the last frame (the denoiser's `auto` reads it).
     noise: Option<f64>,
+    /// Invalid samples as the last raw frame counted them (the GPU's denoised frames do not
+    /// read the counter).
+    invalid: u64,
     /// When the last denoised frame was made, and what making it took (denoised frames are
     /// spaced so that the denoiser takes at most a quarter of the time).
     last_denoise: Option<(Instant, Duration)>,
@@ -97,6 +101,9 @@ struct Worker {
     preview: Option<Preview>,
     /// The GPU's resolve pass (on the CPU tracer frames are made on the host at once).
     resolve: Option<ResolvePass>,
+    /// The GPU's denoiser, made on the first denoised frame (on the CPU tracer the host's
+    /// filter denoises).
+    denoiser: Option<DenoisePass>,
     /// A frame made on the host, waiting to be sent.
     host_frame: Option<(FrameTag, Resolved)>,
     /// The frame each staging slot is bringing back.
@@ -120,6 +127,7 @@ pub fn spawn(
         .spawn(move || {
             let mut w = Worker {
                 resolve: backend.gpu().map(|ctx| ResolvePass::new(&ctx.device)),
+                denoiser: None,
                 host_frame: None,
                 backend,
                 opts,
@@ -250,6 +258,7 @@ impl Worker {
                     paths: 0,
                     last_frame: None,
                     noise: None,
+                    invalid: 0,
                     last_denoise: None,
                 })
             }
@@ -274,6 +283,7 @@ impl Worker {
             p.paths = 0;
             p.last_frame = None;
             p.noise = None;
+            p.invalid = 0;
             p.last_denoise = None;
         }
     }
@@ -317,9 +327,31 @@ impl Worker {
             // The guides are made once per edit: not part of a frame's cost.
             p.renderer.guides();
             let start = Instant::now();
-            let snap = p.renderer.snapshot();
-            let d = crate::denoise::denoise(&snap.data.even, &snap.data.odd, p.renderer.guides());
-            self.host_frame = Some((tag, d.resolved(p.factor, snap.data.invalid)));
+            let s = p.renderer.settings();
+            let frame = match (
+                &self.backend,
+                p.renderer.accumulation(),
+                p.renderer.guide_buffer(),
+            ) {
+                // On the GPU, where the sums and the guides are (shaders/denoise.wgsl).
+                (Backend::Gpu(ctx), Some(accum), Some(guides)) => {
+                    let pass = self
+                        .denoiser
+                        .get_or_insert_with(|| DenoisePass::new(&ctx.device));
+                    let g = pass.run(ctx, accum, guides, (s.width, s.height), p.factor);
+                    crate::denoise::from_gpu(&g, (s.width, s.height), p.factor, p.invalid)
+                }
+                _ => {
+                    let snap = p.renderer.snapshot();
+                    let d = crate::denoise::denoise(
+                        &snap.data.even,
+                        &snap.data.odd,
+                        p.renderer.guides(),
+                    );
+                    d.resolved(p.factor, snap.data.invalid)
+                }
+            };
+            self.host_frame = Some((tag, frame));
             p.last_denoise = Some((Instant::now(), start.elapsed()));
         } else if let Some(resolved) = p.renderer.resolve_on_host(p.factor) {
             self.host_frame = Some((tag, resolved));
@@ -391,6 +423,9 @@ impl Worker {
             return true;
         }
         p.noise = resolved.noise.or(p.noise);
+        if resolved.denoised.is_none() {
+            p.invalid = resolved.invalid;
+        }
         let elapsed = p.since_reset.elapsed();
         tracing::debug!(
             "frame at {} spp delivered {:.1} ms after the reset",

@@ -1,0 +1,264 @@
+//! The denoiser's pass on the GPU (`shaders/denoise.wgsl`): the filter of `src/denoise` run
+//! where the accumulation and the guides already are, so that a denoised preview frame reads
+//! back only the small image and the tiles' estimate sums. Five entry points of one module
+//! over one bind group layout; the two filter layers swap between iterations.
+
+use super::accum::Accumulation;
+use super::{GpuContext, bind_buffers, layout_entry, shader};
+use crate::common::layout::ResolveUniforms;
+
+/// À-trous iterations (src/denoise/atrous.rs: ITERATIONS), taps 1 to 16 pixels apart.
+const ITERATIONS: u32 = 5;
+/// Traced pixels per tile side (src/denoise: TILE).
+pub const TILE: u32 = 16;
+/// Floats per pixel of the filter's layers, of the demodulated halves, of the images.
+const LAYER: u64 = 10;
+const DEMOD: u64 = 7;
+const IMAGES: u64 = 6;
+/// Bytes per output pixel (two vec4f, as resolve.wgsl) and per tile (eight floats).
+const OUT_BYTES: u64 = 32;
+const TILE_BYTES: u64 = 32;
+
+/// What one run brings back: per output pixel resolve.wgsl's two vec4f (colour and fewest
+/// samples, then zeros), and per tile (row-major, `tiles_x` a row) the estimate's sums:
+/// raw mse, rel, rel², denoised mse, rel, rel², pixels, 0.
+pub struct GpuDenoised {
+    pub out: (u32, u32),
+    pub blocks: Vec<[f32; 8]>,
+    pub tiles_x: u32,
+    pub tiles: Vec<[f32; 8]>,
+}
+
+struct Buffers {
+    size: (u32, u32, u32),
+    texels: wgpu::Buffer,
+    demod: wgpu::Buffer,
+    layer_a: wgpu::Buffer,
+    layer_b: wgpu::Buffer,
+    images: wgpu::Buffer,
+    tiles: wgpu::Buffer,
+    out: wgpu::Buffer,
+    staging: wgpu::Buffer,
+    out_bytes: u64,
+    tile_bytes: u64,
+}
+
+pub struct DenoisePass {
+    layout: wgpu::BindGroupLayout,
+    /// prepare, settle, atrous, finish, compose.
+    pipelines: Vec<wgpu::ComputePipeline>,
+    /// Uniforms of the passes without a step (0) and of each iteration (1..).
+    uniforms: Vec<wgpu::Buffer>,
+    buffers: Option<Buffers>,
+}
+
+const ENTRY_POINTS: [&str; 5] = ["prepare", "settle", "atrous", "finish", "compose"];
+
+impl DenoisePass {
+    pub fn new(device: &wgpu::Device) -> DenoisePass {
+        use wgpu::BufferBindingType::{Storage, Uniform};
+        let (ro, rw) = (Storage { read_only: true }, Storage { read_only: false });
+        let kinds = [Uniform, ro, ro, ro, rw, rw, ro, rw, rw, rw, rw];
+        let entries: Vec<_> = kinds
+            .iter()
+            .enumerate()
+            .map(|(i, &k)| layout_entry(i as u32, k))
+            .collect();
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("denoise.layout"),
+            entries: &entries,
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("denoise.pipeline_layout"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let src = shader::assemble("denoise.wgsl").expect("denoise.wgsl assembles");
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("denoise.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(src.into()),
+        });
+        let pipelines = ENTRY_POINTS
+            .iter()
+            .map(|e| {
+                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                    label: Some(e),
+                    layout: Some(&pipeline_layout),
+                    module: &module,
+                    entry_point: Some(e),
+                    compilation_options: Default::default(),
+                    cache: None,
+                })
+            })
+            .collect();
+        let uniforms = (0..=ITERATIONS)
+            .map(|_| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("denoise.uniforms"),
+                    size: std::mem::size_of::<ResolveUniforms>() as u64,
+                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            })
+            .collect();
+        DenoisePass {
+            layout,
+            pipelines,
+            uniforms,
+            buffers: None,
+        }
+    }
+
+    fn buffers(&mut self, device: &wgpu::Device, w: u32, h: u32, factor: u32) -> &Buffers {
+        if self
+            .buffers
+            .as_ref()
+            .is_none_or(|b| b.size != (w, h, factor))
+        {
+            let pixels = w as u64 * h as u64;
+            let storage = |label, bytes: u64, extra| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: bytes.max(4),
+                    usage: wgpu::BufferUsages::STORAGE | extra,
+                    mapped_at_creation: false,
+                })
+            };
+            let none = wgpu::BufferUsages::empty();
+            let out = ((w / factor).max(1) as u64, (h / factor).max(1) as u64);
+            let tiles = w.div_ceil(TILE) as u64 * h.div_ceil(TILE) as u64;
+            let (out_bytes, tile_bytes) = (out.0 * out.1 * OUT_BYTES, tiles * TILE_BYTES);
+            self.buffers = Some(Buffers {
+                size: (w, h, factor),
+                texels: storage("denoise.texels", pixels * 32, none),
+                demod: storage("denoise.demod", pixels * DEMOD * 4, none),
+                layer_a: storage("denoise.layer_a", pixels * LAYER * 4, none),
+                layer_b: storage("denoise.layer_b", pixels * LAYER * 4, none),
+                images: storage("denoise.images", pixels * IMAGES * 4, none),
+                tiles: storage("denoise.tiles", tile_bytes, wgpu::BufferUsages::COPY_SRC),
+                out: storage("denoise.out", out_bytes, wgpu::BufferUsages::COPY_SRC),
+                staging: device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("denoise.staging"),
+                    size: out_bytes + tile_bytes,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                }),
+                out_bytes,
+                tile_bytes,
+            });
+        }
+        self.buffers.as_ref().expect("denoise buffers")
+    }
+
+    /// Denoises the `width × height` accumulation with the guides' sums (`GUIDE_WORDS` words
+    /// a pixel) and reads back the image averaged by `factor` and the tiles' sums; waits
+    /// for the GPU.
+    pub fn run(
+        &mut self,
+        ctx: &GpuContext,
+        accum: &Accumulation,
+        guides: &wgpu::Buffer,
+        (width, height): (u32, u32),
+        factor: u32,
+    ) -> GpuDenoised {
+        let factor = factor.max(1);
+        let device = &ctx.device;
+        let out = ((width / factor).max(1), (height / factor).max(1));
+        let tiles_x = width.div_ceil(TILE);
+        for (i, u) in self.uniforms.iter().enumerate() {
+            let step = if i == 0 { 0 } else { 1 << (i - 1) };
+            let params = ResolveUniforms {
+                width,
+                height,
+                factor,
+                out_width: out.0,
+                out_height: out.1,
+                _pad: [step, 0, 0],
+            };
+            ctx.queue.write_buffer(u, 0, bytemuck::bytes_of(&params));
+        }
+        self.buffers(device, width, height, factor);
+        let b = self.buffers.as_ref().expect("denoise buffers");
+        let group = |uniform: usize, a_to_b: bool| {
+            let (src, dst) = if a_to_b {
+                (&b.layer_a, &b.layer_b)
+            } else {
+                (&b.layer_b, &b.layer_a)
+            };
+            bind_buffers(
+                device,
+                "denoise.bind_group",
+                &self.layout,
+                &[
+                    &self.uniforms[uniform],
+                    &accum.even,
+                    &accum.odd,
+                    guides,
+                    &b.texels,
+                    &b.demod,
+                    src,
+                    dst,
+                    &b.images,
+                    &b.tiles,
+                    &b.out,
+                ],
+            )
+        };
+        // settle writes layer a; iteration i reads a and writes b when i is even; the result
+        // (after an odd number of iterations) is in b, which finish reads.
+        let plain = group(0, false);
+        let iterations: Vec<wgpu::BindGroup> = (0..ITERATIONS)
+            .map(|i| group(i as usize + 1, i % 2 == 0))
+            .collect();
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("denoise.submission"),
+        });
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("denoise"),
+                timestamp_writes: None,
+            });
+            let (gx, gy) = (width.div_ceil(8), height.div_ceil(8));
+            pass.set_bind_group(0, &plain, &[]);
+            pass.set_pipeline(&self.pipelines[0]);
+            pass.dispatch_workgroups(gx, gy, 1);
+            pass.set_pipeline(&self.pipelines[1]);
+            pass.dispatch_workgroups(gx, gy, 1);
+            pass.set_pipeline(&self.pipelines[2]);
+            for g in &iterations {
+                pass.set_bind_group(0, g, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+            pass.set_bind_group(0, &plain, &[]);
+            pass.set_pipeline(&self.pipelines[3]);
+            pass.dispatch_workgroups(tiles_x, height.div_ceil(TILE), 1);
+            pass.set_pipeline(&self.pipelines[4]);
+            pass.dispatch_workgroups(out.0.div_ceil(8), out.1.div_ceil(8), 1);
+        }
+        enc.copy_buffer_to_buffer(&b.out, 0, &b.staging, 0, b.out_bytes);
+        enc.copy_buffer_to_buffer(&b.tiles, 0, &b.staging, b.out_bytes, b.tile_bytes);
+        ctx.queue.submit([enc.finish()]);
+        let slice = b.staging.slice(..);
+        let (tx, rx) = std::sync::mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .expect("the GPU stopped answering while denoising");
+        rx.recv()
+            .expect("map callback")
+            .expect("mapping the denoiser's readback failed");
+        let data = slice.get_mapped_range().expect("mapped");
+        let blocks: Vec<[f32; 8]> = bytemuck::cast_slice(&data[..b.out_bytes as usize]).to_vec();
+        let tiles: Vec<[f32; 8]> = bytemuck::cast_slice(&data[b.out_bytes as usize..]).to_vec();
+        drop(data);
+        b.staging.unmap();
+        GpuDenoised {
+            out,
+            blocks,
+            tiles_x,
+            tiles,
+        }
+    }
+}
