@@ -50,10 +50,6 @@ fn load(buf: u32, pixel: u32) -> Fixed {
     return fixed_from_words(w);
 }
 
-fn fixed_value(f: Fixed) -> vec3f {
-    return vec3f(f.high) * 4294967296.0 + vec3f(f.low) + vec3f(f.frac) * (1.0 / 4294967296.0);
-}
-
 // A half's mean (0 without samples) and its sample count.
 fn half_mean(buf: u32, pixel: u32) -> vec4f {
     let f = load(buf, pixel);

@@ -26,11 +26,6 @@ fn load(buf: u32, pixel: u32) -> Fixed {
     return fixed_from_words(w);
 }
 
-// The sums as floats (exact in the fixed point, rounded to f32 only here).
-fn fixed_value(f: Fixed) -> vec3f {
-    return vec3f(f.high) * 4294967296.0 + vec3f(f.low) + vec3f(f.frac) * (1.0 / 4294967296.0);
-}
-
 @compute @workgroup_size(8, 8, 1)
 fn resolve(@builtin(global_invocation_id) gid: vec3u) {
     if gid.x >= params.out_width || gid.y >= params.out_height {

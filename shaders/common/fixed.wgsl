@@ -61,3 +61,8 @@ fn fixed_to_words(f: Fixed) -> array<u32, 10> {
 fn fixed_zero() -> Fixed {
     return Fixed(vec3u(0u), vec3u(0u), vec3u(0u), 0u);
 }
+
+// The sums as floats (exact in the fixed point, rounded to f32 only here).
+fn fixed_value(f: Fixed) -> vec3f {
+    return vec3f(f.high) * 4294967296.0 + vec3f(f.low) + vec3f(f.frac) * (1.0 / 4294967296.0);
+}
