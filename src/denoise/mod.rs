@@ -35,6 +35,11 @@ use atrous::{Guide, box_blur, filter_pair, luminance};
 
 /// Traced pixels per side of the tiles whose raw or denoised image is chosen.
 pub const TILE: usize = 16;
+/// The tile of traced pixel (x, y) in a row-major grid `tiles_x` tiles wide.
+fn tile_index(x: usize, y: usize, tiles_x: usize) -> usize {
+    (y / TILE) * tiles_x + x / TILE
+}
+
 /// Radius of the box over which the halves' difference gives the filter its noise variance.
 const VARIANCE_RADIUS: usize = 3;
 /// Added to the albedo before the radiance is divided by it (demodulation), so that a black
@@ -120,14 +125,42 @@ pub struct Denoised {
 }
 
 impl Denoised {
+    /// A frame from its images and its tiles' estimates; each tile shows the denoised image
+    /// where its estimated relative squared error is strictly below the raw image's (the
+    /// rule shaders/denoise.wgsl's `compose` applies in f32, whose order f64 keeps).
+    fn new(
+        (width, height): (u32, u32),
+        raw: Vec<[f32; 3]>,
+        denoised: Vec<[f32; 3]>,
+        tiles_x: usize,
+        tile_raw: Vec<Sums>,
+        tile_denoised: Vec<Sums>,
+    ) -> Denoised {
+        let tiles = tile_raw
+            .iter()
+            .zip(&tile_denoised)
+            .map(|(r, d)| d.rel < r.rel)
+            .collect();
+        Denoised {
+            width,
+            height,
+            raw,
+            denoised,
+            tiles,
+            tiles_x,
+            tile_raw,
+            tile_denoised,
+            channels: 3 * width as usize * height as usize,
+        }
+    }
+
     /// The image shown: per tile, whichever of the raw and the denoised one is estimated
     /// better.
     pub fn shown(&self) -> Vec<[f32; 3]> {
         let w = self.width as usize;
         (0..self.raw.len())
             .map(|p| {
-                let t = (p / w / TILE) * self.tiles_x + (p % w) / TILE;
-                if self.tiles[t] {
+                if self.tiles[tile_index(p % w, p / w, self.tiles_x)] {
                     self.denoised[p]
                 } else {
                     self.raw[p]
@@ -168,26 +201,14 @@ impl Denoised {
     /// The preview's frame: the shown image averaged over `factor × factor` blocks, the raw
     /// image's estimated error as its noise and the shown image's as `denoised`, and per
     /// output pixel a standard error from its tile's estimate.
+    /// (The preview traces a multiple of `factor` each way.)
     pub fn resolved(&self, factor: u32, invalid: u64) -> Resolved {
-        let f = factor.max(1) as usize;
-        let (w, h) = (self.width as usize, self.height as usize);
-        let out = ((w / f).max(1), (h / f).max(1));
-        let shown = self.shown();
-        let mut pixels = Vec::with_capacity(out.0 * out.1);
-        for oy in 0..out.1 {
-            for ox in 0..out.0 {
-                let mut c = [0.0f32; 3];
-                let mut n = 0.0f32;
-                for y in oy * f..((oy + 1) * f).min(h) {
-                    for x in ox * f..((ox + 1) * f).min(w) {
-                        let p = shown[y * w + x];
-                        c = [c[0] + p[0], c[1] + p[1], c[2] + p[2]];
-                        n += 1.0;
-                    }
-                }
-                pixels.push(c.map(|v| v / n.max(1.0)));
-            }
-        }
+        let shown = LinearImage {
+            width: self.width,
+            height: self.height,
+            pixels: self.shown(),
+        };
+        let pixels = crate::output::cells::downsample(&shown, factor).pixels;
         self.frame(pixels, factor, invalid)
     }
 
@@ -197,7 +218,6 @@ impl Denoised {
         let f = factor.max(1) as usize;
         let (w, h) = (self.width as usize, self.height as usize);
         let out = ((w / f).max(1), (h / f).max(1));
-        let tile_of = |x: usize, y: usize| (y / TILE) * self.tiles_x + x / TILE;
         let tile_pixels = |t: usize| {
             let (tx, ty) = (t % self.tiles_x, t / self.tiles_x);
             ((w - tx * TILE).min(TILE) * (h - ty * TILE).min(TILE)) as f64
@@ -205,7 +225,7 @@ impl Denoised {
         let mut sigma = Vec::with_capacity(out.0 * out.1);
         for oy in 0..out.1 {
             for ox in 0..out.0 {
-                let t = tile_of((ox * f).min(w - 1), (oy * f).min(h - 1));
+                let t = tile_index((ox * f).min(w - 1), (oy * f).min(h - 1), self.tiles_x);
                 let s = if self.tiles[t] {
                     self.tile_denoised[t]
                 } else {
@@ -244,11 +264,6 @@ impl Denoised {
     pub fn rel_rmse(&self, s: Sums) -> f64 {
         (s.rel.max(0.0) / self.channels.max(1) as f64).sqrt()
     }
-
-    /// RMSE from sums, in linear radiance.
-    pub fn rmse(&self, s: Sums) -> f64 {
-        (s.mse.max(0.0) / self.channels.max(1) as f64).sqrt()
-    }
 }
 
 /// The preview's frame from the GPU's denoiser (`gpu::denoise`): its image, and the tiles'
@@ -265,21 +280,14 @@ pub fn from_gpu(
         rel2: t[at + 2] as f64,
         pixels: t[6] as f64,
     };
-    let tile_raw: Vec<Sums> = g.tiles.iter().map(|t| sums(t, 0)).collect();
-    let tile_denoised: Vec<Sums> = g.tiles.iter().map(|t| sums(t, 3)).collect();
-    // The shader's choice, in f32 as it made it.
-    let tiles = g.tiles.iter().map(|t| t[4] < t[1]).collect();
-    let d = Denoised {
-        width,
-        height,
-        raw: Vec::new(),
-        denoised: Vec::new(),
-        tiles,
-        tiles_x: g.tiles_x as usize,
-        tile_raw,
-        tile_denoised,
-        channels: 3 * width as usize * height as usize,
-    };
+    let d = Denoised::new(
+        (width, height),
+        Vec::new(),
+        Vec::new(),
+        g.tiles_x as usize,
+        g.tiles.iter().map(|t| sums(t, 0)).collect(),
+        g.tiles.iter().map(|t| sums(t, 3)).collect(),
+    );
     let pixels = g.blocks.iter().map(|b| [b[0], b[1], b[2]]).collect();
     d.frame(pixels, factor, invalid)
 }
@@ -357,7 +365,7 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
     let mut tile_raw = vec![Sums::default(); tiles_x * tiles_y];
     let mut tile_denoised = tile_raw.clone();
     for p in 0..w * h {
-        let t = (p / w / TILE) * tiles_x + (p % w) / TILE;
+        let t = tile_index(p % w, p / w, tiles_x);
         let (ne, no) = (even[p][3] as f64, odd[p][3] as f64);
         if ne < 1.0 || no < 1.0 {
             continue;
@@ -393,20 +401,12 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
             s.pixels += 1.0;
         }
     }
-    let tiles = tile_raw
-        .iter()
-        .zip(&tile_denoised)
-        .map(|(r, d)| d.rel < r.rel)
-        .collect();
-    Denoised {
-        width: w as u32,
-        height: h as u32,
+    Denoised::new(
+        (w as u32, h as u32),
         raw,
         denoised,
-        tiles,
         tiles_x,
         tile_raw,
         tile_denoised,
-        channels: 3 * w * h,
-    }
+    )
 }

@@ -102,16 +102,7 @@ impl Accumulation {
         enc.copy_buffer_to_buffer(&self.counters, 0, &self.staging, 2 * half, COUNTER_BYTES);
         ctx.queue.submit([enc.finish()]);
         let slice = self.staging.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        ctx.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .expect("the GPU stopped answering while reading back the image");
-        rx.recv()
-            .expect("map callback")
-            .expect("mapping the readback buffer failed");
+        super::map_read(ctx, &slice, "reading back the image");
         let data = slice
             .get_mapped_range()
             .expect("the readback buffer is mapped");

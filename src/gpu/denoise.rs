@@ -4,6 +4,7 @@
 //! over one bind group layout; the two filter layers swap between iterations.
 
 use super::accum::Accumulation;
+use super::resolve::OUT_BYTES;
 use super::{GpuContext, bind_buffers, layout_entry, shader};
 use crate::common::layout::ResolveUniforms;
 
@@ -15,8 +16,7 @@ pub const TILE: u32 = 16;
 const LAYER: u64 = 10;
 const DEMOD: u64 = 7;
 const IMAGES: u64 = 6;
-/// Bytes per output pixel (two vec4f, as resolve.wgsl) and per tile (eight floats).
-const OUT_BYTES: u64 = 32;
+/// Bytes per tile of the estimate's sums (eight floats); an output pixel is resolve.wgsl's.
 const TILE_BYTES: u64 = 32;
 
 /// What one run brings back: per output pixel resolve.wgsl's two vec4f (colour and fewest
@@ -239,16 +239,7 @@ impl DenoisePass {
         enc.copy_buffer_to_buffer(&b.tiles, 0, &b.staging, b.out_bytes, b.tile_bytes);
         ctx.queue.submit([enc.finish()]);
         let slice = b.staging.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .expect("the GPU stopped answering while denoising");
-        rx.recv()
-            .expect("map callback")
-            .expect("mapping the denoiser's readback failed");
+        super::map_read(ctx, &slice, "denoising");
         let data = slice.get_mapped_range().expect("mapped");
         let blocks: Vec<[f32; 8]> = bytemuck::cast_slice(&data[..b.out_bytes as usize]).to_vec();
         let tiles: Vec<[f32; 8]> = bytemuck::cast_slice(&data[b.out_bytes as usize..]).to_vec();

@@ -46,8 +46,9 @@ impl GuidePass {
     }
 
     /// Traces guide samples `samples` of every pixel of the `width × height` image into fresh
-    /// sums and reads them back (`GUIDE_WORDS` words per pixel). `dispatch` is the tracer's
-    /// uniforms buffer, which group 0 binds; nothing else may be encoded meanwhile.
+    /// sums (`GUIDE_WORDS` words per pixel), left on the GPU ([`GuidePass::read`] brings
+    /// them back). `dispatch` is the tracer's uniforms buffer, which group 0 binds; nothing
+    /// else may be encoded meanwhile.
     #[allow(clippy::too_many_arguments)]
     pub fn run(
         &mut self,
@@ -58,7 +59,7 @@ impl GuidePass {
         features: Features,
         (width, height): (u32, u32),
         samples: std::ops::Range<u32>,
-    ) -> Vec<u32> {
+    ) {
         let device = &ctx.device;
         let pipeline = self.pipelines.entry(features).or_insert_with(|| {
             let constants = features.constants();
@@ -92,13 +93,7 @@ impl GuidePass {
             });
             self.sums = Some((buffer, group, bytes));
         }
-        let (buffer, group, _) = self.sums.as_ref().expect("guide sums");
-        let staging = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("guides.staging"),
-            size: bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let (_, group, _) = self.sums.as_ref().expect("guide sums");
         let u = DispatchUniforms {
             sample_base: samples.start,
             sample_count: samples.len() as u32,
@@ -123,24 +118,33 @@ impl GuidePass {
             pass.set_bind_group(1, group, &[]);
             pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
         }
-        enc.copy_buffer_to_buffer(buffer, 0, &staging, 0, bytes);
+        ctx.queue.submit([enc.finish()]);
+    }
+
+    /// The sums of the last run, read back to the host (empty before any run).
+    pub fn read(&self, ctx: &GpuContext) -> Vec<u32> {
+        let Some((buffer, _, bytes)) = &self.sums else {
+            return Vec::new();
+        };
+        let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("guides.staging"),
+            size: *bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("guides.readback"),
+            });
+        enc.copy_buffer_to_buffer(buffer, 0, &staging, 0, *bytes);
         ctx.queue.submit([enc.finish()]);
         let slice = staging.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .expect("the GPU stopped answering while making the guides");
-        rx.recv()
-            .expect("map callback")
-            .expect("mapping the guides' readback failed");
+        super::map_read(ctx, &slice, "reading back the guides");
         let data = slice.get_mapped_range().expect("mapped");
-        let mut words: Vec<u32> = bytemuck::cast_slice(&data[..]).to_vec();
+        let words: Vec<u32> = bytemuck::cast_slice(&data[..]).to_vec();
         drop(data);
         staging.unmap();
-        words.truncate(width as usize * height as usize * GUIDE_WORDS);
         words
     }
 }

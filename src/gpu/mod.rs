@@ -74,6 +74,22 @@ pub(crate) fn simple_pass(
     (layout, pipeline)
 }
 
+/// Maps `slice` of a readback buffer for reading and waits until it is mapped (every
+/// submission before it done); `what` names the work in the panic message if the GPU stops
+/// answering.
+pub(crate) fn map_read(ctx: &GpuContext, slice: &wgpu::BufferSlice<'_>, what: &str) {
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    ctx.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .unwrap_or_else(|e| panic!("the GPU stopped answering while {what}: {e}"));
+    rx.recv()
+        .expect("map callback")
+        .unwrap_or_else(|e| panic!("mapping the readback of {what} failed: {e}"));
+}
+
 /// A bind group of whole buffers, bound in order from binding 0.
 pub(crate) fn bind_buffers(
     device: &wgpu::Device,

@@ -12,8 +12,8 @@ use std::sync::atomic::{AtomicU8, Ordering};
 
 /// Staging buffers: one frame can land while the next is in flight.
 pub const SLOTS: usize = 2;
-/// Bytes per output pixel: two vec4f (see resolve.wgsl).
-const OUT_BYTES: u64 = 32;
+/// Bytes per output pixel: two vec4f (see resolve.wgsl; the denoiser's output too).
+pub(super) const OUT_BYTES: u64 = 32;
 /// Bytes of the invalid-sample counter copied behind the image.
 const COUNTER_BYTES: u64 = 8;
 

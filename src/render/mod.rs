@@ -280,7 +280,9 @@ pub struct Renderer {
     last_pipeline: Option<Features>,
     /// When the GPU last finished a submission (as seen by `wait`).
     last_done: Instant,
-    /// The denoiser's guides of the current scene and settings, once asked for.
+    /// Whether the denoiser's guides of the current scene and settings are made (on the
+    /// tracer's side), and their host copy once asked for.
+    guides_made: bool,
     guides: Option<Guides>,
 }
 
@@ -314,6 +316,7 @@ impl Renderer {
             tune_from: 0,
             last_pipeline: None,
             last_done: Instant::now(),
+            guides_made: false,
             guides: None,
         };
         r.retune();
@@ -542,47 +545,67 @@ impl Renderer {
             Engine::Cpu(c) => c.set_scene(scene, &settings),
         }
         self.settings = settings;
+        self.guides_made = false;
         self.guides = None;
         self.reset();
     }
 
-    /// The guides' sums on the GPU once [`Renderer::guides`] has made them, for the GPU's
-    /// denoiser; `None` on the CPU.
+    /// Makes the denoiser's guides (albedo and normal of every pixel, `GUIDE_SAMPLES`
+    /// samples each) on the first call after the scene or settings change: on a GPU they
+    /// stay there (for its denoiser, [`Renderer::guide_buffer`]) until the host asks for
+    /// them ([`Renderer::guides`]).
+    pub fn make_guides(&mut self) {
+        if self.guides_made {
+            return;
+        }
+        let (w, h) = (self.settings.width, self.settings.height);
+        let samples = 0..GUIDE_SAMPLES;
+        let features = self.features;
+        match &mut self.engine {
+            Engine::Gpu(g) => {
+                let pass = g
+                    .guides
+                    .get_or_insert_with(|| GuidePass::new(&g.ctx.device, g.trace.layout()));
+                pass.run(
+                    &g.ctx,
+                    g.trace.module(),
+                    &g.bind_group,
+                    g.trace.dispatch_buffer(),
+                    features,
+                    (w, h),
+                    samples,
+                );
+            }
+            Engine::Cpu(c) => {
+                self.guides = Some(Guides::decode(w, h, &c.guides(features, samples)));
+            }
+        }
+        self.guides_made = true;
+    }
+
+    /// The guides' sums on the GPU once [`Renderer::make_guides`] has made them, for the
+    /// GPU's denoiser; `None` on the CPU.
     pub fn guide_buffer(&self) -> Option<&wgpu::Buffer> {
-        self.guides.as_ref()?;
+        if !self.guides_made {
+            return None;
+        }
         match &self.engine {
             Engine::Gpu(g) => g.guides.as_ref().and_then(|p| p.sums()),
             Engine::Cpu(_) => None,
         }
     }
 
-    /// The denoiser's guides (albedo and normal of every pixel, `GUIDE_SAMPLES` samples
-    /// each), made by the tracer on the first call after the scene or settings change.
+    /// The denoiser's guides on the host (made if needed; read back from a GPU once).
     pub fn guides(&mut self) -> &Guides {
-        if self.guides.is_none() {
+        self.make_guides();
+        if self.guides.is_none()
+            && let Engine::Gpu(g) = &self.engine
+        {
+            let words = g.guides.as_ref().map_or(Vec::new(), |p| p.read(&g.ctx));
             let (w, h) = (self.settings.width, self.settings.height);
-            let samples = 0..GUIDE_SAMPLES;
-            let features = self.features;
-            let words = match &mut self.engine {
-                Engine::Gpu(g) => {
-                    let pass = g
-                        .guides
-                        .get_or_insert_with(|| GuidePass::new(&g.ctx.device, g.trace.layout()));
-                    pass.run(
-                        &g.ctx,
-                        g.trace.module(),
-                        &g.bind_group,
-                        g.trace.dispatch_buffer(),
-                        features,
-                        (w, h),
-                        samples,
-                    )
-                }
-                Engine::Cpu(c) => c.guides(features, samples),
-            };
             self.guides = Some(Guides::decode(w, h, &words));
         }
-        self.guides.as_ref().expect("guides just made")
+        self.guides.as_ref().expect("guides made")
     }
 
     /// Queues the next submission (part of a round: some rows at `k` samples per pixel) and

@@ -325,7 +325,7 @@ impl Worker {
                 return;
             }
             // The guides are made once per edit: not part of a frame's cost.
-            p.renderer.guides();
+            p.renderer.make_guides();
             let start = Instant::now();
             let s = p.renderer.settings();
             let frame = match (
