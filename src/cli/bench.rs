@@ -5,7 +5,8 @@
 use super::args::GlobalArgs;
 use super::render::{frame_settings, rate_text};
 use crate::render::Backend;
-use crate::render::{RenderOptions, Renderer};
+use crate::render::RenderOptions;
+use crate::render::multi::Team;
 use crate::scene::load_scene;
 use clap::Args;
 use std::process::ExitCode;
@@ -123,8 +124,10 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         nee: !a.no_nee,
         ..frame_settings(&scene, Some(a.width), Some(a.height), a.max_bounces, None)
     };
-    let ctx = Backend::open(g.adapter.as_deref())?;
-    ctx.check_fits(&scene)?;
+    let backends = Backend::open_all(g.adapter.as_deref())?;
+    for b in &backends {
+        b.check_fits(&scene)?;
+    }
     let options = RenderOptions {
         generic: a.generic,
         count_segments: true,
@@ -133,26 +136,28 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         extra: a.with,
         ..Default::default()
     };
-    let mut r = Renderer::new(ctx.clone(), &scene, settings, options);
+    let mut team = Team::new(&backends, &scene, settings, options, 0..u32::MAX);
     let prepare = prepare.elapsed();
     let warm = Instant::now();
-    while warm.elapsed().as_secs_f64() < a.warmup
-        || (r.tuning() && warm.elapsed().as_secs_f64() < a.warmup + 60.0)
-    {
-        r.step(Duration::from_millis(200), u32::MAX);
-    }
-    r.reset();
+    // Warm up for --warmup, and on until every tuner has chosen (at most a minute more).
+    team.run(
+        Duration::from_millis(200),
+        Some(warm + Duration::from_secs_f64(a.warmup + 60.0)),
+        |t| warm.elapsed().as_secs_f64() < a.warmup || t.tuning(),
+    );
+    team.restart(0..u32::MAX);
     let start = Instant::now();
-    let (mut paths, mut gpu_seconds) = (0u64, 0.0);
-    while start.elapsed().as_secs_f64() < a.time {
-        let s = r.step(Duration::from_millis(250), u32::MAX);
-        paths += s.paths;
-        gpu_seconds += s.gpu_seconds;
-    }
+    team.run(
+        Duration::from_millis(250),
+        Some(start + Duration::from_secs_f64(a.time)),
+        |_| true,
+    );
+    let (paths, gpu_seconds) = (team.paths(), team.gpu_seconds());
     let secs = start.elapsed().as_secs_f64();
-    let snap = r.snapshot();
+    let snap = team.snapshot();
     let segments = snap.data.segments;
-    println!("adapter      {}", ctx.describe());
+    let r = team.first();
+    println!("adapter      {}", team.describe());
     println!(
         "scene        {} at {}x{}, max_bounces {}, tracer {} ({})",
         match a.spheres {
@@ -197,7 +202,7 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     println!(
         "measured     {:.1} s, {} spp complete, {} paths",
         secs,
-        r.samples(),
+        team.samples(),
         paths
     );
     println!(
@@ -212,12 +217,19 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     );
     let on_cpu = matches!(r.backend(), Backend::Cpu);
     if r.gpu_timed() && gpu_seconds > 0.0 {
+        // With several devices, per device: their GPU seconds over their wall seconds.
+        let n = team.len() as f64;
         println!(
-            "gpu time     {:.1} s of passes ({:.0} % of wall): {:.4e} samples/s, {:.4e} segments/s",
+            "gpu time     {:.1} s of passes ({:.0} % of wall{}): {:.4e} samples/s, {:.4e} segments/s",
             gpu_seconds,
-            100.0 * gpu_seconds / secs,
-            paths as f64 / gpu_seconds,
-            segments as f64 / gpu_seconds
+            100.0 * gpu_seconds / (secs * n),
+            if team.len() > 1 {
+                " on each device"
+            } else {
+                ""
+            },
+            n * paths as f64 / gpu_seconds,
+            n * segments as f64 / gpu_seconds
         );
     } else if on_cpu {
         println!("gpu time     none (the native CPU tracer: the wall time above is its time)");
@@ -253,6 +265,18 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         None => {}
     }
     println!("invalid      {}", snap.invalid_samples());
+    drop(r);
+    if team.len() > 1 {
+        for s in team.shares() {
+            println!(
+                "device       {:.4e} samples/s, {:.1} % of the samples ({} claims): {}",
+                s.paths as f64 / secs,
+                100.0 * s.paths as f64 / paths.max(1) as f64,
+                s.ranges.len(),
+                s.device
+            );
+        }
+    }
     Ok(ExitCode::SUCCESS)
 }
 

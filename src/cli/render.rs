@@ -5,7 +5,8 @@ use super::args::{GlobalArgs, ImageArgs};
 use crate::common::FrameSettings;
 use crate::output::{ImageFile, LinearImage, check_writable, write_exr, write_png};
 use crate::render::Backend;
-use crate::render::{RenderOptions, Renderer};
+use crate::render::RenderOptions;
+use crate::render::multi::Team;
 use crate::scene::MAX_IMAGE_SIDE;
 use crate::scene::load_scene;
 use anyhow::Context;
@@ -133,14 +134,14 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         nee: !a.no_nee,
         ..frame_settings(&scene, a.width, a.height, a.max_bounces, a.seed)
     };
-    let ctx = Backend::open(g.adapter.as_deref())?;
-    ctx.check_fits(&scene)?;
+    let backends = Backend::open_all(g.adapter.as_deref())?;
+    for b in &backends {
+        b.check_fits(&scene)?;
+    }
     let options = RenderOptions {
         generic: a.generic,
         ..Default::default()
     };
-    let mut r = Renderer::new(ctx.clone(), &scene, settings, options);
-    install_ctrlc();
     let time_limit = a.time.map(Duration::from_secs_f64);
     // A target error alone renders until it is reached; with --spp or --time, whichever
     // comes first.
@@ -149,6 +150,8 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         (None, Some(_), None) => u32::MAX,
         (None, _, s) => s.unwrap_or(scene.render.spp),
     };
+    let team = Team::new(&backends, &scene, settings, options, 0..spp);
+    install_ctrlc();
     if !a.quiet {
         let until = a
             .target_error
@@ -169,7 +172,7 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
             scene.origin,
             settings.width,
             settings.height,
-            ctx.describe()
+            team.describe()
         );
     }
 
@@ -185,77 +188,58 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         settings.height
     ));
     let start = Instant::now();
-    let mut paths = 0u64;
     let mut interrupted = false;
     let mut noise: Option<f64> = None;
     let mut reached = false;
     let mut last_estimate = Instant::now();
-    while r.samples() < spp {
-        let budget = match time_limit {
-            Some(t) => t
-                .saturating_sub(start.elapsed())
-                .min(Duration::from_millis(250)),
-            None => Duration::from_millis(250),
-        };
-        paths += r.step(budget, spp).paths;
-        let elapsed = start.elapsed().as_secs_f64();
-        let rate = paths as f64 / elapsed.max(1e-9);
-        let every = if a.target_error.is_some() {
-            TARGET_CHECK_EVERY
-        } else {
-            ESTIMATE_EVERY
-        };
-        if last_estimate.elapsed() >= every {
-            noise = r.snapshot().noise_estimate();
-            last_estimate = Instant::now();
-            if let (Some(n), Some(target)) = (noise, a.target_error)
-                && n <= target
-            {
-                reached = true;
+    let every = if a.target_error.is_some() {
+        TARGET_CHECK_EVERY
+    } else {
+        ESTIMATE_EVERY
+    };
+    team.run(
+        Duration::from_millis(250),
+        time_limit.map(|t| start + t),
+        |team| {
+            let rate = team.paths() as f64 / start.elapsed().as_secs_f64().max(1e-9);
+            if last_estimate.elapsed() >= every {
+                noise = team.snapshot().noise_estimate();
+                last_estimate = Instant::now();
+                if let (Some(n), Some(target)) = (noise, a.target_error)
+                    && n <= target
+                {
+                    reached = true;
+                }
             }
-        }
-        let noise_text = noise.map_or(String::new(), |n| format!("  noise {:.2}%", n * 100.0));
-        match time_limit {
-            Some(t) => {
-                pb.set_message(format!(
-                    "{} spp  {}{noise_text}",
-                    r.samples(),
-                    rate_text(rate)
-                ));
-                pb.set_position(start.elapsed().min(t).as_millis() as u64);
+            let noise_text = noise.map_or(String::new(), |n| format!("  noise {:.2}%", n * 100.0));
+            let samples = team.samples();
+            match time_limit {
+                Some(t) => {
+                    pb.set_message(format!("{samples} spp  {}{noise_text}", rate_text(rate)));
+                    pb.set_position(start.elapsed().min(t).as_millis() as u64);
+                }
+                None if spp == u32::MAX => {
+                    pb.set_message(format!("{samples} spp  {}{noise_text}", rate_text(rate)));
+                }
+                None => {
+                    pb.set_message(format!("{}{noise_text}", rate_text(rate)));
+                    pb.set_position(samples);
+                }
             }
-            None if spp == u32::MAX => {
-                pb.set_message(format!(
-                    "{} spp  {}{noise_text}",
-                    r.samples(),
-                    rate_text(rate)
-                ));
-            }
-            None => {
-                pb.set_message(format!("{}{noise_text}", rate_text(rate)));
-                pb.set_position(r.samples() as u64);
-            }
-        }
-        if reached {
-            break;
-        }
-        if INTERRUPTED.load(Ordering::SeqCst) {
-            interrupted = true;
-            break;
-        }
-        if time_limit.is_some_and(|t| start.elapsed() >= t) {
-            break;
-        }
-    }
+            interrupted = INTERRUPTED.load(Ordering::SeqCst);
+            !reached && !interrupted
+        },
+    );
     pb.finish_and_clear();
     let elapsed = start.elapsed();
-    let snap = r.snapshot();
+    let paths = team.paths();
+    let snap = team.snapshot();
     let mut image = snap.image();
     let estimate = snap.noise_estimate();
     let mut extra = Vec::new();
     let mut denoised_text = String::new();
     if a.denoise {
-        let guides = r.guides().clone();
+        let guides = team.first().guides().clone();
         let d = crate::denoise::denoise(&snap.data.even, &snap.data.odd, &guides);
         let side = |suffix: &str| {
             let stem = out.file_stem().unwrap_or_default().to_string_lossy();
@@ -317,11 +301,30 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         snap.min_samples(),
         elapsed.as_secs_f64(),
         rate_text(rate),
-        ctx.describe(),
+        team.describe(),
         pct(estimate),
         snap.invalid_samples(),
     );
+    report_shares(&team);
     Ok(ExitCode::SUCCESS)
+}
+
+/// With several devices, what each traced: its share of the samples and its rate.
+pub(crate) fn report_shares(team: &Team) {
+    if team.len() < 2 {
+        return;
+    }
+    let total = team.paths().max(1) as f64;
+    for s in team.shares() {
+        eprintln!(
+            "  {:5.1}% of the samples ({} spp in {} claims, {}) on {}",
+            100.0 * s.paths as f64 / total,
+            s.samples,
+            s.ranges.len(),
+            rate_text(s.paths as f64 / s.seconds.max(1e-9)),
+            s.device
+        );
+    }
 }
 
 /// An estimated relative error as a percentage (– where not known).
@@ -478,14 +481,15 @@ fn run_shard(
         ..frame_settings(scene, a.width, a.height, a.max_bounces, a.seed)
     };
     let (first, end) = Header::range(i, k, spp);
-    let ctx = Backend::open(g.adapter.as_deref())?;
-    ctx.check_fits(scene)?;
+    let backends = Backend::open_all(g.adapter.as_deref())?;
+    for b in &backends {
+        b.check_fits(scene)?;
+    }
     let options = RenderOptions {
         generic: a.generic,
-        first_sample: first,
         ..Default::default()
     };
-    let mut r = Renderer::new(ctx.clone(), scene, settings, options);
+    let team = Team::new(&backends, scene, settings, options, first..end);
     install_ctrlc();
     if !a.quiet {
         eprintln!(
@@ -493,27 +497,26 @@ fn run_shard(
             scene.origin,
             settings.width,
             settings.height,
-            ctx.describe()
+            team.describe()
         );
     }
     let n = end - first;
     let pb = progress_bar(a.quiet, None, n);
     let start = Instant::now();
-    while r.samples() < n {
-        r.step(Duration::from_millis(250), n);
-        pb.set_position(r.samples() as u64);
-        if INTERRUPTED.load(Ordering::SeqCst) {
-            pb.finish_and_clear();
-            eprintln!(
-                "interrupted: shard {i} of {k} has {} of its {n} samples; nothing written \
-                 (render it again)",
-                r.samples()
-            );
-            return Ok(ExitCode::from(130));
-        }
-    }
+    team.run(Duration::from_millis(250), None, |team| {
+        pb.set_position(team.samples());
+        !INTERRUPTED.load(Ordering::SeqCst)
+    });
     pb.finish_and_clear();
-    let (even, odd, invalid) = r.exact_sums();
+    if team.samples() < n as u64 {
+        eprintln!(
+            "interrupted: shard {i} of {k} has {} of its {n} samples; nothing written \
+             (render it again)",
+            team.samples()
+        );
+        return Ok(ExitCode::from(130));
+    }
+    let (even, odd, invalid) = team.exact_sums();
     let part = Part {
         header: Header::new(scene, &settings, spp, (i, k), invalid),
         even,
@@ -526,5 +529,6 @@ fn run_shard(
         start.elapsed().as_secs_f64(),
         std::fs::metadata(&out).map(|m| m.len()).unwrap_or(0)
     );
+    report_shares(&team);
     Ok(ExitCode::SUCCESS)
 }

@@ -23,6 +23,10 @@ pub enum GpuError {
     NoMatch { selector: String, tried: String },
     #[error("could not open a device on {adapter}: {message}")]
     Device { adapter: String, message: String },
+    #[error(
+        "--adapter {selector} names several devices; `render` (shards included) and `bench` trace on several at once, this command on one: name one adapter (`termtrace adapters` lists them)"
+    )]
+    Several { selector: String },
 }
 
 const HINT: &str = "How to fix: on a machine without a GPU install Mesa's software adapters, \
@@ -165,6 +169,22 @@ pub fn select_adapter(selector: Option<&str>) -> Result<wgpu::Adapter, GpuError>
         },
         None => GpuError::NoAdapter { tried },
     })
+}
+
+/// Every usable hardware GPU (not a software adapter) on the backend of the best one, best
+/// first: `--adapter all`. One backend only, so that no GPU is counted twice (a GPU can show
+/// up on Vulkan and on GL).
+pub fn hardware_adapters() -> Vec<wgpu::Adapter> {
+    let mut adapters: Vec<wgpu::Adapter> = enumerate(wgpu::Backends::PRIMARY)
+        .into_iter()
+        .filter(|a| unusable(a).is_none() && a.get_info().device_type != wgpu::DeviceType::Cpu)
+        .collect();
+    adapters.sort_by_key(|a| rank(&a.get_info()));
+    let Some(best) = adapters.first().map(|a| a.get_info().backend) else {
+        return adapters;
+    };
+    adapters.retain(|a| a.get_info().backend == best);
+    adapters
 }
 
 impl GpuContext {

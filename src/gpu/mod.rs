@@ -14,7 +14,9 @@ pub mod timer;
 pub mod trace;
 
 pub use accum::Accumulation;
-pub use context::{GpuContext, GpuError, describe, list_adapters, select_adapter};
+pub use context::{
+    GpuContext, GpuError, describe, hardware_adapters, list_adapters, select_adapter,
+};
 pub use scene_buffers::SceneBuffers;
 pub use trace::TracePass;
 

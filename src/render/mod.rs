@@ -11,6 +11,7 @@
 //! The same rounds run on the native CPU tracer (`crate::cpu`) where there is no GPU: a
 //! submission there is traced on every core before `submit` returns.
 
+pub mod multi;
 mod schedule;
 pub mod shard;
 mod snapshot;
@@ -122,6 +123,11 @@ impl Backend {
     /// replaces Mesa's software adapters, being many times faster than they are).
     pub fn open(selector: Option<&str>) -> Result<Backend, GpuError> {
         let selector = selector.map(str::trim).filter(|s| !s.is_empty());
+        if let Some(s) = selector.filter(|s| s.eq_ignore_ascii_case("all") || s.contains(',')) {
+            return Err(GpuError::Several {
+                selector: s.to_string(),
+            });
+        }
         if selector.is_some_and(|s| s.eq_ignore_ascii_case(crate::cpu::ADAPTER_NAME)) {
             return Ok(Backend::Cpu);
         }
@@ -139,6 +145,39 @@ impl Backend {
                 Ok(Backend::Cpu)
             }
             Err(e) => Err(e),
+        }
+    }
+
+    /// The devices `selector` names: `all` (every hardware GPU of the host, on the best one's
+    /// backend; the default backend where there is none), a comma-separated list of what
+    /// [`Backend::open`] takes (`0,1`, `vulkan,cpu-native`; an adapter named twice is opened
+    /// twice), or one of them.
+    pub fn open_all(selector: Option<&str>) -> Result<Vec<Backend>, GpuError> {
+        let selector = selector.map(str::trim).filter(|s| !s.is_empty());
+        match selector {
+            Some(s) if s.eq_ignore_ascii_case("all") => {
+                let gpus = crate::gpu::hardware_adapters();
+                if gpus.is_empty() {
+                    tracing::info!(
+                        "--adapter all: no hardware GPU, tracing on the default backend"
+                    );
+                    return Ok(vec![Backend::open(None)?]);
+                }
+                gpus.into_iter()
+                    .map(|a| Ok(Backend::Gpu(Arc::new(GpuContext::on(a)?))))
+                    .collect()
+            }
+            Some(s) if s.contains(',') => s
+                .split(',')
+                .map(|one| match one.trim() {
+                    "" => Err(GpuError::NoMatch {
+                        selector: s.to_string(),
+                        tried: "an empty name in the list".into(),
+                    }),
+                    one => Backend::open(Some(one)),
+                })
+                .collect(),
+            _ => Ok(vec![Backend::open(selector)?]),
         }
     }
 
@@ -223,6 +262,7 @@ pub struct StepStats {
 /// Where the current round is: samples `[base, base + k)` of rows below `next_row` are done.
 #[derive(Clone, Copy, Debug, Default)]
 struct Round {
+    base: u32,
     k: u32,
     next_row: u32,
     /// 1: submissions take contiguous rows from `next_row` on; n > 1: each takes every n-th
@@ -284,6 +324,10 @@ pub struct Renderer {
     /// tracer's side), and their host copy once asked for.
     guides_made: bool,
     guides: Option<Guides>,
+    /// Where the samples of each round come from when several devices share a render
+    /// (`multi::Claims`); `None`: `first_sample + samples()` on.
+    /// With this renderer's device number there.
+    claims: Option<(Arc<multi::Claims>, usize)>,
 }
 
 impl Renderer {
@@ -318,6 +362,7 @@ impl Renderer {
             last_done: Instant::now(),
             guides_made: false,
             guides: None,
+            claims: None,
         };
         r.retune();
         r
@@ -437,21 +482,35 @@ impl Renderer {
         }
     }
 
-    /// A new round of `k` samples per pixel (`stride` as in `Round`), timing the tuner's next
-    /// candidate while it has not chosen.
-    fn start_round(&mut self, k: u32, stride: u32) -> Round {
+    /// Takes each round's samples from `claims` from now on (and restarts the accumulation):
+    /// several devices share one render, each claiming the next samples when it is ready
+    /// (`multi`); `samples()` then counts this renderer's share.
+    pub fn share(&mut self, claims: Arc<multi::Claims>, device: usize) {
+        self.claims = Some((claims, device));
+        self.reset();
+    }
+
+    /// A new round of up to `k` samples per pixel (`stride` as in `Round`), timing the
+    /// tuner's next candidate while it has not chosen; `None` when the shared claims are
+    /// used up.
+    fn start_round(&mut self, k: u32, stride: u32) -> Option<Round> {
+        let (base, k) = match &self.claims {
+            Some((c, device)) => c.claim(*device, k, self.schedule.rate())?,
+            None => (self.options.first_sample + self.samples, k),
+        };
         self.rounds += 1;
         let trial = self
             .tune
             .as_mut()
             .and_then(tune::Tune::start_round)
             .map(|i| (i, self.rounds));
-        Round {
+        Some(Round {
+            base,
             k,
             next_row: 0,
             stride,
             trial,
-        }
+        })
     }
 
     /// Adds finished submission `f` to the round it times; a whole round is the tuner's
@@ -621,12 +680,14 @@ impl Renderer {
             Some(r) => r,
             // The first round after a reset takes one sample, so that a first image exists
             // as soon as possible.
-            None if self.fresh => self.start_round(1, if self.options.first_look { 2 } else { 1 }),
+            None if self.fresh => {
+                self.start_round(1, if self.options.first_look { 2 } else { 1 })?
+            }
             None => {
                 let k = self
                     .schedule
                     .samples_per_round(w, h, max_samples - self.samples);
-                self.start_round(k, 1)
+                self.start_round(k, 1)?
             }
         };
         let want = match (round.trial, &self.tune) {
@@ -643,7 +704,7 @@ impl Renderer {
         };
         let lanes = self.lanes(rows, round.k);
         let d = DispatchUniforms {
-            sample_base: self.options.first_sample + self.samples,
+            sample_base: round.base,
             sample_count: round.k,
             row_offset: round.next_row,
             row_count: rows,

@@ -38,6 +38,11 @@ impl Schedule {
         });
     }
 
+    /// Paths per second, once measured.
+    pub fn rate(&self) -> Option<f64> {
+        self.cost.filter(|c| *c > 0.0).map(|c| 1.0 / c)
+    }
+
     /// Samples per pixel for the next round of a `width × height` image, at most `left`.
     pub fn samples_per_round(&self, width: u32, height: u32, left: u32) -> u32 {
         let Some(cost) = self.cost else {
