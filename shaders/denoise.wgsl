@@ -17,6 +17,7 @@ const VARIANCE_RADIUS: i32 = 3;
 const REL_MSE_EPSILON: f32 = 0.01;
 const GUIDE_WORDS: u32 = 7u;
 const LAYER: u32 = 10u;
+const DEMOD: u32 = 9u;
 
 // `_pad0`: the à-trous iteration's step in pixels.
 @group(0) @binding(0) var<uniform> params: ResolveUniforms;
@@ -25,7 +26,8 @@ const LAYER: u32 = 10u;
 @group(0) @binding(3) var<storage, read> guide_sums: array<u32>;
 // Per pixel: (albedo, sky ? 1 : 0), (unit normal or 0, 0).
 @group(0) @binding(4) var<storage, read_write> texels: array<vec4f>;
-// Per pixel: both halves demodulated (6) and the squared difference of their luminances / 2.
+// Per pixel: both halves demodulated (6), the squared difference of their luminances / 2, and
+// their luminances (2, for the firefly clamp's neighbours).
 @group(0) @binding(5) var<storage, read_write> demod: array<f32>;
 // Per pixel, LAYER floats: each half's (r, g, b, luminance, variance); read from `src`,
 // written to `dst` (the passes swap them).
@@ -35,17 +37,26 @@ const LAYER: u32 = 10u;
 @group(0) @binding(8) var<storage, read_write> images: array<f32>;
 // Per tile, 8 floats: raw (mse, rel, rel²), denoised (mse, rel, rel²), pixels, 0.
 @group(0) @binding(9) var<storage, read_write> tiles: array<f32>;
-// Per output pixel, as resolve.wgsl: (r, g, b, fewest samples), (0, 0, 0, 0).
-@group(0) @binding(10) var<storage, read_write> out: array<vec4f>;
+// Per output pixel: r, g, b (12 bytes: the preview at 960×608 reads back 7 MB, not the 19
+// of resolve.wgsl's two vec4f).
+@group(0) @binding(10) var<storage, read_write> out: array<f32>;
 
 fn lum(c: vec3f) -> f32 {
     return dot(c, vec3f(0.2126, 0.7152, 0.0722));
 }
 
+// A branch, not `select`: select would load both halves.
 fn load(buf: u32, pixel: u32) -> Fixed {
     var w: array<u32, 10>;
-    for (var i = 0u; i < ACCUM_WORDS; i++) {
-        w[i] = select(accum_odd[pixel * ACCUM_WORDS + i], accum_even[pixel * ACCUM_WORDS + i], buf == 0u);
+    let o = pixel * ACCUM_WORDS;
+    if buf == 0u {
+        for (var i = 0u; i < ACCUM_WORDS; i++) {
+            w[i] = accum_even[o + i];
+        }
+    } else {
+        for (var i = 0u; i < ACCUM_WORDS; i++) {
+            w[i] = accum_odd[o + i];
+        }
     }
     return fixed_from_words(w);
 }
@@ -84,8 +95,10 @@ fn prepare(@builtin(global_invocation_id) gid: vec3u) {
     let m = albedo + ALBEDO_EPSILON;
     let a = half_mean(0u, p).xyz / m;
     let b = half_mean(1u, p).xyz / m;
-    let d = lum(a) - lum(b);
-    let o = p * 7u;
+    let la = lum(a);
+    let lb = lum(b);
+    let d = la - lb;
+    let o = p * DEMOD;
     demod[o] = a.x;
     demod[o + 1u] = a.y;
     demod[o + 2u] = a.z;
@@ -93,10 +106,12 @@ fn prepare(@builtin(global_invocation_id) gid: vec3u) {
     demod[o + 4u] = b.y;
     demod[o + 5u] = b.z;
     demod[o + 6u] = 0.5 * d * d;
+    demod[o + 7u] = la;
+    demod[o + 8u] = lb;
 }
 
 fn demod_half(p: u32, h: u32) -> vec3f {
-    let o = p * 7u + 3u * h;
+    let o = p * DEMOD + 3u * h;
     return vec3f(demod[o], demod[o + 1u], demod[o + 2u]);
 }
 
@@ -110,7 +125,7 @@ fn clamped(x: i32, y: i32, h: u32) -> vec3f {
     for (var qy = max(y - OUTLIER_RADIUS, 0); qy <= min(y + OUTLIER_RADIUS, hh - 1); qy++) {
         for (var qx = max(x - OUTLIER_RADIUS, 0); qx <= min(x + OUTLIER_RADIUS, w - 1); qx++) {
             if qx != x || qy != y {
-                let l = lum(demod_half(u32(qy * w + qx), h));
+                let l = demod[u32(qy * w + qx) * DEMOD + 7u + h];
                 n += 1.0;
                 s += l;
                 s2 += l * l;
@@ -121,7 +136,7 @@ fn clamped(x: i32, y: i32, h: u32) -> vec3f {
     let sd = sqrt(max(s2 / max(n, 1.0) - mean * mean, 0.0));
     let limit = mean + OUTLIER_SIGMAS * sd;
     let c = demod_half(u32(y * w + x), h);
-    let l = lum(c);
+    let l = demod[u32(y * w + x) * DEMOD + 7u + h];
     if l > limit && l > 0.0 {
         return c * (limit / l);
     }
@@ -141,7 +156,7 @@ fn settle(@builtin(global_invocation_id) gid: vec3u) {
     var n = 0.0;
     for (var qy = max(y - VARIANCE_RADIUS, 0); qy <= min(y + VARIANCE_RADIUS, hh - 1); qy++) {
         for (var qx = max(x - VARIANCE_RADIUS, 0); qx <= min(x + VARIANCE_RADIUS, w - 1); qx++) {
-            v += demod[u32(qy * w + qx) * 7u + 6u];
+            v += demod[u32(qy * w + qx) * DEMOD + 6u];
             n += 1.0;
         }
     }
@@ -162,13 +177,14 @@ fn settle(@builtin(global_invocation_id) gid: vec3u) {
     dst[o + 9u] = v;
 }
 
-fn guide_weight(p: u32, q: u32) -> f32 {
-    let tp = texels[2u * p];
+// The edge-stopping weight of tap q for pixel p, given p's texels (`tp`: albedo and sky,
+// `np`: normal).
+fn guide_weight(tp: vec4f, np: vec3f, q: u32) -> f32 {
     let tq = texels[2u * q];
     if tp.w > 0.5 || tq.w > 0.5 {
         return select(0.0, 1.0, tp.w > 0.5 && tq.w > 0.5);
     }
-    var c = max(dot(texels[2u * p + 1u].xyz, texels[2u * q + 1u].xyz), 0.0);
+    var c = max(dot(np, texels[2u * q + 1u].xyz), 0.0);
     for (var i = 0; i < 7; i++) {
         c *= c;
     }
@@ -179,6 +195,25 @@ fn guide_weight(p: u32, q: u32) -> f32 {
     return c * exp(-dot(da, da) / (ALBEDO_SIGMA * ALBEDO_SIGMA));
 }
 
+// One half's layer at pixel q: (r, g, b, luminance) and variance.
+fn layer_half(q: u32, k: u32) -> vec4f {
+    let o = q * LAYER + 5u * k;
+    return vec4f(src[o], src[o + 1u], src[o + 2u], src[o + 3u]);
+}
+
+fn store_half(p: u32, k: u32, sum_c: vec3f, sum_w: f32, sum_v: f32) {
+    let c = sum_c / sum_w;
+    let o = p * LAYER + 5u * k;
+    dst[o] = c.x;
+    dst[o + 1u] = c.y;
+    dst[o + 2u] = c.z;
+    dst[o + 3u] = lum(c);
+    dst[o + 4u] = sum_v / (sum_w * sum_w);
+}
+
+// One iteration on both halves at once; the taps' weights are the linear B-spline's 3×3 kernel
+// (¼, ½, ¼)², times the guides' and each half's luminance weight. Written without private
+// arrays, which a driver may keep in memory rather than in registers.
 @compute @workgroup_size(8, 8, 1)
 fn atrous(@builtin(global_invocation_id) gid: vec3u) {
     if gid.x >= params.width || gid.y >= params.height {
@@ -189,51 +224,50 @@ fn atrous(@builtin(global_invocation_id) gid: vec3u) {
     let y = i32(gid.y);
     let w = i32(params.width);
     let p = gid.y * params.width + gid.x;
-    var kernel = array<f32, 3>(0.25, 0.5, 0.25);
-    var sum_c = array<vec3f, 2>(vec3f(0.0), vec3f(0.0));
-    var sum_w = array<f32, 2>(0.0, 0.0);
-    var sum_v = array<f32, 2>(0.0, 0.0);
-    var lp = array<f32, 2>(src[p * LAYER + 3u], src[p * LAYER + 8u]);
-    var scale = array<f32, 2>(
-        1.0 / (LUMINANCE_SIGMA * sqrt(max(src[p * LAYER + 4u], 0.0)) + LUMINANCE_EPSILON),
-        1.0 / (LUMINANCE_SIGMA * sqrt(max(src[p * LAYER + 9u], 0.0)) + LUMINANCE_EPSILON),
-    );
-    for (var j = 0; j < 3; j++) {
-        let qy = y + (j - 1) * step;
+    let tp = texels[2u * p];
+    let np = texels[2u * p + 1u].xyz;
+    var ca = vec3f(0.0);
+    var cb = vec3f(0.0);
+    var wa = 0.0;
+    var wb = 0.0;
+    var va = 0.0;
+    var vb = 0.0;
+    let lpa = src[p * LAYER + 3u];
+    let lpb = src[p * LAYER + 8u];
+    let sa = 1.0 / (LUMINANCE_SIGMA * sqrt(max(src[p * LAYER + 4u], 0.0)) + LUMINANCE_EPSILON);
+    let sb = 1.0 / (LUMINANCE_SIGMA * sqrt(max(src[p * LAYER + 9u], 0.0)) + LUMINANCE_EPSILON);
+    for (var j = -1; j <= 1; j++) {
+        let qy = y + j * step;
         if qy < 0 || qy >= i32(params.height) {
             continue;
         }
-        for (var i = 0; i < 3; i++) {
-            let qx = x + (i - 1) * step;
+        for (var i = -1; i <= 1; i++) {
+            let qx = x + i * step;
             if qx < 0 || qx >= w {
                 continue;
             }
             let q = u32(qy * w + qx);
-            var gw = kernel[j] * kernel[i];
+            var gw = select(0.25, 0.5, j == 0) * select(0.25, 0.5, i == 0);
             if q != p {
-                gw *= guide_weight(p, q);
+                gw *= guide_weight(tp, np, q);
             }
             if gw == 0.0 {
                 continue;
             }
-            for (var k = 0u; k < 2u; k++) {
-                let o = q * LAYER + 5u * k;
-                let wt = gw * exp(-abs(lp[k] - src[o + 3u]) * scale[k]);
-                sum_c[k] += wt * vec3f(src[o], src[o + 1u], src[o + 2u]);
-                sum_w[k] += wt;
-                sum_v[k] += wt * wt * src[o + 4u];
-            }
+            let a = layer_half(q, 0u);
+            let b = layer_half(q, 1u);
+            let wta = gw * exp(-abs(lpa - a.w) * sa);
+            let wtb = gw * exp(-abs(lpb - b.w) * sb);
+            ca += wta * a.xyz;
+            cb += wtb * b.xyz;
+            wa += wta;
+            wb += wtb;
+            va += wta * wta * src[q * LAYER + 4u];
+            vb += wtb * wtb * src[q * LAYER + 9u];
         }
     }
-    for (var k = 0u; k < 2u; k++) {
-        let c = sum_c[k] / sum_w[k];
-        let o = p * LAYER + 5u * k;
-        dst[o] = c.x;
-        dst[o + 1u] = c.y;
-        dst[o + 2u] = c.z;
-        dst[o + 3u] = lum(c);
-        dst[o + 4u] = sum_v[k] / (sum_w[k] * sum_w[k]);
-    }
+    store_half(p, 0u, ca, wa, va);
+    store_half(p, 1u, cb, wb, vb);
 }
 
 var<workgroup> partial: array<array<f32, 7>, 256>;
@@ -306,7 +340,6 @@ fn compose(@builtin(global_invocation_id) gid: vec3u) {
     }
     let tiles_x = (params.width + TILE - 1u) / TILE;
     var rgb = vec3f(0.0);
-    var fewest = 4294967295.0;
     for (var dy = 0u; dy < params.factor; dy++) {
         for (var dx = 0u; dx < params.factor; dx++) {
             let x = gid.x * params.factor + dx;
@@ -316,13 +349,11 @@ fn compose(@builtin(global_invocation_id) gid: vec3u) {
             let denoised = tiles[t * 8u + 4u] < tiles[t * 8u + 1u];
             let i = p * 6u + select(0u, 3u, denoised);
             rgb += vec3f(images[i], images[i + 1u], images[i + 2u]);
-            let e = load(0u, p);
-            let o = load(1u, p);
-            fewest = min(fewest, f32(min(e.samples, o.samples)));
         }
     }
-    let n = f32(params.factor * params.factor);
-    let i = gid.y * params.out_width + gid.x;
-    out[2u * i] = vec4f(rgb / n, fewest);
-    out[2u * i + 1u] = vec4f(0.0);
+    let c = rgb / f32(params.factor * params.factor);
+    let i = 3u * (gid.y * params.out_width + gid.x);
+    out[i] = c.x;
+    out[i + 1u] = c.y;
+    out[i + 2u] = c.z;
 }

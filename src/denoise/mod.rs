@@ -269,7 +269,7 @@ impl Denoised {
 /// The preview's frame from the GPU's denoiser (`gpu::denoise`): its image, and the tiles'
 /// sums made into the same estimates and choice as [`denoise`]'s.
 pub fn from_gpu(
-    g: &crate::gpu::denoise::GpuDenoised,
+    g: crate::gpu::denoise::GpuDenoised,
     (width, height): (u32, u32),
     factor: u32,
     invalid: u64,
@@ -288,8 +288,7 @@ pub fn from_gpu(
         g.tiles.iter().map(|t| sums(t, 0)).collect(),
         g.tiles.iter().map(|t| sums(t, 3)).collect(),
     );
-    let pixels = g.blocks.iter().map(|b| [b[0], b[1], b[2]]).collect();
-    d.frame(pixels, factor, invalid)
+    d.frame(g.blocks, factor, invalid)
 }
 
 /// The mean of a half's sums, `[r, g, b, samples]` (0 with no samples).

@@ -4,7 +4,6 @@
 //! over one bind group layout; the two filter layers swap between iterations.
 
 use super::accum::Accumulation;
-use super::resolve::OUT_BYTES;
 use super::{GpuContext, bind_buffers, layout_entry, shader};
 use crate::common::layout::ResolveUniforms;
 
@@ -14,17 +13,17 @@ const ITERATIONS: u32 = 5;
 pub const TILE: u32 = 16;
 /// Floats per pixel of the filter's layers, of the demodulated halves, of the images.
 const LAYER: u64 = 10;
-const DEMOD: u64 = 7;
+const DEMOD: u64 = 9;
 const IMAGES: u64 = 6;
-/// Bytes per tile of the estimate's sums (eight floats); an output pixel is resolve.wgsl's.
+/// Bytes per tile of the estimate's sums (eight floats), and per output pixel (r, g, b).
 const TILE_BYTES: u64 = 32;
+const OUT_BYTES: u64 = 12;
 
-/// What one run brings back: per output pixel resolve.wgsl's two vec4f (colour and fewest
-/// samples, then zeros), and per tile (row-major, `tiles_x` a row) the estimate's sums:
+/// What one run brings back: per output pixel its colour, and per tile (row-major, `tiles_x` a row) the estimate's sums:
 /// raw mse, rel, rel², denoised mse, rel, rel², pixels, 0.
 pub struct GpuDenoised {
     pub out: (u32, u32),
-    pub blocks: Vec<[f32; 8]>,
+    pub blocks: Vec<[f32; 3]>,
     pub tiles_x: u32,
     pub tiles: Vec<[f32; 8]>,
 }
@@ -50,7 +49,20 @@ pub struct DenoisePass {
     /// Uniforms of the passes without a step (0) and of each iteration (1..).
     uniforms: Vec<wgpu::Buffer>,
     buffers: Option<Buffers>,
+    /// Timestamps around every dispatch, where asked for (`profile`).
+    profile: Option<Profile>,
 }
+
+/// Two timestamps around each of the `DISPATCHES` dispatches of a run (benchmarks).
+struct Profile {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    period_ns: f64,
+}
+
+/// prepare, settle, the iterations, finish, compose.
+const DISPATCHES: u32 = 4 + ITERATIONS;
 
 const ENTRY_POINTS: [&str; 5] = ["prepare", "settle", "atrous", "finish", "compose"];
 
@@ -106,7 +118,54 @@ impl DenoisePass {
             pipelines,
             uniforms,
             buffers: None,
+            profile: None,
         }
+    }
+
+    /// Times every dispatch of the following runs on the GPU, where the device has timestamp
+    /// queries (`bench`); [`DenoisePass::profile`] reads the last run's times.
+    pub fn enable_profile(&mut self, ctx: &GpuContext) {
+        if !ctx.timestamps || self.profile.is_some() {
+            return;
+        }
+        let d = &ctx.device;
+        let bytes = 16 * DISPATCHES as u64;
+        let buffer = |label, usage| {
+            d.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        use wgpu::BufferUsages as U;
+        self.profile = Some(Profile {
+            set: d.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("denoise.queries"),
+                ty: wgpu::QueryType::Timestamp,
+                count: 2 * DISPATCHES,
+            }),
+            resolve: buffer("denoise.queries.resolve", U::QUERY_RESOLVE | U::COPY_SRC),
+            readback: buffer("denoise.queries.readback", U::MAP_READ | U::COPY_DST),
+            period_ns: ctx.queue.get_timestamp_period() as f64,
+        });
+    }
+
+    /// Milliseconds each dispatch of the last run took on the GPU (prepare, settle, the
+    /// iterations, finish, compose), where profiling.
+    pub fn profile(&self, ctx: &GpuContext) -> Option<Vec<f64>> {
+        let p = self.profile.as_ref()?;
+        let slice = p.readback.slice(..);
+        super::map_read(ctx, &slice, "the denoiser's timestamps");
+        let ms = {
+            let data = slice.get_mapped_range().expect("mapped");
+            let t: &[u64] = bytemuck::cast_slice(&data);
+            t.chunks_exact(2)
+                .map(|c| c[1].saturating_sub(c[0]) as f64 * p.period_ns * 1e-6)
+                .collect()
+        };
+        p.readback.unmap();
+        Some(ms)
     }
 
     fn buffers(&mut self, device: &wgpu::Device, w: u32, h: u32, factor: u32) -> &Buffers {
@@ -213,27 +272,31 @@ impl DenoisePass {
         let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("denoise.submission"),
         });
-        {
+        let (gx, gy) = (width.div_ceil(8), height.div_ceil(8));
+        let mut dispatches: Vec<(&wgpu::BindGroup, usize, (u32, u32))> =
+            vec![(&plain, 0, (gx, gy)), (&plain, 1, (gx, gy))];
+        dispatches.extend(iterations.iter().map(|g| (g, 2, (gx, gy))));
+        dispatches.push((&plain, 3, (tiles_x, height.div_ceil(TILE))));
+        dispatches.push((&plain, 4, (out.0.div_ceil(8), out.1.div_ceil(8))));
+        for (i, (group, pipeline, (x, y))) in dispatches.into_iter().enumerate() {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("denoise"),
-                timestamp_writes: None,
+                label: Some(ENTRY_POINTS[pipeline]),
+                timestamp_writes: self
+                    .profile
+                    .as_ref()
+                    .map(|p| wgpu::ComputePassTimestampWrites {
+                        query_set: &p.set,
+                        beginning_of_pass_write_index: Some(2 * i as u32),
+                        end_of_pass_write_index: Some(2 * i as u32 + 1),
+                    }),
             });
-            let (gx, gy) = (width.div_ceil(8), height.div_ceil(8));
-            pass.set_bind_group(0, &plain, &[]);
-            pass.set_pipeline(&self.pipelines[0]);
-            pass.dispatch_workgroups(gx, gy, 1);
-            pass.set_pipeline(&self.pipelines[1]);
-            pass.dispatch_workgroups(gx, gy, 1);
-            pass.set_pipeline(&self.pipelines[2]);
-            for g in &iterations {
-                pass.set_bind_group(0, g, &[]);
-                pass.dispatch_workgroups(gx, gy, 1);
-            }
-            pass.set_bind_group(0, &plain, &[]);
-            pass.set_pipeline(&self.pipelines[3]);
-            pass.dispatch_workgroups(tiles_x, height.div_ceil(TILE), 1);
-            pass.set_pipeline(&self.pipelines[4]);
-            pass.dispatch_workgroups(out.0.div_ceil(8), out.1.div_ceil(8), 1);
+            pass.set_bind_group(0, group, &[]);
+            pass.set_pipeline(&self.pipelines[pipeline]);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        if let Some(p) = &self.profile {
+            enc.resolve_query_set(&p.set, 0..2 * DISPATCHES, &p.resolve, 0);
+            enc.copy_buffer_to_buffer(&p.resolve, 0, &p.readback, 0, 16 * DISPATCHES as u64);
         }
         enc.copy_buffer_to_buffer(&b.out, 0, &b.staging, 0, b.out_bytes);
         enc.copy_buffer_to_buffer(&b.tiles, 0, &b.staging, b.out_bytes, b.tile_bytes);
@@ -241,7 +304,7 @@ impl DenoisePass {
         let slice = b.staging.slice(..);
         super::map_read(ctx, &slice, "denoising");
         let data = slice.get_mapped_range().expect("mapped");
-        let blocks: Vec<[f32; 8]> = bytemuck::cast_slice(&data[..b.out_bytes as usize]).to_vec();
+        let blocks: Vec<[f32; 3]> = bytemuck::cast_slice(&data[..b.out_bytes as usize]).to_vec();
         let tiles: Vec<[f32; 8]> = bytemuck::cast_slice(&data[b.out_bytes as usize..]).to_vec();
         drop(data);
         b.staging.unmap();

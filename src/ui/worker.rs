@@ -339,7 +339,7 @@ impl Worker {
                         .denoiser
                         .get_or_insert_with(|| DenoisePass::new(&ctx.device));
                     let g = pass.run(ctx, accum, guides, (s.width, s.height), p.factor);
-                    crate::denoise::from_gpu(&g, (s.width, s.height), p.factor, p.invalid)
+                    crate::denoise::from_gpu(g, (s.width, s.height), p.factor, p.invalid)
                 }
                 _ => {
                     let snap = p.renderer.snapshot();
