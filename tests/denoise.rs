@@ -482,6 +482,26 @@ fn the_gpu_denoiser_agrees_with_the_host_one() {
         (w, h),
         1,
     );
+    // The pass keeps its bind groups while nothing they bind changes: run again, after a
+    // run at another factor (new buffers and groups) and at this one, it gives the same.
+    pass.run(
+        &ctx,
+        r.accumulation().unwrap(),
+        r.guide_buffer().unwrap(),
+        (w, h),
+        2,
+    );
+    for _ in 0..2 {
+        let again = pass.run(
+            &ctx,
+            r.accumulation().unwrap(),
+            r.guide_buffer().unwrap(),
+            (w, h),
+            1,
+        );
+        assert_eq!(again.blocks, g.blocks);
+        assert_eq!(again.tiles, g.tiles);
+    }
     let gpu_tiles: Vec<bool> = g.tiles.iter().map(|t| t[4] < t[1]).collect();
     let gpu_frame = termtrace::denoise::from_gpu(g, (w, h), 1, 0);
     let close = host_frame

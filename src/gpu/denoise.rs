@@ -51,6 +51,20 @@ pub struct DenoisePass {
     buffers: Option<Buffers>,
     /// Timestamps around every dispatch, where asked for (`profile`).
     profile: Option<Profile>,
+    /// The bind groups of the last run (the passes without a step, then each iteration's)
+    /// and what they bind: made again only when the accumulation, the guides or the size
+    /// change.
+    bound: Option<(Bound, Vec<wgpu::BindGroup>)>,
+}
+
+/// What a run's bind groups and uniforms depend on: the accumulation's halves, the guides'
+/// sums, and the size and factor.
+#[derive(PartialEq)]
+struct Bound {
+    even: wgpu::Buffer,
+    odd: wgpu::Buffer,
+    guides: wgpu::Buffer,
+    size: (u32, u32, u32),
 }
 
 /// Two timestamps around each of the `DISPATCHES` dispatches of a run (benchmarks).
@@ -119,6 +133,7 @@ impl DenoisePass {
             uniforms,
             buffers: None,
             profile: None,
+            bound: None,
         }
     }
 
@@ -224,60 +239,71 @@ impl DenoisePass {
         let device = &ctx.device;
         let out = ((width / factor).max(1), (height / factor).max(1));
         let tiles_x = width.div_ceil(TILE);
-        for (i, u) in self.uniforms.iter().enumerate() {
-            let step = if i == 0 { 0 } else { 1 << (i - 1) };
-            let params = ResolveUniforms {
-                width,
-                height,
-                factor,
-                out_width: out.0,
-                out_height: out.1,
-                _pad: [step, 0, 0],
-            };
-            ctx.queue.write_buffer(u, 0, bytemuck::bytes_of(&params));
-        }
-        self.buffers(device, width, height, factor);
-        let b = self.buffers.as_ref().expect("denoise buffers");
-        let group = |uniform: usize, a_to_b: bool| {
-            let (src, dst) = if a_to_b {
-                (&b.layer_a, &b.layer_b)
-            } else {
-                (&b.layer_b, &b.layer_a)
-            };
-            bind_buffers(
-                device,
-                "denoise.bind_group",
-                &self.layout,
-                &[
-                    &self.uniforms[uniform],
-                    &accum.even,
-                    &accum.odd,
-                    guides,
-                    &b.texels,
-                    &b.demod,
-                    src,
-                    dst,
-                    &b.images,
-                    &b.tiles,
-                    &b.out,
-                ],
-            )
+        let key = Bound {
+            even: accum.even.clone(),
+            odd: accum.odd.clone(),
+            guides: guides.clone(),
+            size: (width, height, factor),
         };
-        // settle writes layer a; iteration i reads a and writes b when i is even; the result
-        // (after an odd number of iterations) is in b, which finish reads.
-        let plain = group(0, false);
-        let iterations: Vec<wgpu::BindGroup> = (0..ITERATIONS)
-            .map(|i| group(i as usize + 1, i % 2 == 0))
-            .collect();
+        if self.bound.as_ref().is_none_or(|(k, _)| *k != key) {
+            self.bound = None;
+            for (i, u) in self.uniforms.iter().enumerate() {
+                let step = if i == 0 { 0 } else { 1 << (i - 1) };
+                let params = ResolveUniforms {
+                    width,
+                    height,
+                    factor,
+                    out_width: out.0,
+                    out_height: out.1,
+                    _pad: [step, 0, 0],
+                };
+                ctx.queue.write_buffer(u, 0, bytemuck::bytes_of(&params));
+            }
+            self.buffers(device, width, height, factor);
+            let b = self.buffers.as_ref().expect("denoise buffers");
+            let group = |uniform: usize, a_to_b: bool| {
+                let (src, dst) = if a_to_b {
+                    (&b.layer_a, &b.layer_b)
+                } else {
+                    (&b.layer_b, &b.layer_a)
+                };
+                bind_buffers(
+                    device,
+                    "denoise.bind_group",
+                    &self.layout,
+                    &[
+                        &self.uniforms[uniform],
+                        &accum.even,
+                        &accum.odd,
+                        guides,
+                        &b.texels,
+                        &b.demod,
+                        src,
+                        dst,
+                        &b.images,
+                        &b.tiles,
+                        &b.out,
+                    ],
+                )
+            };
+            // settle writes layer a; iteration i reads a and writes b when i is even; the
+            // result (after an odd number of iterations) is in b, which finish reads.
+            let mut groups = vec![group(0, false)];
+            groups.extend((0..ITERATIONS).map(|i| group(i as usize + 1, i % 2 == 0)));
+            self.bound = Some((key, groups));
+        }
+        let b = self.buffers.as_ref().expect("denoise buffers");
+        let groups = &self.bound.as_ref().expect("bind groups made").1;
+        let (plain, iterations) = (&groups[0], &groups[1..]);
         let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("denoise.submission"),
         });
         let (gx, gy) = (width.div_ceil(8), height.div_ceil(8));
         let mut dispatches: Vec<(&wgpu::BindGroup, usize, (u32, u32))> =
-            vec![(&plain, 0, (gx, gy)), (&plain, 1, (gx, gy))];
+            vec![(plain, 0, (gx, gy)), (plain, 1, (gx, gy))];
         dispatches.extend(iterations.iter().map(|g| (g, 2, (gx, gy))));
-        dispatches.push((&plain, 3, (tiles_x, height.div_ceil(TILE))));
-        dispatches.push((&plain, 4, (out.0.div_ceil(8), out.1.div_ceil(8))));
+        dispatches.push((plain, 3, (tiles_x, height.div_ceil(TILE))));
+        dispatches.push((plain, 4, (out.0.div_ceil(8), out.1.div_ceil(8))));
         for (i, (group, pipeline, (x, y))) in dispatches.into_iter().enumerate() {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(ENTRY_POINTS[pipeline]),
