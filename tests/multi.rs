@@ -117,7 +117,8 @@ fn termtrace(dir: &Path) -> Command {
 fn the_command_line_takes_a_list_and_all() {
     // `--adapter cpu-native,cpu-native` writes the very snapshot of `--adapter cpu-native`;
     // `--adapter all` on a machine without a hardware GPU renders on the default backend;
-    // commands that trace on one device refuse a list by name.
+    // `converge` measures two devices sharing each run; the preview, which traces on one
+    // device, refuses a list by name.
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let render = |adapter: &str, out: &str| {
@@ -143,12 +144,25 @@ fn the_command_line_takes_a_list_and_all() {
     render("all", "all.png");
     assert!(d.join("all.png").exists());
     let o = termtrace(d)
-        .args(["converge", "cornell", "--out", "c", "--adapter", "0,1"])
+        .args([
+            "converge", "cornell", "--out", "c", "--width", "24", "--height", "16",
+        ])
+        .args(["--time", "0.3", "--reference-spp", "64", "--no-cache"])
+        .args(["--adapter", "cpu-native,cpu-native"])
         .output()
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
     assert!(
-        !o.status.success() && err.contains("--adapter 0,1 names several devices"),
+        err.contains("native CPU tracer (") && err.contains(" + "),
         "{err}"
+    );
+    let csv = std::fs::read_to_string(d.join("c/convergence.csv")).unwrap();
+    assert!(csv.lines().count() > 2, "{csv}");
+    let e = Backend::open(Some("0,1")).err().expect("a list refused");
+    assert!(
+        e.to_string()
+            .contains("--adapter 0,1 names several devices"),
+        "{e}"
     );
 }

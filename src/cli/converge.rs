@@ -139,14 +139,17 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create the output directory {}", a.out.display()))?;
     crate::output::check_writable(&a.out.join("convergence.csv"))?;
-    let ctx = Backend::open(g.adapter.as_deref())?;
-    ctx.check_fits(&scene)?;
+    let backends = Backend::open_all(g.adapter.as_deref())?;
+    for b in &backends {
+        b.check_fits(&scene)?;
+    }
+    let devices: Vec<String> = backends.iter().map(Backend::describe).collect();
     eprintln!(
         "converge: {} at {}x{} on {}",
         scene.origin,
         settings.width,
         settings.height,
-        ctx.describe()
+        devices.join(" + ")
     );
 
     let reference = match &a.reference {
@@ -171,7 +174,7 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
                 ..settings
             };
             let r = reference::rendered(
-                &ctx,
+                &backends,
                 &scene,
                 ref_settings,
                 a.reference_spp,
@@ -199,7 +202,7 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         .map(converge::metrics::mean_variance);
     let setup = converge::Setup {
         reference_variance: reference_variance.as_deref(),
-        ctx: &ctx,
+        backends: &backends,
         scene: &scene,
         settings,
         reference: &reference.image,

@@ -8,12 +8,13 @@ pub mod reference;
 
 use crate::common::FrameSettings;
 use crate::render::Backend;
-use crate::render::{RenderOptions, Renderer, Snapshot};
+use crate::render::multi::Team;
+use crate::render::{RenderOptions, Snapshot};
 use crate::scene::Scene;
 use metrics::{Errors, errors_against_noisy, log_log_fit, time_to};
 use std::io::Write;
 use std::path::Path;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// The first checkpoint, in seconds of rendering.
 pub const FIRST_CHECKPOINT: f64 = 0.05;
@@ -75,7 +76,8 @@ pub struct Run {
 
 /// What every run of a measurement shares.
 pub struct Setup<'a> {
-    pub ctx: &'a Backend,
+    /// The devices that share each run (`render::multi`).
+    pub backends: &'a [Backend],
     pub scene: &'a Scene,
     pub settings: FrameSettings,
     pub reference: &'a crate::output::LinearImage,
@@ -101,7 +103,11 @@ pub fn run_once(
         nee: variant.nee,
         ..setup.settings
     };
-    let mut r = Renderer::new(setup.ctx.clone(), setup.scene, s, variant.options);
+    // The samples are claimed up to the next checkpoint's count, so that a checkpoint at
+    // 1, 2, 4, … spp holds just that many; time checkpoints stop the devices at a deadline.
+    // The time axis is the devices' tracing: the checkpoints' own work (reading back,
+    // measuring, denoising) is left out.
+    let team = Team::new(setup.backends, setup.scene, s, variant.options, 0..1);
     let total = time.as_secs_f64();
     let mut next = FIRST_CHECKPOINT.min(total);
     // Checkpoints also come at 1, 2, 4, … samples per pixel, whichever is due first: on a
@@ -117,18 +123,24 @@ pub fn run_once(
     let mut denoise_total = 0.0;
     loop {
         let left = (next - seconds).max(0.0);
-        let step = r.step(Duration::from_secs_f64(left.min(0.25)), next_spp);
-        seconds += step.elapsed.as_secs_f64();
-        progress(seconds, r.samples());
-        if r.samples() == 0 && seconds < total {
+        let start = Instant::now();
+        team.run(
+            Duration::from_millis(250),
+            Some(start + Duration::from_secs_f64(left)),
+            |_| true,
+        );
+        seconds += start.elapsed().as_secs_f64();
+        let samples = team.samples().min(u32::MAX as u64) as u32;
+        progress(seconds, samples);
+        if samples == 0 && seconds < total {
             // The image before any sample is no measurement of the tracer's error.
             continue;
         }
         let first = *first_sample.get_or_insert(seconds);
-        if seconds + 1e-9 < next && r.samples() < next_spp {
+        if seconds + 1e-9 < next && samples < next_spp {
             continue;
         }
-        let snap = r.snapshot();
+        let snap = team.snapshot();
         if snap.min_samples() > 0 {
             checkpoints.push(Checkpoint {
                 label: variant.label.clone(),
@@ -146,7 +158,7 @@ pub fn run_once(
         }
         if setup.denoise && snap.min_samples() >= 2 {
             let start = std::time::Instant::now();
-            let d = crate::denoise::denoise(&snap.data.even, &snap.data.odd, r.guides());
+            let d = crate::denoise::denoise(&snap.data.even, &snap.data.odd, team.first().guides());
             let shown = crate::output::LinearImage {
                 width: s.width,
                 height: s.height,
@@ -178,9 +190,10 @@ pub fn run_once(
             next *= CHECKPOINT_FACTOR;
         }
         next = next.min(total);
-        while next_spp <= r.samples() {
+        while next_spp <= samples {
             next_spp = next_spp.saturating_mul(2);
         }
+        team.extend(next_spp);
     }
 }
 

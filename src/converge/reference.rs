@@ -5,7 +5,8 @@ use crate::common::AccumData;
 use crate::common::FrameSettings;
 use crate::output::LinearImage;
 use crate::render::Backend;
-use crate::render::{RenderOptions, Renderer, Snapshot};
+use crate::render::multi::Team;
+use crate::render::{RenderOptions, Snapshot};
 use crate::scene::Scene;
 use anyhow::{Context, bail};
 use std::hash::{Hash, Hasher};
@@ -155,14 +156,15 @@ fn read_cache(path: &Path, width: u32, height: u32) -> Option<Snapshot> {
 
 /// Renders the reference at `spp` (or takes it from the cache), reporting progress.
 pub fn rendered(
-    ctx: &Backend,
+    backends: &[Backend],
     scene: &Scene,
     settings: FrameSettings,
     spp: u32,
     cache_dir: Option<&Path>,
     mut progress: impl FnMut(u32, u32),
 ) -> anyhow::Result<Reference> {
-    let key = cache_key(scene, &settings, spp, &ctx.describe());
+    let names: Vec<String> = backends.iter().map(Backend::describe).collect();
+    let key = cache_key(scene, &settings, spp, &names.join(" + "));
     let path = cache_dir.map(|d| d.join(format!("reference-{key:016x}.bin")));
     if let Some(p) = &path
         && let Some(snap) = read_cache(p, settings.width, settings.height)
@@ -177,12 +179,12 @@ pub fn rendered(
         seed: REFERENCE_SEED,
         ..settings
     };
-    let mut r = Renderer::new(ctx.clone(), scene, s, RenderOptions::default());
-    while r.samples() < spp {
-        r.step(Duration::from_millis(250), spp);
-        progress(r.samples(), spp);
-    }
-    let snap = r.snapshot();
+    let team = Team::new(backends, scene, s, RenderOptions::default(), 0..spp);
+    team.run(Duration::from_millis(250), None, |t| {
+        progress(t.samples().min(spp as u64) as u32, spp);
+        true
+    });
+    let snap = team.snapshot();
     let mut source = format!("{spp} spp, rendered");
     if let Some(p) = &path {
         match write_cache(p, &snap) {

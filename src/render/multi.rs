@@ -83,6 +83,12 @@ impl Claims {
         Some((first, take))
     }
 
+    /// Makes the samples up to `end` claimable too (a render continued to more samples).
+    pub fn extend(&self, end: u32) {
+        let mut s = self.state.lock().expect("claims poisoned");
+        s.end = s.end.max(end);
+    }
+
     /// The samples each device claimed, as ranges in the order claimed.
     pub fn claimed(&self) -> Vec<Vec<Range<u32>>> {
         self.state.lock().expect("claims poisoned").claimed.clone()
@@ -238,6 +244,11 @@ impl Team {
     /// Samples not yet claimed.
     pub fn left(&self) -> u32 {
         self.claims.left()
+    }
+
+    /// Goes on to samples up to `end` of every pixel (the accumulation kept).
+    pub fn extend(&self, end: u32) {
+        self.claims.extend(end);
     }
 
     /// Traces until every sample is claimed and traced, `deadline` passes, or `watch`
