@@ -11,6 +11,7 @@
 //! The same rounds run on the native CPU tracer (`crate::cpu`) where there is no GPU: a
 //! submission there is traced on every core before `submit` returns.
 
+pub mod claims;
 pub mod multi;
 mod schedule;
 pub mod shard;
@@ -325,9 +326,9 @@ pub struct Renderer {
     guides_made: bool,
     guides: Option<Guides>,
     /// Where the samples of each round come from when several devices share a render
-    /// (`multi::Claims`); `None`: `first_sample + samples()` on.
+    /// (`claims::Claims`); `None`: `first_sample + samples()` on.
     /// With this renderer's device number there.
-    claims: Option<(Arc<multi::Claims>, usize)>,
+    claims: Option<(Arc<claims::Claims>, usize)>,
 }
 
 impl Renderer {
@@ -485,7 +486,7 @@ impl Renderer {
     /// Takes each round's samples from `claims` from now on (and restarts the accumulation):
     /// several devices share one render, each claiming the next samples when it is ready
     /// (`multi`); `samples()` then counts this renderer's share.
-    pub fn share(&mut self, claims: Arc<multi::Claims>, device: usize) {
+    pub fn share(&mut self, claims: Arc<claims::Claims>, device: usize) {
         self.claims = Some((claims, device));
         self.reset();
     }

@@ -1,0 +1,141 @@
+//! The samples of a render shared by several devices (`multi`): each claims the next ones
+//! when it is ready, by guided self-scheduling weighted by rate (Polychronopoulos and Kuck
+//! 1987): at most half of its rate's share of what is left, so that the claims shrink
+//! towards the end and the devices finish together; a device that could not finish one
+//! sample before the others finish the rest stops claiming.
+
+use std::ops::Range;
+use std::sync::Mutex;
+
+/// The samples of a render not yet claimed, and the devices' measured rates.
+#[derive(Debug)]
+pub struct Claims {
+    state: Mutex<ClaimState>,
+}
+
+#[derive(Debug)]
+struct ClaimState {
+    next: u32,
+    end: u32,
+    /// Paths per second of each device, once measured.
+    rates: Vec<Option<f64>>,
+    /// The ranges each device claimed, in order.
+    claimed: Vec<Vec<Range<u32>>>,
+}
+
+impl Claims {
+    /// The samples `range` of every pixel, shared by `devices` devices.
+    pub fn new(range: Range<u32>, devices: usize) -> Claims {
+        Claims {
+            state: Mutex::new(ClaimState {
+                next: range.start,
+                end: range.end.max(range.start),
+                rates: vec![None; devices],
+                claimed: vec![Vec::new(); devices],
+            }),
+        }
+    }
+
+    /// Claims up to `want` samples of every pixel for `device`, whose measured rate is
+    /// `rate` (paths per second): `(first sample, count)`, or `None` when none are left or
+    /// the others would finish what is left before this device finished one sample.
+    pub fn claim(&self, device: usize, want: u32, rate: Option<f64>) -> Option<(u32, u32)> {
+        let mut s = self.state.lock().expect("claims poisoned");
+        if let Some(r) = rate.filter(|r| r.is_finite() && *r > 0.0) {
+            s.rates[device] = Some(r);
+        }
+        let left = s.end - s.next;
+        if left == 0 {
+            return None;
+        }
+        let mut take = want.clamp(1, left);
+        if s.rates.len() > 1 {
+            let known: Vec<f64> = s.rates.iter().flatten().copied().collect();
+            if let (Some(mine), true) = (s.rates[device], known.len() == s.rates.len()) {
+                let total: f64 = known.iter().sum();
+                let share = left as f64 * mine / total;
+                let fastest = known.iter().all(|&r| r <= mine);
+                if share < 1.0 && !fastest {
+                    return None;
+                }
+                take = take.min(((share / 2.0).floor() as u32).max(1));
+            } else {
+                // Until every rate is known, one sample at a time: a device not yet measured
+                // may be far slower than this one.
+                take = 1;
+            }
+        }
+        let first = s.next;
+        s.next += take;
+        s.claimed[device].push(first..first + take);
+        Some((first, take))
+    }
+
+    /// Makes the samples up to `end` claimable too (a render continued to more samples).
+    pub fn extend(&self, end: u32) {
+        let mut s = self.state.lock().expect("claims poisoned");
+        s.end = s.end.max(end);
+    }
+
+    /// The samples each device claimed, as ranges in the order claimed.
+    pub fn claimed(&self) -> Vec<Vec<Range<u32>>> {
+        self.state.lock().expect("claims poisoned").claimed.clone()
+    }
+
+    /// Samples not yet claimed.
+    pub fn left(&self) -> u32 {
+        let s = self.state.lock().expect("claims poisoned");
+        s.end - s.next
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_device_claims_what_it_asks_for() {
+        let c = Claims::new(3..10, 1);
+        assert_eq!(c.claim(0, 1, None), Some((3, 1)));
+        assert_eq!(c.claim(0, 4, Some(1.0)), Some((4, 4)));
+        assert_eq!(c.claim(0, 4, Some(1.0)), Some((8, 2)), "never past the end");
+        assert_eq!(c.claim(0, 4, Some(1.0)), None);
+        assert_eq!(c.claimed(), vec![vec![3..4, 4..8, 8..10]]);
+    }
+
+    #[test]
+    fn claims_follow_the_rates_and_cover_the_range_once() {
+        // A device 9× as fast as the other: until both rates are known one sample each, then
+        // at most half of each one's share of what is left; the slow one stops once its
+        // share is under a sample, and the fast one takes the rest.
+        let c = Claims::new(0..100, 2);
+        assert_eq!(c.claim(0, 50, None), Some((0, 1)));
+        assert_eq!(c.claim(1, 50, Some(1.0)), Some((1, 1)));
+        let (_, fast) = c.claim(0, 50, Some(9.0)).unwrap();
+        assert_eq!(fast, 44, "half of 9/10 of the 98 left");
+        let (_, slow) = c.claim(1, 50, Some(1.0)).unwrap();
+        assert_eq!(slow, 2, "half of 1/10 of the 54 left");
+        let mut taken = 2 + fast + slow;
+        let mut slow_stopped = false;
+        while let Some((_, n)) = c.claim(0, 50, Some(9.0)) {
+            taken += n;
+            if !slow_stopped {
+                match c.claim(1, 50, Some(1.0)) {
+                    Some((_, n)) => taken += n,
+                    None => slow_stopped = true,
+                }
+            }
+        }
+        assert!(slow_stopped);
+        assert_eq!(taken, 100);
+        // Every sample once: the ranges tile 0..100.
+        let mut all: Vec<Range<u32>> = c.claimed().concat();
+        all.sort_by_key(|r| r.start);
+        let mut at = 0;
+        for r in all {
+            assert_eq!(r.start, at);
+            at = r.end;
+        }
+        assert_eq!(at, 100);
+    }
+}
