@@ -81,12 +81,6 @@ impl Claims {
     pub fn claimed(&self) -> Vec<Vec<Range<u32>>> {
         self.state.lock().expect("claims poisoned").claimed.clone()
     }
-
-    /// Samples not yet claimed.
-    pub fn left(&self) -> u32 {
-        let s = self.state.lock().expect("claims poisoned");
-        s.end - s.next
-    }
 }
 
 #[cfg(test)]

@@ -122,13 +122,6 @@ impl Team {
         self.members[0].renderer.lock().expect("renderer poisoned")
     }
 
-    /// Every renderer, one after another, to look at or change while no device traces.
-    pub fn each(&mut self, mut f: impl FnMut(&mut Renderer)) {
-        for m in &mut self.members {
-            f(m.renderer.get_mut().expect("renderer poisoned"));
-        }
-    }
-
     /// Samples per pixel of the completed rounds of every device.
     pub fn samples(&self) -> u64 {
         self.members
@@ -158,11 +151,6 @@ impl Team {
         self.members
             .iter()
             .any(|m| m.renderer.lock().expect("renderer poisoned").tuning())
-    }
-
-    /// Samples not yet claimed.
-    pub fn left(&self) -> u32 {
-        self.claims.left()
     }
 
     /// Goes on to samples up to `end` of every pixel (the accumulation kept).
