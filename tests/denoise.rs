@@ -503,7 +503,11 @@ fn the_gpu_denoiser_agrees_with_the_host_one() {
         assert_eq!(again.tiles, g.tiles);
     }
     let gpu_tiles: Vec<bool> = g.tiles.iter().map(|t| t[4] < t[1]).collect();
-    let gpu_frame = termtrace::denoise::from_gpu(g, (w, h), 1, 0);
+    assert_eq!(
+        g.invalid, snap.data.invalid,
+        "the invalid-sample counter read back"
+    );
+    let gpu_frame = termtrace::denoise::from_gpu(g, (w, h), 1);
     let close = host_frame
         .image
         .pixels

@@ -272,7 +272,6 @@ pub fn from_gpu(
     g: crate::gpu::denoise::GpuDenoised,
     (width, height): (u32, u32),
     factor: u32,
-    invalid: u64,
 ) -> Resolved {
     let sums = |t: &[f32; 8], at: usize| Sums {
         mse: t[at] as f64,
@@ -288,7 +287,7 @@ pub fn from_gpu(
         g.tiles.iter().map(|t| sums(t, 0)).collect(),
         g.tiles.iter().map(|t| sums(t, 3)).collect(),
     );
-    d.frame(g.blocks, factor, invalid)
+    d.frame(g.blocks, factor, g.invalid)
 }
 
 /// The mean of a half's sums, `[r, g, b, samples]` (0 with no samples).

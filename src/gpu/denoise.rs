@@ -19,13 +19,18 @@ const IMAGES: u64 = 6;
 const TILE_BYTES: u64 = 32;
 const OUT_BYTES: u64 = 12;
 
-/// What one run brings back: per output pixel its colour, and per tile (row-major, `tiles_x` a row) the estimate's sums:
-/// raw mse, rel, rel², denoised mse, rel, rel², pixels, 0.
+/// Bytes of the accumulation's invalid-sample counter, read back behind the tiles.
+const COUNTER_BYTES: u64 = 8;
+
+/// What one run brings back: per output pixel its colour, per tile (row-major, `tiles_x` a
+/// row) the estimate's sums (raw mse, rel, rel², denoised mse, rel, rel², pixels, 0), and
+/// the samples discarded as invalid so far.
 pub struct GpuDenoised {
     pub out: (u32, u32),
     pub blocks: Vec<[f32; 3]>,
     pub tiles_x: u32,
     pub tiles: Vec<[f32; 8]>,
+    pub invalid: u64,
 }
 
 struct Buffers {
@@ -213,7 +218,7 @@ impl DenoisePass {
                 out: storage("denoise.out", out_bytes, wgpu::BufferUsages::COPY_SRC),
                 staging: device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("denoise.staging"),
-                    size: out_bytes + tile_bytes,
+                    size: out_bytes + tile_bytes + COUNTER_BYTES,
                     usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
                     mapped_at_creation: false,
                 }),
@@ -326,12 +331,17 @@ impl DenoisePass {
         }
         enc.copy_buffer_to_buffer(&b.out, 0, &b.staging, 0, b.out_bytes);
         enc.copy_buffer_to_buffer(&b.tiles, 0, &b.staging, b.out_bytes, b.tile_bytes);
+        let counter_at = b.out_bytes + b.tile_bytes;
+        enc.copy_buffer_to_buffer(&accum.counters, 0, &b.staging, counter_at, COUNTER_BYTES);
         ctx.queue.submit([enc.finish()]);
         let slice = b.staging.slice(..);
         super::map_read(ctx, &slice, "denoising");
         let data = slice.get_mapped_range().expect("mapped");
         let blocks: Vec<[f32; 3]> = bytemuck::cast_slice(&data[..b.out_bytes as usize]).to_vec();
-        let tiles: Vec<[f32; 8]> = bytemuck::cast_slice(&data[b.out_bytes as usize..]).to_vec();
+        let tiles: Vec<[f32; 8]> =
+            bytemuck::cast_slice(&data[b.out_bytes as usize..counter_at as usize]).to_vec();
+        let c: &[u32] = bytemuck::cast_slice(&data[counter_at as usize..]);
+        let invalid = c[0] as u64 | (c[1] as u64) << 32;
         drop(data);
         b.staging.unmap();
         GpuDenoised {
@@ -339,6 +349,7 @@ impl DenoisePass {
             blocks,
             tiles_x,
             tiles,
+            invalid,
         }
     }
 }

@@ -86,9 +86,6 @@ struct Preview {
     last_frame: Option<(Instant, u64)>,
     /// The raw image's estimated error in the last frame (the denoiser's `auto` reads it).
     noise: Option<f64>,
-    /// Invalid samples as the last raw frame counted them (the GPU's denoised frames do not
-    /// read the counter).
-    invalid: u64,
     /// When the last denoised frame was made, and what making it took (denoised frames are
     /// spaced so that the denoiser takes at most a quarter of the time).
     last_denoise: Option<(Instant, Duration)>,
@@ -258,7 +255,6 @@ impl Worker {
                     paths: 0,
                     last_frame: None,
                     noise: None,
-                    invalid: 0,
                     last_denoise: None,
                 })
             }
@@ -283,7 +279,6 @@ impl Worker {
             p.paths = 0;
             p.last_frame = None;
             p.noise = None;
-            p.invalid = 0;
             p.last_denoise = None;
         }
     }
@@ -339,7 +334,7 @@ impl Worker {
                         .denoiser
                         .get_or_insert_with(|| DenoisePass::new(&ctx.device));
                     let g = pass.run(ctx, accum, guides, (s.width, s.height), p.factor);
-                    crate::denoise::from_gpu(g, (s.width, s.height), p.factor, p.invalid)
+                    crate::denoise::from_gpu(g, (s.width, s.height), p.factor)
                 }
                 _ => {
                     let snap = p.renderer.snapshot();
@@ -423,9 +418,6 @@ impl Worker {
             return true;
         }
         p.noise = resolved.noise.or(p.noise);
-        if resolved.denoised.is_none() {
-            p.invalid = resolved.invalid;
-        }
         let elapsed = p.since_reset.elapsed();
         tracing::debug!(
             "frame at {} spp delivered {:.1} ms after the reset",
