@@ -4,7 +4,7 @@
 //! over one bind group layout; the two filter layers swap between iterations.
 
 use super::accum::Accumulation;
-use super::{GpuContext, bind_buffers, layout_entry, shader};
+use super::{GpuContext, bind_buffers};
 use crate::common::layout::ResolveUniforms;
 
 /// À-trous iterations (src/denoise/atrous.rs: ITERATIONS), taps 1 to 16 pixels apart.
@@ -90,38 +90,7 @@ impl DenoisePass {
         use wgpu::BufferBindingType::{Storage, Uniform};
         let (ro, rw) = (Storage { read_only: true }, Storage { read_only: false });
         let kinds = [Uniform, ro, ro, ro, rw, rw, ro, rw, rw, rw, rw];
-        let entries: Vec<_> = kinds
-            .iter()
-            .enumerate()
-            .map(|(i, &k)| layout_entry(i as u32, k))
-            .collect();
-        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("denoise.layout"),
-            entries: &entries,
-        });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("denoise.pipeline_layout"),
-            bind_group_layouts: &[Some(&layout)],
-            immediate_size: 0,
-        });
-        let src = shader::assemble("denoise.wgsl").expect("denoise.wgsl assembles");
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("denoise.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(src.into()),
-        });
-        let pipelines = ENTRY_POINTS
-            .iter()
-            .map(|e| {
-                device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                    label: Some(e),
-                    layout: Some(&pipeline_layout),
-                    module: &module,
-                    entry_point: Some(e),
-                    compilation_options: Default::default(),
-                    cache: None,
-                })
-            })
-            .collect();
+        let (layout, pipelines) = super::passes(device, "denoise", &kinds, &ENTRY_POINTS);
         let uniforms = (0..=ITERATIONS)
             .map(|_| {
                 device.create_buffer(&wgpu::BufferDescriptor {

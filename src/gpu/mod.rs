@@ -45,6 +45,18 @@ pub(crate) fn simple_pass(
     name: &str,
     buffers: &[wgpu::BufferBindingType],
 ) -> (wgpu::BindGroupLayout, wgpu::ComputePipeline) {
+    let (layout, mut pipelines) = passes(device, name, buffers, &[name]);
+    (layout, pipelines.remove(0))
+}
+
+/// The bind group layout (buffers of these types, bound in order from 0) shared by the
+/// pipelines of `entry_points` of the WGSL file `name.wgsl`, one pipeline each.
+pub(crate) fn passes(
+    device: &wgpu::Device,
+    name: &str,
+    buffers: &[wgpu::BufferBindingType],
+    entry_points: &[&str],
+) -> (wgpu::BindGroupLayout, Vec<wgpu::ComputePipeline>) {
     let entries: Vec<_> = buffers
         .iter()
         .enumerate()
@@ -65,15 +77,20 @@ pub(crate) fn simple_pass(
         label: Some(&file),
         source: wgpu::ShaderSource::Wgsl(src.into()),
     });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(&format!("{name}.pipeline")),
-        layout: Some(&pipeline_layout),
-        module: &module,
-        entry_point: Some(name),
-        compilation_options: Default::default(),
-        cache: None,
-    });
-    (layout, pipeline)
+    let pipelines = entry_points
+        .iter()
+        .map(|e| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(&format!("{name}.{e}")),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(e),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        })
+        .collect();
+    (layout, pipelines)
 }
 
 /// Maps `slice` of a readback buffer for reading and waits until it is mapped (every
