@@ -4,11 +4,7 @@
 //! claimed it, with its own random stream, so on devices that compute alike the image is
 //! the one a single device makes, bit for bit (the sums do not depend on the order).
 //!
-//! Claiming is guided self-scheduling (Polychronopoulos and Kuck 1987) weighted by rate: a
-//! device takes at most half of its rate's share of the samples left, so the claims shrink
-//! towards the end and the devices finish together; a device that could not finish even one
-//! sample of the image before the others finish the rest stops claiming, so a slow adapter
-//! never holds a fast one back.
+//! How much each device claims: `claims`.
 
 use super::claims::Claims;
 use super::{Backend, RenderOptions, Renderer, Snapshot};
@@ -49,6 +45,10 @@ pub struct Team {
     members: Vec<Member>,
     claims: Arc<Claims>,
     settings: FrameSettings,
+    /// The renderers count segments (`RenderOptions::count_segments`, a benchmark): only
+    /// then does a snapshot read each device's counters of segments and BVH work, which
+    /// only a benchmark reports.
+    counted: bool,
 }
 
 impl Team {
@@ -86,6 +86,7 @@ impl Team {
             members,
             claims: Arc::new(Claims::new(0..0, backends.len())),
             settings,
+            counted: options.count_segments,
         };
         team.restart(range);
         team
@@ -240,7 +241,8 @@ impl Team {
             invalid,
             ..AccumData::from_halves(decode(&even), decode(&odd))
         };
-        for m in &self.members {
+        // A second readback of every device, for a benchmark's counters alone.
+        for m in self.members.iter().filter(|_| self.counted) {
             let d = m
                 .renderer
                 .lock()
