@@ -215,3 +215,27 @@ fn a_job_array_renders_and_merges_as_the_whole_render() {
         "{err}"
     );
 }
+
+#[test]
+fn a_mesh_scene_hashes_the_same_in_every_process_and_by_its_triangles() {
+    // Shards of one render are traced by separate processes, each loading the scene anew:
+    // a mesh's hash must come from its triangles, not from where it lies in memory (two
+    // loads in one process put it elsewhere too). A moved vertex changes the hash.
+    let load = || termtrace::scene::load_scene("tests/gltf/Box/Box.gltf", None, None).unwrap();
+    let (a, b) = (load(), load());
+    assert_eq!(shard::scene_hash(&a), shard::scene_hash(&b));
+    let mut moved = load();
+    let termtrace::scene::Shape::Mesh { mesh, .. } = &mut moved.objects[0].shape else {
+        panic!("the box is a mesh");
+    };
+    let mut triangles = mesh.triangles.clone();
+    triangles[0][0].x += 1e-3;
+    *mesh = std::sync::Arc::new(termtrace::scene::Mesh {
+        triangles,
+        skipped: mesh.skipped,
+        uvs: mesh.uvs.clone(),
+        normals: mesh.normals.clone(),
+        tangents: mesh.tangents.clone(),
+    });
+    assert_ne!(shard::scene_hash(&a), shard::scene_hash(&moved));
+}

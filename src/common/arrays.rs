@@ -404,47 +404,76 @@ fn material(o: &Object) -> GpuMaterial {
 
 /// A storage buffer of `items`, or of one zeroed item when there are none (WGSL arrays
 /// cannot be empty).
+/// An object's shape as numbers: its kind, then its parameters (a mesh's placement; its
+/// triangles are the mesh's own).
+fn shape_numbers(shape: &Shape) -> Vec<f64> {
+    match shape {
+        Shape::Sphere { center, radius } => vec![0.0, center.x, center.y, center.z, *radius],
+        Shape::Quad { q, u, v } => [1.0]
+            .into_iter()
+            .chain(q.to_array())
+            .chain(u.to_array())
+            .chain(v.to_array())
+            .collect(),
+        Shape::Box {
+            center,
+            half_extents,
+            rotation,
+        } => [2.0]
+            .into_iter()
+            .chain(center.to_array())
+            .chain(half_extents.to_array())
+            .chain(rotation.to_array())
+            .collect(),
+        Shape::Mesh {
+            translate,
+            rotation,
+            scale,
+            ..
+        } => [3.0]
+            .into_iter()
+            .chain(translate.to_array())
+            .chain(rotation.to_array())
+            .chain(scale.to_array())
+            .collect(),
+    }
+}
+
 /// A hash of everything the BVH depends on: the shapes (not the materials, not the camera).
+/// A mesh counts by its identity (the `Arc` it is shared through): cheap on every edit of a
+/// scene whose meshes stay, but only within one process (`geometry_content_hash` is not).
 pub fn geometry_hash(scene: &Scene) -> u64 {
     let mut h = std::collections::hash_map::DefaultHasher::new();
     for o in &scene.objects {
-        let v: Vec<f64> = match &o.shape {
-            Shape::Sphere { center, radius } => vec![0.0, center.x, center.y, center.z, *radius],
-            Shape::Quad { q, u, v } => [1.0]
-                .into_iter()
-                .chain(q.to_array())
-                .chain(u.to_array())
-                .chain(v.to_array())
-                .collect(),
-            Shape::Box {
-                center,
-                half_extents,
-                rotation,
-            } => [2.0]
-                .into_iter()
-                .chain(center.to_array())
-                .chain(half_extents.to_array())
-                .chain(rotation.to_array())
-                .collect(),
-            Shape::Mesh {
-                mesh,
-                translate,
-                rotation,
-                scale,
-                ..
-            } => {
-                (std::sync::Arc::as_ptr(mesh) as usize).hash(&mut h);
-                [3.0]
-                    .into_iter()
-                    .chain(translate.to_array())
-                    .chain(rotation.to_array())
-                    .chain(scale.to_array())
-                    .collect()
-            }
-        };
-        for x in v {
+        if let Shape::Mesh { mesh, .. } = &o.shape {
+            (std::sync::Arc::as_ptr(mesh) as usize).hash(&mut h);
+        }
+        for x in shape_numbers(&o.shape) {
             x.to_bits().hash(&mut h);
         }
     }
     h.finish()
+}
+
+/// A CRC-32 of the geometry that is the same in every process and build: the shapes, and
+/// each mesh by its triangles and their attributes (texture coordinates, normals,
+/// tangents), as `render::shard`'s scene hash needs.
+pub fn geometry_content_hash(scene: &Scene) -> u32 {
+    let mut h = crc32fast::Hasher::new();
+    for o in &scene.objects {
+        for x in shape_numbers(&o.shape) {
+            h.update(&x.to_bits().to_le_bytes());
+        }
+        if let Shape::Mesh { mesh, .. } = &o.shape {
+            for t in &mesh.triangles {
+                for x in t.iter().flat_map(|v| v.to_array()) {
+                    h.update(&x.to_bits().to_le_bytes());
+                }
+            }
+            h.update(bytemuck::cast_slice(&mesh.uvs));
+            h.update(bytemuck::cast_slice(&mesh.normals));
+            h.update(bytemuck::cast_slice(&mesh.tangents));
+        }
+    }
+    h.finalize()
 }

@@ -105,7 +105,7 @@ pub struct Part {
 pub fn scene_hash(scene: &crate::scene::Scene) -> String {
     let mut a = crc32fast::Hasher::new();
     a.update(crate::scene::to_toml(scene).as_bytes());
-    a.update(&crate::common::arrays::geometry_hash(scene).to_le_bytes());
+    a.update(&crate::common::arrays::geometry_content_hash(scene).to_le_bytes());
     let mut b = crc32fast::Hasher::new();
     if let Some(words) = crate::common::textures::words(scene) {
         b.update(bytemuck::cast_slice(&words));
