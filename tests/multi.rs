@@ -117,8 +117,8 @@ fn termtrace(dir: &Path) -> Command {
 fn the_command_line_takes_a_list_and_all() {
     // `--adapter cpu-native,cpu-native` writes the very snapshot of `--adapter cpu-native`;
     // `--adapter all` on a machine without a hardware GPU renders on the default backend;
-    // `converge` measures two devices sharing each run; the preview, which traces on one
-    // device, refuses a list by name.
+    // `converge` measures two devices sharing each run; `Backend::open`, which opens one
+    // device, refuses a list by name (the preview shares one: ui::worker's tests).
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let render = |adapter: &str, out: &str| {

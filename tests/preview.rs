@@ -209,6 +209,7 @@ fn app() -> App {
         noise: Some(0.0312),
         denoised: Some(termtrace::common::resolved::Estimate::Value(0.0087)),
         invalid: 0,
+        helped: 0,
     };
     a
 }

@@ -29,8 +29,8 @@ pub fn run() -> anyhow::Result<ExitCode> {
     println!(
         "\n* = chosen by default (a GPU where there is one; else the native CPU tracer, which is \
          faster than Mesa's software adapters). Select another with --adapter NAME or \
-         TERMTRACE_ADAPTER (`--adapter cpu-native`, `--adapter llvmpipe`, …). `render`, `bench` \
-         and `converge` also share one render among several: `--adapter all` (every hardware \
+         TERMTRACE_ADAPTER (`--adapter cpu-native`, `--adapter llvmpipe`, …). `view`, `render`, \
+         `bench` and `converge` also share one render among several: `--adapter all` (every hardware \
          GPU) or a list (`--adapter 0,1`)."
     );
     Ok(ExitCode::SUCCESS)

@@ -10,9 +10,9 @@ pub struct GlobalArgs {
     /// Where to trace: `cpu-native` (the native CPU tracer), or a GPU adapter by part of its
     /// name, a backend (vulkan, gl, metal, dx12), a type (cpu, discrete, integrated) or its
     /// number in `termtrace adapters`. Default: the best GPU; the native CPU tracer where the
-    /// best adapter is a software one or there is none. `render`, `bench` and `converge` also
-    /// trace on several at once, sharing the samples: `all` (every hardware GPU) or a list (`0,1`,
-    /// `vulkan,cpu-native`).
+    /// best adapter is a software one or there is none. `view`, `render`, `bench` and `converge`
+    /// also trace on several at once, sharing the samples: `all` (every hardware GPU) or a list
+    /// (`0,1`, `vulkan,cpu-native`).
     #[arg(long, global = true, env = "TERMTRACE_ADAPTER", value_name = "NAME")]
     pub adapter: Option<String>,
     /// Threads of the native CPU tracer and of the host's parallel work (on a shared machine,

@@ -2,7 +2,9 @@
 //! and each pixel's standard error, from the terms `shaders/resolve.wgsl` computes on the GPU
 //! and `cpu` on the host.
 
+use super::accum::{ACCUM_WORDS, decode_pixel};
 use crate::output::LinearImage;
+use rayon::prelude::*;
 
 /// pbrt's relative MSE adds this to the squared reference so that black pixels do not divide
 /// by zero (pbrt-v4, `imgtool diff --metric relmse`); both tracers' noise estimates use it.
@@ -76,5 +78,77 @@ impl Resolved {
             sigma,
             denoised: None,
         }
+    }
+
+    /// The frame of exact sums `even` and `odd` (`ACCUM_WORDS` words a pixel, `size`
+    /// pixels): resolve.wgsl's terms computed on the host (every output pixel the mean of a
+    /// `factor × factor` block, and the two-halves noise terms), in parallel. The CPU
+    /// tracer's frames, and the preview's on several devices (their sums added).
+    pub fn from_sums(
+        even: &[u32],
+        odd: &[u32],
+        size: (u32, u32),
+        factor: u32,
+        invalid: u64,
+    ) -> Resolved {
+        let f = factor.max(1);
+        let out = ((size.0 / f).max(1), (size.1 / f).max(1));
+        let (w, h) = (size.0 as usize, size.1 as usize);
+        let value = |words: &[u32], p: usize| -> ([f32; 3], f32) {
+            let [r, g, b, n] = decode_pixel(&words[p * ACCUM_WORDS..(p + 1) * ACCUM_WORDS]);
+            ([r, g, b], n)
+        };
+        let blocks: Vec<[f32; 8]> = (0..out.0 as usize * out.1 as usize)
+            .into_par_iter()
+            .map(|i| {
+                let (bx, by) = (i % out.0 as usize, i / out.0 as usize);
+                let mut b = [0.0f32; 8];
+                b[3] = f32::INFINITY;
+                for dy in 0..f as usize {
+                    for dx in 0..f as usize {
+                        let (x, y) = (bx * f as usize + dx, by * f as usize + dy);
+                        if x >= w || y >= h {
+                            continue;
+                        }
+                        let p = y * w + x;
+                        let ((se, ne), (so, no)) = (value(&even, p), value(&odd, p));
+                        if ne + no > 0.0 {
+                            for c in 0..3 {
+                                b[c] += (se[c] + so[c]) / (ne + no);
+                            }
+                        } else {
+                            // A row the first look has not reached: show its neighbour.
+                            let near = if y == 0 { p + w } else { p - w };
+                            if near < w * h {
+                                let ((s2, n2), (t2, m2)) = (value(&even, near), value(&odd, near));
+                                if n2 + m2 > 0.0 {
+                                    for c in 0..3 {
+                                        b[c] += (s2[c] + t2[c]) / (n2 + m2);
+                                    }
+                                }
+                            }
+                        }
+                        b[3] = b[3].min(ne.min(no));
+                        if ne >= 1.0 && no >= 1.0 {
+                            let k = ne * no / ((ne + no) * (ne + no));
+                            for c in 0..3 {
+                                let d = se[c] / ne - so[c] / no;
+                                let v = d * d * k;
+                                b[4] += v;
+                                b[5] += v
+                                    / ((se[c] / ne * (so[c] / no)).max(0.0)
+                                        + REL_MSE_EPSILON as f32);
+                            }
+                        }
+                    }
+                }
+                let n = (f * f) as f32;
+                for c in b.iter_mut().take(3) {
+                    *c /= n;
+                }
+                b
+            })
+            .collect();
+        Resolved::from_blocks(&blocks, out, f, invalid)
     }
 }

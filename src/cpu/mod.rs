@@ -27,7 +27,7 @@ pub mod texture;
 pub mod trace;
 
 use crate::common::Resolved;
-use crate::common::accum::{ACCUM_WORDS, AccumData, decode, decode_pixel};
+use crate::common::accum::{ACCUM_WORDS, AccumData, decode};
 use crate::common::guides::{GUIDE_SEED, GUIDE_WORDS, Guides};
 use crate::common::layout::DispatchUniforms;
 use crate::common::{Features, FrameSettings};
@@ -377,69 +377,15 @@ impl CpuEngine {
         }
     }
 
-    /// The preview's frame: resolve.wgsl's terms computed on the host (every output pixel
-    /// the mean of a `factor × factor` block, and the two-halves noise terms), in parallel.
+    /// The preview's frame: resolve.wgsl's terms computed on the host (`Resolved::from_sums`).
     pub fn resolve(&self, factor: u32) -> Resolved {
-        let f = factor.max(1);
-        let out = ((self.width / f).max(1), (self.height / f).max(1));
-        let (w, h) = (self.width as usize, self.height as usize);
-        let value = |words: &[u32], p: usize| -> ([f32; 3], f32) {
-            let [r, g, b, n] = decode_pixel(&words[p * ACCUM_WORDS..(p + 1) * ACCUM_WORDS]);
-            ([r, g, b], n)
-        };
-        let blocks: Vec<[f32; 8]> = (0..out.0 as usize * out.1 as usize)
-            .into_par_iter()
-            .map(|i| {
-                let (bx, by) = (i % out.0 as usize, i / out.0 as usize);
-                let mut b = [0.0f32; 8];
-                b[3] = f32::INFINITY;
-                for dy in 0..f as usize {
-                    for dx in 0..f as usize {
-                        let (x, y) = (bx * f as usize + dx, by * f as usize + dy);
-                        if x >= w || y >= h {
-                            continue;
-                        }
-                        let p = y * w + x;
-                        let ((se, ne), (so, no)) = (value(&self.even, p), value(&self.odd, p));
-                        if ne + no > 0.0 {
-                            for c in 0..3 {
-                                b[c] += (se[c] + so[c]) / (ne + no);
-                            }
-                        } else {
-                            // A row the first look has not reached: show its neighbour.
-                            let near = if y == 0 { p + w } else { p - w };
-                            if near < w * h {
-                                let ((s2, n2), (t2, m2)) =
-                                    (value(&self.even, near), value(&self.odd, near));
-                                if n2 + m2 > 0.0 {
-                                    for c in 0..3 {
-                                        b[c] += (s2[c] + t2[c]) / (n2 + m2);
-                                    }
-                                }
-                            }
-                        }
-                        b[3] = b[3].min(ne.min(no));
-                        if ne >= 1.0 && no >= 1.0 {
-                            let k = ne * no / ((ne + no) * (ne + no));
-                            for c in 0..3 {
-                                let d = se[c] / ne - so[c] / no;
-                                let v = d * d * k;
-                                b[4] += v;
-                                b[5] += v
-                                    / ((se[c] / ne * (so[c] / no)).max(0.0)
-                                        + crate::common::resolved::REL_MSE_EPSILON as f32);
-                            }
-                        }
-                    }
-                }
-                let n = (f * f) as f32;
-                for c in b.iter_mut().take(3) {
-                    *c /= n;
-                }
-                b
-            })
-            .collect();
-        Resolved::from_blocks(&blocks, out, f, self.counters.invalid)
+        Resolved::from_sums(
+            &self.even,
+            &self.odd,
+            (self.width, self.height),
+            factor,
+            self.counters.invalid,
+        )
     }
 }
 

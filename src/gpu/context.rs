@@ -24,7 +24,7 @@ pub enum GpuError {
     #[error("could not open a device on {adapter}: {message}")]
     Device { adapter: String, message: String },
     #[error(
-        "--adapter {selector} names several devices; `render` (shards included), `bench` and `converge` trace on several at once, the preview on one: name one adapter (`termtrace adapters` lists them)"
+        "--adapter {selector} names several devices where one is needed: name one adapter (`termtrace adapters` lists them); `view`, `render`, `bench` and `converge` take several"
     )]
     Several { selector: String },
 }

@@ -2,7 +2,7 @@
 //! when it is ready, by guided self-scheduling weighted by rate (Polychronopoulos and Kuck
 //! 1987): at most half of its rate's share of what is left, so that the claims shrink
 //! towards the end and the devices finish together; a device that could not finish one
-//! sample before the others finish the rest stops claiming.
+//! sample before the others still claiming finish the rest stops claiming.
 
 use std::ops::Range;
 use std::sync::Mutex;
@@ -21,6 +21,9 @@ struct ClaimState {
     rates: Vec<Option<f64>>,
     /// The ranges each device claimed, in order.
     claimed: Vec<Vec<Range<u32>>>,
+    /// Devices refused as too slow: they claim no more, and the others no longer wait on
+    /// them (so the last device still claiming takes the rest, whatever the rates).
+    stopped: Vec<bool>,
 }
 
 impl Claims {
@@ -32,30 +35,38 @@ impl Claims {
                 end: range.end.max(range.start),
                 rates: vec![None; devices],
                 claimed: vec![Vec::new(); devices],
+                stopped: vec![false; devices],
             }),
         }
     }
 
     /// Claims up to `want` samples of every pixel for `device`, whose measured rate is
     /// `rate` (paths per second): `(first sample, count)`, or `None` when none are left or
-    /// the others would finish what is left before this device finished one sample.
+    /// the others still claiming would finish what is left before this device finished one
+    /// sample (it is then stopped until `extend`).
     pub fn claim(&self, device: usize, want: u32, rate: Option<f64>) -> Option<(u32, u32)> {
         let mut s = self.state.lock().expect("claims poisoned");
         if let Some(r) = rate.filter(|r| r.is_finite() && *r > 0.0) {
             s.rates[device] = Some(r);
         }
         let left = s.end - s.next;
-        if left == 0 {
+        if left == 0 || s.stopped[device] {
             return None;
         }
         let mut take = want.clamp(1, left);
-        if s.rates.len() > 1 {
-            let known: Vec<f64> = s.rates.iter().flatten().copied().collect();
-            if let (Some(mine), true) = (s.rates[device], known.len() == s.rates.len()) {
+        // The devices still claiming: the rates that share what is left.
+        let active: Vec<Option<f64>> = (0..s.rates.len())
+            .filter(|&d| !s.stopped[d])
+            .map(|d| s.rates[d])
+            .collect();
+        if active.len() > 1 {
+            let known: Vec<f64> = active.iter().flatten().copied().collect();
+            if let (Some(mine), true) = (s.rates[device], known.len() == active.len()) {
                 let total: f64 = known.iter().sum();
                 let share = left as f64 * mine / total;
                 let fastest = known.iter().all(|&r| r <= mine);
                 if share < 1.0 && !fastest {
+                    s.stopped[device] = true;
                     return None;
                 }
                 take = take.min(((share / 2.0).floor() as u32).max(1));
@@ -72,9 +83,11 @@ impl Claims {
     }
 
     /// Makes the samples up to `end` claimable too (a render continued to more samples).
+    /// Devices stopped as too slow for the old end may claim again.
     pub fn extend(&self, end: u32) {
         let mut s = self.state.lock().expect("claims poisoned");
         s.end = s.end.max(end);
+        s.stopped.iter_mut().for_each(|d| *d = false);
     }
 
     /// The samples each device claimed, as ranges in the order claimed.
@@ -95,6 +108,35 @@ mod tests {
         assert_eq!(c.claim(0, 4, Some(1.0)), Some((8, 2)), "never past the end");
         assert_eq!(c.claim(0, 4, Some(1.0)), None);
         assert_eq!(c.claimed(), vec![vec![3..4, 4..8, 8..10]]);
+    }
+
+    #[test]
+    fn the_last_device_claiming_takes_the_rest() {
+        // Two devices of about one rate, measured again between claims: the first is refused
+        // as the slower (a share of 0.95 samples), then the other, now measured slower than
+        // the first's last rate, must still take the rest: a refused device no longer counts.
+        let c = Claims::new(0..4, 2);
+        assert_eq!(c.claim(0, 1, Some(1.0)), Some((0, 1)));
+        assert_eq!(c.claim(1, 1, Some(1.1)), Some((1, 1)));
+        assert_eq!(c.claim(0, 4, Some(1.0)), None, "0.95 of a sample: too slow");
+        assert_eq!(c.claim(1, 4, Some(0.9)), Some((2, 2)), "the only one left");
+        assert_eq!(c.claim(1, 4, Some(0.9)), None);
+        assert_eq!(c.claimed(), vec![vec![0..1], vec![1..2, 2..4]]);
+        let c = Claims::new(0..4, 2);
+        assert_eq!(c.claim(1, 1, Some(1.0)), Some((0, 1)));
+        assert_eq!(c.claim(0, 1, Some(9.0)), Some((1, 1)));
+        assert_eq!(c.claim(1, 1, Some(1.0)), None, "0.3 of a sample: too slow");
+        assert_eq!(
+            c.claim(1, 1, Some(100.0)),
+            None,
+            "stopped until the end moves"
+        );
+        c.extend(40);
+        assert_eq!(
+            c.claim(1, 1, Some(1.0)),
+            Some((2, 1)),
+            "38 more: its share is 3.8"
+        );
     }
 
     #[test]

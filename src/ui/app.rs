@@ -46,6 +46,8 @@ pub struct Stats {
     /// Estimated relative RMSE of the denoised image shown, when it is denoised.
     pub denoised: Option<crate::common::resolved::Estimate>,
     pub invalid: u64,
+    /// Of `spp`, the samples per pixel the preview's other devices traced (`--adapter 0,1`).
+    pub helped: u32,
 }
 
 /// Progress of the background PNG save.

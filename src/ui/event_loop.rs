@@ -334,6 +334,12 @@ pub(super) fn print_stats(h: &History, total: u64, stats: &app::Stats) {
         stats.width,
         stats.height,
     );
+    if stats.helped > 0 {
+        eprintln!(
+            "preview: {} of the {} spp traced by the devices after the first",
+            stats.helped, stats.spp
+        );
+    }
     if let Some(&(t0, b0, f0)) = h.points.iter().find(|p| p.0 >= 0.75 * secs)
         && let Some(&(t1, b1, f1)) = h.points.last()
         && t1 > t0

@@ -9,6 +9,7 @@ mod event;
 mod event_loop;
 pub mod flow;
 pub mod graphics;
+mod helpers;
 pub mod input;
 pub mod keys;
 mod save;
@@ -50,7 +51,7 @@ pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
     }
     spawn_input(tx.clone())?;
     let (to_worker, worker) = worker::spawn(
-        setup.backend,
+        setup.backends,
         WorkerOptions {
             fps: opts.fps,
             max_spp: opts.max_spp,

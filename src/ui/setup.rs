@@ -204,8 +204,9 @@ pub(super) fn preview_settings(
 /// plainly).
 pub(super) struct Setup {
     pub(super) scene: Scene,
-    pub(super) backend: Backend,
-    /// The adapter as the status line names it.
+    /// The devices: the first makes the frames, the others help it trace (`helpers`).
+    pub(super) backends: Vec<Backend>,
+    /// The adapters as the status line names them.
     pub(super) adapter: String,
     pub(super) color: ColorMode,
     pub(super) cells: CellMode,
@@ -214,7 +215,7 @@ pub(super) struct Setup {
 pub(super) fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
     // The scene loads while the adapter opens (each can take a few hundred milliseconds).
     let (scene, backend) = std::thread::scope(|s| {
-        let opening = s.spawn(|| Backend::open(opts.adapter.as_deref()));
+        let opening = s.spawn(|| Backend::open_all(opts.adapter.as_deref()));
         let scene = match &opts.scene {
             Some(s) => crate::scene::load_scene(s, opts.camera.as_deref(), opts.sky.as_deref()),
             None => {
@@ -237,16 +238,22 @@ pub(super) fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
          for files use `termtrace render {} -o out.png`",
         opts.scene.as_deref().unwrap_or("SCENE")
     );
-    let backend = backend?;
-    backend.check_fits(&scene)?;
+    let backends = backend?;
+    for b in &backends {
+        b.check_fits(&scene)?;
+    }
     // `llvmpipe (LLVM 15.0.6, 256 bits)` → `llvmpipe (Vulkan)`: the status line is short.
-    let adapter = match &backend {
-        Backend::Gpu(ctx) => {
-            let short = ctx.info.name.split(" (").next().unwrap_or(&ctx.info.name);
-            format!("{short} ({:?})", ctx.info.backend)
-        }
-        Backend::Cpu => format!("CPU ({})", crate::cpu::threads()),
-    };
+    let names: Vec<String> = backends
+        .iter()
+        .map(|b| match b {
+            Backend::Gpu(ctx) => {
+                let short = ctx.info.name.split(" (").next().unwrap_or(&ctx.info.name);
+                format!("{short} ({:?})", ctx.info.backend)
+            }
+            Backend::Cpu => format!("CPU ({})", crate::cpu::threads()),
+        })
+        .collect();
+    let adapter = names.join(" + ");
     let color = opts.color.unwrap_or_else(|| {
         ColorMode::detect(
             std::env::var("COLORTERM").ok().as_deref(),
@@ -260,7 +267,7 @@ pub(super) fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
     };
     Ok(Setup {
         scene,
-        backend,
+        backends,
         adapter,
         color,
         cells,

@@ -7,18 +7,26 @@
 //! milliseconds of work and at most two are queued, so an edit waits behind little: its
 //! first round is one sample per pixel, and its frame is requested as soon as that round is
 //! queued, whatever the frame rate. Frames of an older state still in flight are dropped.
+//!
+//! On several devices (`helpers`) this thread's device is the first: it claims samples with
+//! the others, and once another device has published its sums, frames are made on the host
+//! from every device's sums added (the first frame after an edit is this device's alone).
 
 use super::app::Stats;
 use super::event::{Event, Frame};
+use super::helpers::Helpers;
 use crate::common::FrameSettings;
 use crate::common::Resolved;
+use crate::common::accum::decode;
 use crate::gpu::denoise::DenoisePass;
 use crate::gpu::resolve::{ResolvePass, SLOTS};
 use crate::output::{Transfer, write_png};
+use crate::render::claims::Claims;
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::Scene;
 use std::path::PathBuf;
-use std::sync::mpsc::{Receiver, Sender, TryRecvError};
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, RecvTimeoutError, Sender, TryRecvError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -28,6 +36,9 @@ const PREVIEW_SUBMISSION: Duration = Duration::from_millis(5);
 const QUEUED: usize = 2;
 /// Tracing time given to a background save between preview submissions.
 const SAVE_SLICE: Duration = Duration::from_millis(8);
+/// How often the render thread looks at the other devices' progress when it has nothing of
+/// its own to trace.
+const HELPER_POLL: Duration = Duration::from_millis(5);
 
 /// What the UI asks of the render thread.
 pub enum Request {
@@ -72,6 +83,8 @@ struct FrameTag {
     /// The accumulation has stopped (`--max-spp`): this is the final image.
     last: bool,
     spp: u32,
+    /// Of `spp`, the samples per pixel the other devices traced.
+    helped: u32,
     paths: u64,
 }
 
@@ -89,6 +102,8 @@ struct Preview {
     /// When the last denoised frame was made, and what making it took (denoised frames are
     /// spaced so that the denoiser takes at most a quarter of the time).
     last_denoise: Option<(Instant, Duration)>,
+    /// No samples are left for this device to claim (the others may still be tracing).
+    exhausted: bool,
 }
 
 struct Worker {
@@ -96,6 +111,11 @@ struct Worker {
     opts: WorkerOptions,
     events: Sender<Event>,
     preview: Option<Preview>,
+    /// The scene being previewed (the helpers are given it again on a reset).
+    scene: Option<Arc<Scene>>,
+    /// The other devices, and the claims this epoch's samples are shared by.
+    helpers: Option<Helpers>,
+    claims: Option<Arc<Claims>>,
     /// The GPU's resolve pass (on the CPU tracer frames are made on the host at once).
     resolve: Option<ResolvePass>,
     /// The GPU's denoiser, made on the first denoised frame (on the CPU tracer the host's
@@ -112,9 +132,10 @@ struct Worker {
     save: Option<SaveJob>,
 }
 
-/// Starts the render thread; it ends on `Request::Quit` or when either channel closes.
+/// Starts the render thread on the first of `backends` (and a helper on each other); it
+/// ends on `Request::Quit` or when either channel closes.
 pub fn spawn(
-    backend: Backend,
+    mut backends: Vec<Backend>,
     opts: WorkerOptions,
     events: Sender<Event>,
 ) -> (Sender<Request>, JoinHandle<()>) {
@@ -122,6 +143,8 @@ pub fn spawn(
     let handle = std::thread::Builder::new()
         .name("render".into())
         .spawn(move || {
+            assert!(!backends.is_empty(), "the preview needs a device");
+            let backend = backends.remove(0);
             let mut w = Worker {
                 resolve: backend.gpu().map(|ctx| ResolvePass::new(&ctx.device)),
                 denoiser: None,
@@ -130,11 +153,18 @@ pub fn spawn(
                 opts,
                 events,
                 preview: None,
+                scene: None,
+                helpers: None,
+                claims: None,
                 pending: [None; SLOTS],
                 generation: 0,
                 epoch: 0,
                 save: None,
             };
+            if !backends.is_empty() {
+                let every = w.frame_interval();
+                w.helpers = Some(Helpers::spawn(backends, w.options(), every));
+            }
             w.run(rx);
         })
         .expect("spawn the render thread");
@@ -158,10 +188,24 @@ impl Worker {
         }
     }
 
+    /// Samples per pixel and paths the other devices have published since the last restart.
+    fn helper_progress(&self) -> (u32, u64) {
+        self.helpers
+            .as_ref()
+            .map_or((0, 0), |h| h.progress(self.epoch))
+    }
+
+    /// Whether the preview's accumulation is short of `max_spp` (on every device together).
     fn preview_busy(&self) -> bool {
+        let (helped, _) = self.helper_progress();
         self.preview
             .as_ref()
-            .is_some_and(|p| p.renderer.samples() < self.opts.max_spp)
+            .is_some_and(|p| p.renderer.samples().saturating_add(helped) < self.opts.max_spp)
+    }
+
+    /// Whether this thread's device has samples to trace.
+    fn preview_tracing(&self) -> bool {
+        self.preview_busy() && self.preview.as_ref().is_some_and(|p| !p.exhausted)
     }
 
     fn frames_pending(&self) -> bool {
@@ -171,8 +215,11 @@ impl Worker {
     /// Whether the preview holds samples that no frame has shown yet (from its first look
     /// on; later frames may show a round in progress, as its rows land).
     fn unshown(&self) -> bool {
+        let (helped, helper_paths) = self.helper_progress();
         self.preview.as_ref().is_some_and(|p| {
-            p.renderer.has_image() && p.last_frame.is_none_or(|(_, shown)| shown != p.paths)
+            (p.renderer.has_image() || helped > 0)
+                && p.last_frame
+                    .is_none_or(|(_, shown)| shown != p.paths + helper_paths)
         })
     }
 
@@ -180,11 +227,18 @@ impl Worker {
         loop {
             // Wait when there is nothing to do; otherwise take what has arrived.
             let mut requests = Vec::new();
-            let idle = !self.preview_busy()
+            let idle = !self.preview_tracing()
                 && !self.frames_pending()
                 && !self.unshown()
                 && self.save.is_none();
-            if idle {
+            if idle && self.preview_busy() {
+                // The other devices are still tracing: look at them again shortly.
+                match rx.recv_timeout(HELPER_POLL) {
+                    Ok(r) => requests.push(r),
+                    Err(RecvTimeoutError::Timeout) => {}
+                    Err(RecvTimeoutError::Disconnected) => return self.finish_save(),
+                }
+            } else if idle {
                 match rx.recv() {
                     Ok(r) => requests.push(r),
                     Err(_) => return,
@@ -209,7 +263,7 @@ impl Worker {
                         settings,
                         factor,
                         generation,
-                    } => self.set_scene(&scene, settings, factor, generation),
+                    } => self.set_scene(Arc::from(scene), settings, factor, generation),
                     Request::Reset => self.reset(),
                     Request::Denoise(mode) => {
                         self.opts.denoise = mode;
@@ -222,12 +276,13 @@ impl Worker {
                     Request::Quit => return self.finish_save(),
                 }
             }
-            if self.preview_busy()
+            if self.preview_tracing()
                 && let Some(p) = &mut self.preview
             {
                 p.renderer.wait(QUEUED - 1);
-                if let Some(paths) = p.renderer.submit(self.opts.max_spp) {
-                    p.paths += paths;
+                match p.renderer.submit(self.opts.max_spp) {
+                    Some(paths) => p.paths += paths,
+                    None => p.exhausted = true,
                 }
             }
             self.request_frame();
@@ -240,25 +295,33 @@ impl Worker {
         }
     }
 
-    fn set_scene(&mut self, scene: &Scene, settings: FrameSettings, factor: u32, generation: u64) {
+    fn set_scene(
+        &mut self,
+        scene: Arc<Scene>,
+        settings: FrameSettings,
+        factor: u32,
+        generation: u64,
+    ) {
         tracing::debug!("scene request {generation}");
         match &mut self.preview {
             Some(p) => {
-                p.renderer.set_scene(scene, settings);
+                p.renderer.set_scene(&scene, settings);
                 p.factor = factor;
             }
             None => {
                 self.preview = Some(Preview {
-                    renderer: Renderer::new(self.backend.clone(), scene, settings, self.options()),
+                    renderer: Renderer::new(self.backend.clone(), &scene, settings, self.options()),
                     factor,
                     since_reset: Instant::now(),
                     paths: 0,
                     last_frame: None,
                     noise: None,
                     last_denoise: None,
+                    exhausted: false,
                 })
             }
         }
+        self.scene = Some(scene);
         self.generation = generation;
         self.restart_clock();
     }
@@ -280,6 +343,14 @@ impl Worker {
             p.last_frame = None;
             p.noise = None;
             p.last_denoise = None;
+            p.exhausted = false;
+            // On several devices: new claims, this device first to take from them.
+            if let (Some(h), Some(scene)) = (&self.helpers, &self.scene) {
+                let claims = Arc::new(Claims::new(0..self.opts.max_spp, 1 + h.len()));
+                p.renderer.share(claims.clone(), 0);
+                h.trace(scene, p.renderer.settings(), &claims, self.epoch);
+                self.claims = Some(claims);
+            }
         }
     }
 
@@ -289,8 +360,9 @@ impl Worker {
         let interval = self.frame_interval();
         let busy = self.preview_busy();
         let unshown = self.unshown();
+        let (helped, helper_paths) = self.helper_progress();
         let Some(p) = &mut self.preview else { return };
-        let spp = p.renderer.samples();
+        let spp = p.renderer.samples() + helped;
         let due = match p.last_frame {
             _ if !unshown => false,
             None => true,
@@ -300,54 +372,79 @@ impl Worker {
         if !due {
             return;
         }
+        let shown = p.paths + helper_paths;
         let tag = FrameTag {
             generation: self.generation,
             epoch: self.epoch,
             last: !busy,
             spp,
-            paths: p.paths,
+            helped,
+            paths: shown,
         };
         // Denoised frames need a sample in each half of every pixel; once the accumulation
         // stops (`--max-spp`), `auto` shows the final, unbiased image.
         let denoise = self.opts.denoise.wants(p.noise)
             && spp >= 2
             && (busy || self.opts.denoise == crate::denoise::Mode::On);
+        if denoise
+            && let Some((at, took)) = p.last_denoise
+            && busy
+            && at.elapsed() < 3 * took
+        {
+            return;
+        }
+        // On several devices, once another has published: every device's sums added, the
+        // frame made on the host.
+        let helped = self
+            .helpers
+            .as_ref()
+            .and_then(|h| h.contribution(self.epoch));
+        let summed = helped.map(|(he, ho, hn)| {
+            let (mut even, mut odd, invalid) = p.renderer.exact_sums();
+            crate::render::shard::add_words(&mut even, &he);
+            crate::render::shard::add_words(&mut odd, &ho);
+            (even, odd, invalid + hn)
+        });
         if denoise {
-            if let Some((at, took)) = p.last_denoise
-                && busy
-                && at.elapsed() < 3 * took
-            {
-                return;
-            }
             // The guides are made once per edit: not part of a frame's cost.
             p.renderer.make_guides();
             let start = Instant::now();
             let s = p.renderer.settings();
-            let frame = match (
-                &self.backend,
-                p.renderer.accumulation(),
-                p.renderer.guide_buffer(),
-            ) {
-                // On the GPU, where the sums and the guides are (shaders/denoise.wgsl).
-                (Backend::Gpu(ctx), Some(accum), Some(guides)) => {
-                    let pass = self
-                        .denoiser
-                        .get_or_insert_with(|| DenoisePass::new(&ctx.device));
-                    let g = pass.run(ctx, accum, guides, (s.width, s.height), p.factor);
-                    crate::denoise::from_gpu(g, (s.width, s.height), p.factor)
-                }
-                _ => {
-                    let snap = p.renderer.snapshot();
-                    let d = crate::denoise::denoise(
-                        &snap.data.even,
-                        &snap.data.odd,
-                        p.renderer.guides(),
-                    );
-                    d.resolved(p.factor, snap.data.invalid)
+            let frame = if let Some((even, odd, invalid)) = summed {
+                // Several devices' sums, on the host.
+                let d = crate::denoise::denoise(&decode(&even), &decode(&odd), p.renderer.guides());
+                d.resolved(p.factor, invalid)
+            } else {
+                match (
+                    &self.backend,
+                    p.renderer.accumulation(),
+                    p.renderer.guide_buffer(),
+                ) {
+                    // On the GPU, where the sums and the guides are (shaders/denoise.wgsl).
+                    (Backend::Gpu(ctx), Some(accum), Some(guides)) => {
+                        let pass = self
+                            .denoiser
+                            .get_or_insert_with(|| DenoisePass::new(&ctx.device));
+                        let g = pass.run(ctx, accum, guides, (s.width, s.height), p.factor);
+                        crate::denoise::from_gpu(g, (s.width, s.height), p.factor)
+                    }
+                    _ => {
+                        let snap = p.renderer.snapshot();
+                        let d = crate::denoise::denoise(
+                            &snap.data.even,
+                            &snap.data.odd,
+                            p.renderer.guides(),
+                        );
+                        d.resolved(p.factor, snap.data.invalid)
+                    }
                 }
             };
             self.host_frame = Some((tag, frame));
             p.last_denoise = Some((Instant::now(), start.elapsed()));
+        } else if let Some((even, odd, invalid)) = summed {
+            let s = p.renderer.settings();
+            let frame = Resolved::from_sums(&even, &odd, (s.width, s.height), p.factor, invalid);
+            self.host_frame = Some((tag, frame));
         } else if let Some(resolved) = p.renderer.resolve_on_host(p.factor) {
             self.host_frame = Some((tag, resolved));
         } else {
@@ -366,7 +463,7 @@ impl Worker {
             "frame requested at {spp} spp, {:.1} ms after the reset",
             p.since_reset.elapsed().as_secs_f64() * 1e3
         );
-        p.last_frame = Some((Instant::now(), p.paths));
+        p.last_frame = Some((Instant::now(), shown));
     }
 
     /// Sends every frame that has landed; false when the UI has gone.
@@ -438,6 +535,7 @@ impl Worker {
                 noise: resolved.noise,
                 denoised: resolved.denoised,
                 invalid: resolved.invalid,
+                helped: tag.helped,
             },
             generation: tag.generation,
         };
@@ -503,5 +601,125 @@ impl Worker {
             })
             .map_err(|e| e.to_string());
         let _ = self.events.send(Event::Saved(result));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::output::LinearImage;
+
+    /// Runs a preview of cornell at `size` to `max_spp` on `backends`, with `edits` scene
+    /// requests sent after the first frame (the last one counts), and returns its final
+    /// frame's image and spp.
+    fn final_frame(backends: Vec<Backend>, max_spp: u32, edits: &[Scene]) -> (LinearImage, Stats) {
+        let off = crate::denoise::Mode::Off;
+        let (image, stats, _) = frames(backends, (64, 48), max_spp, edits, off);
+        (image, stats)
+    }
+
+    /// As `final_frame`, in denoiser `mode`, with whether any frame with samples of the
+    /// other devices in it was denoised.
+    fn frames(
+        backends: Vec<Backend>,
+        size: (u32, u32),
+        max_spp: u32,
+        edits: &[Scene],
+        denoise: crate::denoise::Mode,
+    ) -> (LinearImage, Stats, bool) {
+        let scene = Scene::load("cornell").unwrap();
+        let settings = FrameSettings::new(size.0, size.1, scene.render.max_bounces, 1);
+        let (events, rx) = std::sync::mpsc::channel();
+        let opts = WorkerOptions {
+            fps: 30.0,
+            max_spp,
+            generic: false,
+            denoise,
+        };
+        let (tx, handle) = spawn(backends, opts, events);
+        let mut generation = 1;
+        let send = |scene: &Scene, generation| {
+            tx.send(Request::Scene {
+                scene: Box::new(scene.clone()),
+                settings,
+                factor: 1,
+                generation,
+            })
+            .unwrap();
+        };
+        send(&scene, generation);
+        let mut edits = edits.iter();
+        let mut denoised_helped = false;
+        let last = loop {
+            let Event::Frame(f) = rx.recv_timeout(Duration::from_secs(120)).expect("a frame")
+            else {
+                continue;
+            };
+            if f.generation != generation {
+                continue;
+            }
+            denoised_helped |= f.stats.denoised.is_some() && f.stats.helped > 0;
+            eprintln!(
+                "DBG frame {} spp {} helped {} last {}",
+                f.generation, f.stats.spp, f.stats.helped, f.last
+            );
+            if let Some(e) = edits.next() {
+                generation += 1;
+                send(e, generation);
+                continue;
+            }
+            if f.last {
+                break f;
+            }
+        };
+        tx.send(Request::Quit).unwrap();
+        handle.join().unwrap();
+        (last.image, last.stats, denoised_helped)
+    }
+
+    #[test]
+    fn a_preview_on_two_devices_ends_on_one_devices_image() {
+        // Two CPU tracers compute alike: the frames made from both devices' sums added end on
+        // the image one device makes, bit for bit, also after an edit that restarts the
+        // shared claims mid-way. 128 spp at 64×48 (a third of a second on 2 cores), so that
+        // the second device is running before the first has traced them all.
+        let mut edited = Scene::load("cornell").unwrap();
+        edited.camera.vfov += 5.0;
+        let (one, stats) = final_frame(vec![Backend::Cpu], 128, std::slice::from_ref(&edited));
+        assert_eq!((stats.spp, stats.helped), (128, 0));
+        let (two, stats) = final_frame(vec![Backend::Cpu, Backend::Cpu], 128, &[edited.clone()]);
+        assert_eq!(stats.spp, 128);
+        assert!(
+            (1..128).contains(&stats.helped),
+            "both devices traced: {} of 128 spp by the second",
+            stats.helped
+        );
+        assert_eq!(one.pixels, two.pixels);
+        let (unedited, _) = final_frame(vec![Backend::Cpu], 128, &[]);
+        assert_ne!(one.pixels, unedited.pixels, "the edit shows");
+    }
+
+    #[test]
+    fn a_gpu_and_the_cpu_tracer_share_a_denoised_preview() {
+        // A GPU (the software adapter) makes the frames, the CPU tracer helps: their sums are
+        // added and denoised on the host, and the preview ends at its samples.
+        let gpu = Backend::open(Some("vulkan")).expect(
+            "the software adapter (lavapipe): apt-get install mesa-vulkan-drivers libvulkan1",
+        );
+        let (image, stats, denoised) = frames(
+            vec![gpu, Backend::Cpu],
+            (24, 16),
+            24,
+            &[],
+            crate::denoise::Mode::On,
+        );
+        assert_eq!(stats.spp, 24);
+        assert!(
+            (1..24).contains(&stats.helped),
+            "{} spp helped",
+            stats.helped
+        );
+        assert!(denoised, "a denoised frame of both devices' sums");
+        assert!(image.pixels.iter().flatten().all(|v| v.is_finite()));
     }
 }

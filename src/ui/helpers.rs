@@ -1,0 +1,233 @@
+//! The preview's other devices (`--adapter 0,1`, `--adapter all`): each traces, on its own
+//! thread, the samples it claims of the preview's accumulation (`render::claims`, shared
+//! with the render thread's device), and publishes its exact sums after every step; the
+//! render thread adds them to its own device's for the frames (`worker`). Every sample
+//! index is traced once, so the preview shows what one device would have traced.
+
+use crate::common::FrameSettings;
+use crate::render::claims::Claims;
+use crate::render::{Backend, RenderOptions, Renderer};
+use crate::scene::Scene;
+use std::sync::mpsc::{Receiver, Sender, TryRecvError};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+/// What the render thread asks of a helper.
+enum Order {
+    /// Trace `scene` from now on, taking samples from `claims` as device `device`; what it
+    /// publishes carries `epoch`.
+    Trace {
+        scene: Arc<Scene>,
+        settings: FrameSettings,
+        claims: Arc<Claims>,
+        device: usize,
+        epoch: u64,
+    },
+    Quit,
+}
+
+/// A helper's sums of one epoch (the render thread's count of restarts).
+#[derive(Default)]
+struct Published {
+    epoch: u64,
+    samples: u32,
+    paths: u64,
+    /// Even and odd halves' exact sums, and the samples discarded as invalid.
+    sums: Option<Sums>,
+}
+
+struct Helper {
+    orders: Sender<Order>,
+    published: Arc<Mutex<Published>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+/// Even and odd halves' exact sums, and the samples discarded as invalid.
+pub type Sums = (Vec<u32>, Vec<u32>, u64);
+
+/// The preview's devices after the first, one thread each.
+pub struct Helpers {
+    helpers: Vec<Helper>,
+}
+
+impl Helpers {
+    /// A helper on each of `backends`; each renders with `options` and publishes about every
+    /// `every` (the render thread's frame interval).
+    pub fn spawn(backends: Vec<Backend>, options: RenderOptions, every: Duration) -> Helpers {
+        let helpers = backends
+            .into_iter()
+            .enumerate()
+            .map(|(i, backend)| {
+                let (orders, rx) = std::sync::mpsc::channel();
+                let published = Arc::new(Mutex::new(Published::default()));
+                let shared = published.clone();
+                let thread = std::thread::Builder::new()
+                    .name(format!("render helper {}", i + 1))
+                    .spawn(move || run(backend, options, every, rx, shared))
+                    .expect("spawn a helper thread");
+                Helper {
+                    orders,
+                    published,
+                    thread: Some(thread),
+                }
+            })
+            .collect();
+        Helpers { helpers }
+    }
+
+    pub fn len(&self) -> usize {
+        self.helpers.len()
+    }
+
+    /// Every helper traces `scene` from now on, helper `i` as device `i + 1` of `claims`
+    /// (the render thread's device is 0); what each had is dropped.
+    pub fn trace(
+        &self,
+        scene: &Arc<Scene>,
+        settings: FrameSettings,
+        claims: &Arc<Claims>,
+        epoch: u64,
+    ) {
+        for (i, h) in self.helpers.iter().enumerate() {
+            let _ = h.orders.send(Order::Trace {
+                scene: scene.clone(),
+                settings,
+                claims: claims.clone(),
+                device: i + 1,
+                epoch,
+            });
+        }
+    }
+
+    /// Samples and paths the helpers have published of `epoch` (without their sums).
+    pub fn progress(&self, epoch: u64) -> (u32, u64) {
+        self.helpers
+            .iter()
+            .map(|h| {
+                let p = h.published.lock().expect("helper poisoned");
+                if p.epoch == epoch {
+                    (p.samples, p.paths)
+                } else {
+                    (0, 0)
+                }
+            })
+            .fold((0, 0), |(s, n), (a, b)| (s + a, n + b))
+    }
+
+    /// The helpers' sums of `epoch` added; `None` while none has finished a step.
+    pub fn contribution(&self, epoch: u64) -> Option<Sums> {
+        let mut total: Option<Sums> = None;
+        for h in &self.helpers {
+            let p = h.published.lock().expect("helper poisoned");
+            let (true, Some((even, odd, invalid))) = (p.epoch == epoch, &p.sums) else {
+                continue;
+            };
+            match &mut total {
+                None => total = Some((even.clone(), odd.clone(), *invalid)),
+                Some((e, o, n)) => {
+                    crate::render::shard::add_words(e, even);
+                    crate::render::shard::add_words(o, odd);
+                    *n += invalid;
+                }
+            }
+        }
+        total
+    }
+}
+
+impl Drop for Helpers {
+    /// Each helper finishes its step and ends.
+    fn drop(&mut self) {
+        for h in &self.helpers {
+            let _ = h.orders.send(Order::Quit);
+        }
+        for h in &mut self.helpers {
+            if let Some(t) = h.thread.take() {
+                let _ = t.join();
+            }
+        }
+    }
+}
+
+/// A helper's thread: idle until told to trace; then steps of about `every`, publishing its
+/// sums after each, until its claims run out or another order comes.
+fn run(
+    backend: Backend,
+    options: RenderOptions,
+    every: Duration,
+    orders: Receiver<Order>,
+    published: Arc<Mutex<Published>>,
+) {
+    let mut renderer: Option<Renderer> = None;
+    let mut epoch = 0;
+    let mut tracing = false;
+    let mut paths = 0u64;
+    loop {
+        // Of several orders only the last matters (a quit among them ends the thread).
+        let mut last = if tracing {
+            match orders.try_recv() {
+                Ok(o) => Some(o),
+                Err(TryRecvError::Empty) => None,
+                Err(TryRecvError::Disconnected) => return,
+            }
+        } else {
+            match orders.recv() {
+                Ok(o) => Some(o),
+                Err(_) => return,
+            }
+        };
+        while let Ok(o) = orders.try_recv() {
+            if matches!(last, Some(Order::Quit)) {
+                break;
+            }
+            last = Some(o);
+        }
+        match last {
+            Some(Order::Quit) => return,
+            Some(Order::Trace {
+                scene,
+                settings,
+                claims,
+                device,
+                epoch: e,
+            }) => {
+                let r = match renderer.as_mut() {
+                    Some(r) => {
+                        r.set_scene(&scene, settings);
+                        r
+                    }
+                    None => {
+                        renderer.insert(Renderer::new(backend.clone(), &scene, settings, options))
+                    }
+                };
+                r.share(claims, device);
+                epoch = e;
+                paths = 0;
+                tracing = true;
+                *published.lock().expect("helper poisoned") = Published {
+                    epoch,
+                    ..Published::default()
+                };
+            }
+            None => {}
+        }
+        let Some(r) = renderer.as_mut().filter(|_| tracing) else {
+            continue;
+        };
+        let step = r.step(every, u32::MAX);
+        if step.paths == 0 {
+            // Its claims have run out (or the others would finish before its next sample).
+            tracing = false;
+            continue;
+        }
+        paths += step.paths;
+        let sums = r.exact_sums();
+        *published.lock().expect("helper poisoned") = Published {
+            epoch,
+            samples: r.samples(),
+            paths,
+            sums: Some(sums),
+        };
+    }
+}
