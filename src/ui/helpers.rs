@@ -11,7 +11,7 @@ use crate::scene::Scene;
 use std::sync::mpsc::{Receiver, Sender, TryRecvError};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// What the render thread asks of a helper.
 enum Order {
@@ -52,8 +52,8 @@ pub struct Helpers {
 }
 
 impl Helpers {
-    /// A helper on each of `backends`; each renders with `options` and publishes about every
-    /// `every` (the render thread's frame interval).
+    /// A helper on each of `backends`; each renders with `options`, a submission at a time,
+    /// and publishes about every `every` (the render thread's frame interval).
     pub fn spawn(backends: Vec<Backend>, options: RenderOptions, every: Duration) -> Helpers {
         let helpers = backends
             .into_iter()
@@ -150,8 +150,9 @@ impl Drop for Helpers {
     }
 }
 
-/// A helper's thread: idle until told to trace; then steps of about `every`, publishing its
-/// sums after each, until its claims run out or another order comes.
+/// A helper's thread: idle until told to trace; then steps of one submission (so that an
+/// edit is taken within a few milliseconds), publishing its sums about every `every` and
+/// when its claims run out, until they do or another order comes.
 fn run(
     backend: Backend,
     options: RenderOptions,
@@ -163,6 +164,9 @@ fn run(
     let mut epoch = 0;
     let mut tracing = false;
     let mut paths = 0u64;
+    // Samples traced since the last publication, and when that was.
+    let mut unpublished = false;
+    let mut last_published = Instant::now();
     loop {
         // Of several orders only the last matters (a quit among them ends the thread).
         let mut last = if tracing {
@@ -205,6 +209,7 @@ fn run(
                 epoch = e;
                 paths = 0;
                 tracing = true;
+                unpublished = false;
                 *published.lock().expect("helper poisoned") = Published {
                     epoch,
                     ..Published::default()
@@ -215,19 +220,23 @@ fn run(
         let Some(r) = renderer.as_mut().filter(|_| tracing) else {
             continue;
         };
-        let step = r.step(every, u32::MAX);
-        if step.paths == 0 {
-            // Its claims have run out (or the others would finish before its next sample).
-            tracing = false;
-            continue;
-        }
+        let step = r.step(options.submission, u32::MAX);
         paths += step.paths;
-        let sums = r.exact_sums();
-        *published.lock().expect("helper poisoned") = Published {
-            epoch,
-            samples: r.samples(),
-            paths,
-            sums: Some(sums),
-        };
+        unpublished |= step.paths > 0;
+        // No paths: its claims have run out (or the others would finish before its next
+        // sample).
+        let done = step.paths == 0;
+        if unpublished && (done || last_published.elapsed() >= every) {
+            let sums = r.exact_sums();
+            *published.lock().expect("helper poisoned") = Published {
+                epoch,
+                samples: r.samples(),
+                paths,
+                sums: Some(sums),
+            };
+            unpublished = false;
+            last_published = Instant::now();
+        }
+        tracing = !done;
     }
 }

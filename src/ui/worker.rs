@@ -104,6 +104,9 @@ struct Preview {
     last_denoise: Option<(Instant, Duration)>,
     /// No samples are left for this device to claim (the others may still be tracing).
     exhausted: bool,
+    /// The other devices have been told to trace this state (after its first frame, so
+    /// that they take nothing from this device's first sample).
+    helpers_told: bool,
 }
 
 struct Worker {
@@ -318,6 +321,7 @@ impl Worker {
                     noise: None,
                     last_denoise: None,
                     exhausted: false,
+                    helpers_told: false,
                 })
             }
         }
@@ -344,13 +348,27 @@ impl Worker {
             p.noise = None;
             p.last_denoise = None;
             p.exhausted = false;
-            // On several devices: new claims, this device first to take from them.
-            if let (Some(h), Some(scene)) = (&self.helpers, &self.scene) {
+            p.helpers_told = false;
+            // On several devices: new claims, this device first to take from them (the
+            // others start after the first frame: `tell_helpers`).
+            if let Some(h) = &self.helpers {
                 let claims = Arc::new(Claims::new(0..self.opts.max_spp, 1 + h.len()));
                 p.renderer.share(claims.clone(), 0);
-                h.trace(scene, p.renderer.settings(), &claims, self.epoch);
                 self.claims = Some(claims);
             }
+        }
+    }
+
+    /// Sets the other devices tracing the current state, once.
+    fn tell_helpers(&mut self) {
+        let (Some(p), Some(h), Some(scene), Some(claims)) =
+            (&mut self.preview, &self.helpers, &self.scene, &self.claims)
+        else {
+            return;
+        };
+        if !p.helpers_told {
+            h.trace(scene, p.renderer.settings(), claims, self.epoch);
+            p.helpers_told = true;
         }
     }
 
@@ -464,6 +482,7 @@ impl Worker {
             p.since_reset.elapsed().as_secs_f64() * 1e3
         );
         p.last_frame = Some((Instant::now(), shown));
+        self.tell_helpers();
     }
 
     /// Sends every frame that has landed; false when the UI has gone.
@@ -517,8 +536,9 @@ impl Worker {
         p.noise = resolved.noise.or(p.noise);
         let elapsed = p.since_reset.elapsed();
         tracing::debug!(
-            "frame at {} spp delivered {:.1} ms after the reset",
+            "frame at {} spp ({} by the other devices) delivered {:.1} ms after the reset",
             tag.spp,
+            tag.helped,
             elapsed.as_secs_f64() * 1e3
         );
         let s = p.renderer.settings();
