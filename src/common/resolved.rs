@@ -111,7 +111,7 @@ impl Resolved {
                             continue;
                         }
                         let p = y * w + x;
-                        let ((se, ne), (so, no)) = (value(&even, p), value(&odd, p));
+                        let ((se, ne), (so, no)) = (value(even, p), value(odd, p));
                         if ne + no > 0.0 {
                             for c in 0..3 {
                                 b[c] += (se[c] + so[c]) / (ne + no);
@@ -120,7 +120,7 @@ impl Resolved {
                             // A row the first look has not reached: show its neighbour.
                             let near = if y == 0 { p + w } else { p - w };
                             if near < w * h {
-                                let ((s2, n2), (t2, m2)) = (value(&even, near), value(&odd, near));
+                                let ((s2, n2), (t2, m2)) = (value(even, near), value(odd, near));
                                 if n2 + m2 > 0.0 {
                                     for c in 0..3 {
                                         b[c] += (s2[c] + t2[c]) / (n2 + m2);
