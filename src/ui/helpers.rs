@@ -34,7 +34,7 @@ struct Published {
     samples: u32,
     paths: u64,
     /// Even and odd halves' exact sums, and the samples discarded as invalid.
-    sums: Option<Sums>,
+    sums: Option<Arc<Sums>>,
 }
 
 struct Helper {
@@ -115,24 +115,16 @@ impl Helpers {
             .fold((0, 0), |(s, n), (a, b)| (s + a, n + b))
     }
 
-    /// The helpers' sums of `epoch` added; `None` while none has finished a step.
-    pub fn contribution(&self, epoch: u64) -> Option<Sums> {
-        let mut total: Option<Sums> = None;
-        for h in &self.helpers {
-            let p = h.published.lock().expect("helper poisoned");
-            let (true, Some((even, odd, invalid))) = (p.epoch == epoch, &p.sums) else {
-                continue;
-            };
-            match &mut total {
-                None => total = Some((even.clone(), odd.clone(), *invalid)),
-                Some((e, o, n)) => {
-                    crate::render::shard::add_words(e, even);
-                    crate::render::shard::add_words(o, odd);
-                    *n += invalid;
-                }
-            }
-        }
-        total
+    /// The sums each helper has published of `epoch` (shared, not copied: the render thread
+    /// adds them to its own device's).
+    pub fn contributions(&self, epoch: u64) -> Vec<Arc<Sums>> {
+        self.helpers
+            .iter()
+            .filter_map(|h| {
+                let p = h.published.lock().expect("helper poisoned");
+                p.sums.clone().filter(|_| p.epoch == epoch)
+            })
+            .collect()
     }
 }
 
@@ -232,7 +224,7 @@ fn run(
                 epoch,
                 samples: r.samples(),
                 paths,
-                sums: Some(sums),
+                sums: Some(Arc::new(sums)),
             };
             unpublished = false;
             last_published = Instant::now();

@@ -102,6 +102,8 @@ struct Preview {
     /// When the last denoised frame was made, and what making it took (denoised frames are
     /// spaced so that the denoiser takes at most a quarter of the time).
     last_denoise: Option<(Instant, Duration)>,
+    /// When the last frame of every device's sums was made, and what making it took.
+    last_combined: Option<(Instant, Duration)>,
     /// No samples are left for this device to claim (the others may still be tracing).
     exhausted: bool,
     /// The other devices have been told to trace this state (after its first frame, so
@@ -320,6 +322,7 @@ impl Worker {
                     last_frame: None,
                     noise: None,
                     last_denoise: None,
+                    last_combined: None,
                     exhausted: false,
                     helpers_told: false,
                 })
@@ -349,6 +352,7 @@ impl Worker {
             p.last_denoise = None;
             p.exhausted = false;
             p.helpers_told = false;
+            p.last_combined = None;
             // On several devices: new claims, this device first to take from them (the
             // others start after the first frame: `tell_helpers`).
             if let Some(h) = &self.helpers {
@@ -412,17 +416,30 @@ impl Worker {
             return;
         }
         // On several devices, once another has published: every device's sums added, the
-        // frame made on the host.
-        let helped = self
+        // frame made on the host; such frames are spaced so that making them takes at most a
+        // quarter of the time (at a large size they cost more than the tracer's submissions).
+        if helper_paths > 0
+            && busy
+            && let Some((at, took)) = p.last_combined
+            && at.elapsed() < 3 * took
+        {
+            return;
+        }
+        let combining = Instant::now();
+        let parts = self
             .helpers
             .as_ref()
-            .and_then(|h| h.contribution(self.epoch));
-        let summed = helped.map(|(he, ho, hn)| {
-            let (mut even, mut odd, invalid) = p.renderer.exact_sums();
-            crate::render::shard::add_words(&mut even, &he);
-            crate::render::shard::add_words(&mut odd, &ho);
-            (even, odd, invalid + hn)
+            .map_or(Vec::new(), |h| h.contributions(self.epoch));
+        let summed = (!parts.is_empty()).then(|| {
+            let (mut even, mut odd, mut invalid) = p.renderer.exact_sums();
+            for part in parts {
+                crate::render::shard::add_words(&mut even, &part.0);
+                crate::render::shard::add_words(&mut odd, &part.1);
+                invalid += part.2;
+            }
+            (even, odd, invalid)
         });
+        let combined = summed.is_some();
         if denoise {
             // The guides are made once per edit: not part of a frame's cost.
             p.renderer.make_guides();
@@ -476,6 +493,13 @@ impl Worker {
                 return;
             };
             self.pending[slot] = Some(tag);
+        }
+        if combined {
+            p.last_combined = Some((Instant::now(), combining.elapsed()));
+            tracing::debug!(
+                "frame of every device's sums made in {:.1} ms",
+                combining.elapsed().as_secs_f64() * 1e3
+            );
         }
         tracing::debug!(
             "frame requested at {spp} spp, {:.1} ms after the reset",
