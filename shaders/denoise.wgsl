@@ -19,7 +19,7 @@ const GUIDE_WORDS: u32 = 7u;
 const LAYER: u32 = 10u;
 const DEMOD: u32 = 9u;
 
-// `_pad0`: the à-trous iteration's step in pixels.
+// `mode`: the à-trous iteration's step in pixels.
 @group(0) @binding(0) var<uniform> params: ResolveUniforms;
 @group(0) @binding(1) var<storage, read> accum_even: array<u32>;
 @group(0) @binding(2) var<storage, read> accum_odd: array<u32>;
@@ -219,7 +219,7 @@ fn atrous(@builtin(global_invocation_id) gid: vec3u) {
     if gid.x >= params.width || gid.y >= params.height {
         return;
     }
-    let step = i32(params._pad0);
+    let step = i32(params.mode);
     let x = i32(gid.x);
     let y = i32(gid.y);
     let w = i32(params.width);

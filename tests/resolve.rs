@@ -4,9 +4,11 @@
 
 mod common;
 use common::*;
+use termtrace::common::Resolved;
 use termtrace::gpu::resolve::ResolvePass;
 use termtrace::output::cells;
-use termtrace::render::{RenderOptions, Renderer};
+use termtrace::render::shard::add_words;
+use termtrace::render::{Backend, RenderOptions, Renderer};
 use termtrace::scene::Scene;
 
 #[test]
@@ -42,6 +44,84 @@ fn the_gpu_resolve_matches_the_host_downsample_and_noise_estimate() {
             "factor {factor}: noise {g} on the GPU, {h} on the host"
         );
         assert_eq!(gpu.invalid, snap.invalid_samples());
+    }
+}
+
+/// Waits for `slot`'s frame.
+fn take(ctx: &termtrace::gpu::GpuContext, pass: &mut ResolvePass, slot: usize) -> Resolved {
+    loop {
+        ctx.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .unwrap();
+        if pass.ready(slot) {
+            break pass.take(slot).expect("the readback maps");
+        }
+    }
+}
+
+#[test]
+fn the_gpu_resolve_adds_another_devices_sums_exactly() {
+    // The preview on several devices: the GPU traces samples 0..5, the CPU tracer 5..12 (its
+    // sums uploaded with `set_extra`); the frame equals the host's of the words added exactly
+    // (`shard::add_words`), up to f32 rounding, with the noise estimate of all 12 samples.
+    // Cleared, the pass shows the GPU's own samples again.
+    let ctx = ctx();
+    let scene = Scene::load("showcase").unwrap();
+    let s = settings(24, 12, 6);
+    let mut gpu = Renderer::new(ctx.clone(), &scene, s, RenderOptions::default());
+    gpu.render_spp(5);
+    let mut cpu = Renderer::new(
+        Backend::Cpu,
+        &scene,
+        s,
+        RenderOptions {
+            first_sample: 5,
+            ..Default::default()
+        },
+    );
+    cpu.render_spp(7);
+    let (mut even, mut odd, invalid) = gpu.exact_sums();
+    let (ce, co, ci) = cpu.exact_sums();
+    add_words(&mut even, &ce);
+    add_words(&mut odd, &co);
+    let mut pass = ResolvePass::new(&ctx.device);
+    for factor in [1, 2] {
+        let host = Resolved::from_sums(&even, &odd, (s.width, s.height), factor, invalid + ci);
+        pass.set_extra(&ctx, &ce, &co);
+        let slot = pass
+            .request(
+                &ctx,
+                gpu.accumulation().unwrap(),
+                (s.width, s.height),
+                factor,
+            )
+            .unwrap();
+        let both = take(&ctx, &mut pass, slot);
+        for (i, (a, b)) in both.image.pixels.iter().zip(&host.image.pixels).enumerate() {
+            let close = (0..3).all(|c| (a[c] - b[c]).abs() <= 1e-5 * b[c].abs().max(1e-3));
+            assert!(close, "factor {factor}, pixel {i}: GPU {a:?}, host {b:?}");
+        }
+        let (g, h) = (both.noise.unwrap(), host.noise.unwrap());
+        assert!(
+            (g - h).abs() <= 1e-4 * h,
+            "noise {g} on the GPU, {h} on the host"
+        );
+        pass.clear_extra();
+        let slot = pass
+            .request(
+                &ctx,
+                gpu.accumulation().unwrap(),
+                (s.width, s.height),
+                factor,
+            )
+            .unwrap();
+        let own = take(&ctx, &mut pass, slot);
+        let (ge, go, gi) = gpu.exact_sums();
+        let alone = Resolved::from_sums(&ge, &go, (s.width, s.height), factor, gi);
+        for (a, b) in own.image.pixels.iter().zip(&alone.image.pixels) {
+            assert!((0..3).all(|c| (a[c] - b[c]).abs() <= 1e-5 * b[c].abs().max(1e-3)));
+        }
+        assert_ne!(own.image.pixels, both.image.pixels);
     }
 }
 

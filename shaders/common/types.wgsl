@@ -57,7 +57,7 @@ struct ResolveUniforms {
     factor: u32,            //   8  traced pixels per output pixel, each way
     out_width: u32,         //  12
     out_height: u32,        //  16
-    _pad0: u32,             //  20
+    mode: u32,              //  20  resolve: 1 adds the other devices' sums; denoise: the step
     _pad1: u32,             //  24
     _pad2: u32,             //  28
 }                           //  32

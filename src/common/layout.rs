@@ -65,7 +65,10 @@ pub struct ResolveUniforms {
     pub factor: u32,
     pub out_width: u32,
     pub out_height: u32,
-    pub _pad: [u32; 3],
+    /// The resolve pass: 1 when the other devices' sums are added
+    /// (`gpu::resolve::ResolvePass::set_extra`); the denoiser: the à-trous step in pixels.
+    pub mode: u32,
+    pub _pad: [u32; 2],
 }
 
 #[repr(C)]
@@ -200,7 +203,7 @@ pub fn mirrors() -> Vec<MirrorLayout> {
         m!(
             "ResolveUniforms",
             ResolveUniforms,
-            [width, height, factor, out_width, out_height]
+            [width, height, factor, out_width, out_height, mode]
         ),
         m!(
             "Material",

@@ -229,7 +229,8 @@ impl DenoisePass {
                     factor,
                     out_width: out.0,
                     out_height: out.1,
-                    _pad: [step, 0, 0],
+                    mode: step,
+                    _pad: [0, 0],
                 };
                 ctx.queue.write_buffer(u, 0, bytemuck::bytes_of(&params));
             }

@@ -1,7 +1,9 @@
 //! The preview's resolve pass (`shaders/resolve.wgsl`): makes the small image that the
 //! terminal shows, and the terms of its noise estimate, on the GPU from the accumulation, and
 //! reads it back asynchronously through two staging buffers: the render thread requests a
-//! frame, goes on tracing, and takes the frame once its copy has landed.
+//! frame, goes on tracing, and takes the frame once its copy has landed. On several devices
+//! the others' sums, uploaded once per frame (`set_extra`), are added to each pixel's on the
+//! GPU, so that the frame is still made there and only the small image read back.
 
 use super::accum::Accumulation;
 use super::{GpuContext, bind_buffers, simple_pass};
@@ -36,6 +38,9 @@ pub struct ResolvePass {
     uniforms: wgpu::Buffer,
     output: Option<wgpu::Buffer>,
     slots: Vec<Slot>,
+    /// The other devices' even and odd sums (`set_extra`), while they are added.
+    extra: Option<(wgpu::Buffer, wgpu::Buffer)>,
+    extra_on: bool,
 }
 
 impl ResolvePass {
@@ -49,6 +54,8 @@ impl ResolvePass {
                 Storage { read_only: true },
                 Storage { read_only: true },
                 Storage { read_only: false },
+                Storage { read_only: true },
+                Storage { read_only: true },
             ],
         );
         let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
@@ -71,7 +78,40 @@ impl ResolvePass {
             uniforms,
             output: None,
             slots,
+            extra: None,
+            extra_on: false,
         }
+    }
+
+    /// Adds `even` and `odd` (exact sums, `ACCUM_WORDS` words a pixel: the other devices'
+    /// of the same image) to the accumulation in the frames requested from now on; they are
+    /// uploaded now, in the queue's order, so a frame in flight is not changed.
+    pub fn set_extra(&mut self, ctx: &GpuContext, even: &[u32], odd: &[u32]) {
+        let bytes = std::mem::size_of_val(even) as u64;
+        if self
+            .extra
+            .as_ref()
+            .is_none_or(|(e, _)| e.size() < bytes.max(4))
+        {
+            let make = |label| {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: bytes.max(4),
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            };
+            self.extra = Some((make("resolve.extra_even"), make("resolve.extra_odd")));
+        }
+        let (e, o) = self.extra.as_ref().expect("extra buffers");
+        ctx.queue.write_buffer(e, 0, bytemuck::cast_slice(even));
+        ctx.queue.write_buffer(o, 0, bytemuck::cast_slice(odd));
+        self.extra_on = true;
+    }
+
+    /// Frames requested from now on show the accumulation alone.
+    pub fn clear_extra(&mut self) {
+        self.extra_on = false;
     }
 
     /// Whether some slot can take a request.
@@ -127,7 +167,8 @@ impl ResolvePass {
             factor,
             out_width: out.0,
             out_height: out.1,
-            _pad: [0; 3],
+            mode: u32::from(self.extra_on),
+            _pad: [0; 2],
         };
         ctx.queue
             .write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&u));
@@ -135,7 +176,21 @@ impl ResolvePass {
             device,
             "resolve.bind_group",
             &self.layout,
-            &[&self.uniforms, &accum.even, &accum.odd, output],
+            &[
+                &self.uniforms,
+                &accum.even,
+                &accum.odd,
+                output,
+                // Unread unless `mode` says so: the accumulation stands in for no extra sums.
+                self.extra
+                    .as_ref()
+                    .filter(|_| self.extra_on)
+                    .map_or(&accum.even, |(e, _)| e),
+                self.extra
+                    .as_ref()
+                    .filter(|_| self.extra_on)
+                    .map_or(&accum.odd, |(_, o)| o),
+            ],
         );
         let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("resolve.submission"),

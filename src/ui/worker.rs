@@ -9,8 +9,10 @@
 //! queued, whatever the frame rate. Frames of an older state still in flight are dropped.
 //!
 //! On several devices (`helpers`) this thread's device is the first: it claims samples with
-//! the others, and once another device has published its sums, frames are made on the host
-//! from every device's sums added (the first frame after an edit is this device's alone).
+//! the others, and once another device has published its sums, every frame shows them all:
+//! on a GPU its resolve pass adds the others' sums (uploaded when they change), elsewhere and
+//! for denoised frames the host adds them (the first frame after an edit is this device's
+//! alone).
 
 use super::app::Stats;
 use super::event::{Event, Frame};
@@ -86,6 +88,8 @@ struct FrameTag {
     /// Of `spp`, the samples per pixel the other devices traced.
     helped: u32,
     paths: u64,
+    /// Invalid samples of the other devices, whose sums the GPU's resolve pass added.
+    extra_invalid: u64,
 }
 
 /// The preview's state since its last reset.
@@ -104,6 +108,8 @@ struct Preview {
     last_denoise: Option<(Instant, Duration)>,
     /// When the last frame of every device's sums was made, and what making it took.
     last_combined: Option<(Instant, Duration)>,
+    /// The other devices' sums last uploaded to the GPU's resolve pass.
+    uploaded: Vec<Arc<super::helpers::Sums>>,
     /// No samples are left for this device to claim (the others may still be tracing).
     exhausted: bool,
     /// The other devices have been told to trace this state (after its first frame, so
@@ -323,6 +329,7 @@ impl Worker {
                     noise: None,
                     last_denoise: None,
                     last_combined: None,
+                    uploaded: Vec::new(),
                     exhausted: false,
                     helpers_told: false,
                 })
@@ -344,6 +351,9 @@ impl Worker {
     /// dropped when they land.
     fn restart_clock(&mut self) {
         self.epoch += 1;
+        if let Some(r) = &mut self.resolve {
+            r.clear_extra();
+        }
         if let Some(p) = &mut self.preview {
             p.since_reset = Instant::now();
             p.paths = 0;
@@ -353,6 +363,7 @@ impl Worker {
             p.exhausted = false;
             p.helpers_told = false;
             p.last_combined = None;
+            p.uploaded.clear();
             // On several devices: new claims, this device first to take from them (the
             // others start after the first frame: `tell_helpers`).
             if let Some(h) = &self.helpers {
@@ -402,6 +413,7 @@ impl Worker {
             spp,
             helped,
             paths: shown,
+            extra_invalid: 0,
         };
         // Denoised frames need a sample in each half of every pixel; once the accumulation
         // stops (`--max-spp`), `auto` shows the final, unbiased image.
@@ -430,16 +442,43 @@ impl Worker {
             .helpers
             .as_ref()
             .map_or(Vec::new(), |h| h.contributions(self.epoch));
-        let summed = (!parts.is_empty()).then(|| {
-            let (mut even, mut odd, mut invalid) = p.renderer.exact_sums();
-            for part in parts {
-                crate::render::shard::add_words(&mut even, &part.0);
-                crate::render::shard::add_words(&mut odd, &part.1);
-                invalid += part.2;
+        let combined = !parts.is_empty();
+        let mut tag = tag;
+        let summed = match (&self.backend, &mut self.resolve) {
+            // The GPU's resolve pass adds the others' sums, uploaded when they have changed.
+            (Backend::Gpu(ctx), Some(resolve)) if !denoise => {
+                let changed = parts.len() != p.uploaded.len()
+                    || parts
+                        .iter()
+                        .zip(&p.uploaded)
+                        .any(|(a, b)| !Arc::ptr_eq(a, b));
+                if combined && changed {
+                    let mut added: Option<(Vec<u32>, Vec<u32>)> = None;
+                    for part in &parts[1..] {
+                        let (e, o) =
+                            added.get_or_insert_with(|| (parts[0].0.clone(), parts[0].1.clone()));
+                        crate::render::shard::add_words(e, &part.0);
+                        crate::render::shard::add_words(o, &part.1);
+                    }
+                    match &added {
+                        Some((e, o)) => resolve.set_extra(ctx, e, o),
+                        None => resolve.set_extra(ctx, &parts[0].0, &parts[0].1),
+                    }
+                    p.uploaded = parts.clone();
+                }
+                tag.extra_invalid = parts.iter().map(|s| s.2).sum();
+                None
             }
-            (even, odd, invalid)
-        });
-        let combined = summed.is_some();
+            _ => combined.then(|| {
+                let (mut even, mut odd, mut invalid) = p.renderer.exact_sums();
+                for part in &parts {
+                    crate::render::shard::add_words(&mut even, &part.0);
+                    crate::render::shard::add_words(&mut odd, &part.1);
+                    invalid += part.2;
+                }
+                (even, odd, invalid)
+            }),
+        };
         if denoise {
             // The guides are made once per edit: not part of a frame's cost.
             p.renderer.make_guides();
@@ -539,7 +578,8 @@ impl Worker {
                 continue;
             }
             self.pending[slot] = None;
-            if let Some(resolved) = resolve.take(slot) {
+            if let Some(mut resolved) = resolve.take(slot) {
+                resolved.invalid += tag.extra_invalid;
                 landed.push((tag, resolved));
             }
         }
@@ -744,26 +784,24 @@ mod tests {
     }
 
     #[test]
-    fn a_gpu_and_the_cpu_tracer_share_a_denoised_preview() {
+    fn a_gpu_and_the_cpu_tracer_share_a_preview() {
         // A GPU (the software adapter) makes the frames, the CPU tracer helps: their sums are
-        // added and denoised on the host, and the preview ends at its samples.
+        // added by the GPU's resolve pass, or on the host for denoised frames, and the
+        // preview ends at its samples.
         let gpu = Backend::open(Some("vulkan")).expect(
             "the software adapter (lavapipe): apt-get install mesa-vulkan-drivers libvulkan1",
         );
-        let (image, stats, denoised) = frames(
-            vec![gpu, Backend::Cpu],
-            (24, 16),
-            24,
-            &[],
-            crate::denoise::Mode::On,
-        );
-        assert_eq!(stats.spp, 24);
-        assert!(
-            (1..24).contains(&stats.helped),
-            "{} spp helped",
-            stats.helped
-        );
-        assert!(denoised, "a denoised frame of both devices' sums");
-        assert!(image.pixels.iter().flatten().all(|v| v.is_finite()));
+        for mode in [crate::denoise::Mode::Off, crate::denoise::Mode::On] {
+            let (image, stats, denoised) =
+                frames(vec![gpu.clone(), Backend::Cpu], (24, 16), 24, &[], mode);
+            assert_eq!(stats.spp, 24);
+            assert!(
+                (1..24).contains(&stats.helped),
+                "{} spp helped",
+                stats.helped
+            );
+            assert_eq!(denoised, mode == crate::denoise::Mode::On);
+            assert!(image.pixels.iter().flatten().all(|v| v.is_finite()));
+        }
     }
 }
