@@ -62,9 +62,24 @@ impl Helpers {
                 let (orders, rx) = std::sync::mpsc::channel();
                 let published = Arc::new(Mutex::new(Published::default()));
                 let shared = published.clone();
+                // The CPU tracer helping traces on all cores but two, so that the render
+                // thread feeding the first device and the terminal's thread are not held back
+                // (its own pool: rayon's work in `install` stays there).
+                let pool = matches!(backend, Backend::Cpu)
+                    .then(|| {
+                        rayon::ThreadPoolBuilder::new()
+                            .num_threads(rayon::current_num_threads().saturating_sub(2).max(1))
+                            .thread_name(|i| format!("helper cpu {i}"))
+                            .build()
+                            .ok()
+                    })
+                    .flatten();
                 let thread = std::thread::Builder::new()
                     .name(format!("render helper {}", i + 1))
-                    .spawn(move || run(backend, options, every, rx, shared))
+                    .spawn(move || match pool {
+                        Some(pool) => pool.install(|| run(backend, options, every, rx, shared)),
+                        None => run(backend, options, every, rx, shared),
+                    })
                     .expect("spawn a helper thread");
                 Helper {
                     orders,
