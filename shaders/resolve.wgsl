@@ -6,7 +6,7 @@
 // its weight, the lecture's `accumulated / peso`), and sums the block's terms of the
 // two-halves noise estimate (src/render/snapshot.rs, `error_estimate`, says why they are
 // unbiased). On several devices (src/ui/helpers.rs) the other devices' sums, uploaded into
-// `extra_even` and `extra_odd`, are added to each pixel's exactly (`fixed_sum`) when
+// `extra_even` and `extra_odd`, are added to each pixel's exactly (`fixed_merge`) when
 // `params.mode` is 1.
 
 
@@ -22,17 +22,6 @@ const REL_MSE_EPSILON: f32 = 0.01;
 @group(0) @binding(4) var<storage, read> extra_even: array<u32>;
 @group(0) @binding(5) var<storage, read> extra_odd: array<u32>;
 
-// The 96-bit sums of a and b, modulo 2^96 as the host adds them (render::shard::add_words).
-fn fixed_sum(a: Fixed, b: Fixed) -> Fixed {
-    let frac = a.frac + b.frac;
-    let c0 = select(vec3u(0u), vec3u(1u), frac < a.frac);
-    let low0 = a.low + b.low;
-    let c1 = select(vec3u(0u), vec3u(1u), low0 < a.low);
-    let low = low0 + c0;
-    let c2 = select(vec3u(0u), vec3u(1u), low < low0);
-    return Fixed(frac, low, a.high + b.high + c1 + c2, a.samples + b.samples);
-}
-
 fn load(buf: u32, pixel: u32) -> Fixed {
     var w: array<u32, 10>;
     for (var i = 0u; i < ACCUM_WORDS; i++) {
@@ -45,7 +34,7 @@ fn load(buf: u32, pixel: u32) -> Fixed {
     for (var i = 0u; i < ACCUM_WORDS; i++) {
         w[i] = select(extra_odd[pixel * ACCUM_WORDS + i], extra_even[pixel * ACCUM_WORDS + i], buf == 0u);
     }
-    return fixed_sum(own, fixed_from_words(w));
+    return fixed_merge(own, fixed_from_words(w));
 }
 
 @compute @workgroup_size(8, 8, 1)

@@ -25,14 +25,7 @@ fn the_gpu_resolve_matches_the_host_downsample_and_noise_estimate() {
         let slot = pass
             .request(&ctx, r.accumulation().unwrap(), (s.width, s.height), factor)
             .expect("a free slot");
-        let gpu = loop {
-            ctx.device
-                .poll(wgpu::PollType::wait_indefinitely())
-                .unwrap();
-            if pass.ready(slot) {
-                break pass.take(slot).expect("the readback maps");
-            }
-        };
+        let gpu = take(&ctx, &mut pass, slot);
         assert_eq!((gpu.image.width, gpu.image.height), (12, 6));
         for (i, (a, b)) in gpu.image.pixels.iter().zip(&host.pixels).enumerate() {
             let close = (0..3).all(|c| (a[c] - b[c]).abs() <= 1e-5 * b[c].abs().max(1e-3));

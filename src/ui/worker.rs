@@ -600,10 +600,10 @@ impl Worker {
         p.noise = resolved.noise.or(p.noise);
         let elapsed = p.since_reset.elapsed();
         tracing::debug!(
-            "frame at {} spp ({} by the other devices) delivered {:.1} ms after the reset",
+            "frame at {} spp delivered {:.1} ms after the reset ({} by the other devices)",
             tag.spp,
-            tag.helped,
-            elapsed.as_secs_f64() * 1e3
+            elapsed.as_secs_f64() * 1e3,
+            tag.helped
         );
         let s = p.renderer.settings();
         let frame = Frame {
