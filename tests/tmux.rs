@@ -151,3 +151,56 @@ fn edit_a_material_write_save_and_quit_in_tmux() {
     );
     assert!(!Path::new(&dir.path().join("scene.edited.toml.bak")).exists());
 }
+
+/// Runs `termtrace view cornell --max-spp 64 ARGS` in a fresh 100×30 tmux session and returns
+/// the screen with its colours (`capture-pane -e`) once the status line shows 64 spp, without
+/// the status lines.
+fn cornell_at_64_spp(args: &str, tag: &str) -> String {
+    let name = format!("termtrace-test-{}-{tag}", std::process::id());
+    let session = Session(name.clone());
+    let shell = "env -i PATH=/usr/bin:/bin HOME=/tmp TERM=xterm-256color COLORTERM=truecolor PS1='$ ' bash --norc --noprofile";
+    let ok = Command::new("tmux")
+        .args([
+            "new-session",
+            "-d",
+            "-s",
+            &name,
+            "-x",
+            "100",
+            "-y",
+            "30",
+            shell,
+        ])
+        .status()
+        .unwrap();
+    assert!(ok.success(), "tmux new-session failed");
+    session.wait_for("the shell prompt", 10, |s| {
+        s.lines().any(|l| l.trim_end() == "$")
+    });
+    let bin = env!("CARGO_BIN_EXE_termtrace");
+    session.keys(&[&format!("{bin} cornell --max-spp 64 {args}"), "Enter"]);
+    session.wait_for("64 spp", 120, |s| s.contains(" 64 spp "));
+    // The last frame is drawn with the status line that announces it.
+    std::thread::sleep(Duration::from_millis(500));
+    let out = Command::new("tmux")
+        .args(["capture-pane", "-p", "-e", "-t", &name])
+        .output()
+        .unwrap();
+    session.keys(&["q"]);
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter(|l| !l.contains('│') && !l.contains('▸'))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn the_preview_on_two_devices_shows_one_devices_image_in_tmux() {
+    // `--adapter cpu-native,cpu-native`: two CPU tracers share the preview's samples
+    // (src/ui/helpers.rs); they compute alike, so at 64 spp the cells' colours are those of
+    // one CPU tracer's preview, escape for escape.
+    let one = cornell_at_64_spp("--adapter cpu-native", "one");
+    let two = cornell_at_64_spp("--adapter cpu-native,cpu-native", "two");
+    assert!(one.contains("38;2;"), "truecolour cells expected:\n{one}");
+    assert_eq!(one, two);
+}
