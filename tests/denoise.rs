@@ -471,7 +471,16 @@ fn the_gpu_denoiser_agrees_with_the_host_one() {
         RenderOptions::default(),
     );
     r.render_spp(8);
+    // The scenes at hand discard no sample: a known count is written into the counter, so
+    // that a frame which did not copy it back (or copied the wrong words) is caught.
+    let invalid = 12_345u64 + (7 << 32);
+    ctx.queue.write_buffer(
+        &r.accumulation().unwrap().counters,
+        0,
+        bytemuck::bytes_of(&[invalid as u32, (invalid >> 32) as u32]),
+    );
     let snap = r.snapshot();
+    assert_eq!(snap.data.invalid, invalid, "the snapshot reads the counter");
     let host = denoise(&snap.data.even, &snap.data.odd, r.guides());
     let host_frame = host.resolved(1, 0);
     let mut pass = DenoisePass::new(&ctx.device);
@@ -503,10 +512,7 @@ fn the_gpu_denoiser_agrees_with_the_host_one() {
         assert_eq!(again.tiles, g.tiles);
     }
     let gpu_tiles: Vec<bool> = g.tiles.iter().map(|t| t[4] < t[1]).collect();
-    assert_eq!(
-        g.invalid, snap.data.invalid,
-        "the invalid-sample counter read back"
-    );
+    assert_eq!(g.invalid, invalid, "the invalid-sample counter read back");
     let gpu_frame = termtrace::denoise::from_gpu(g, (w, h), 1);
     let close = host_frame
         .image
