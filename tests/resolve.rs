@@ -11,6 +11,15 @@ use termtrace::render::shard::add_words;
 use termtrace::render::{Backend, RenderOptions, Renderer};
 use termtrace::scene::Scene;
 
+/// Every pixel of `got` within f32 rounding of `want`'s (1e-5 relative, 1e-8 absolute).
+fn assert_close(got: &[[f32; 3]], want: &[[f32; 3]], what: &str) {
+    assert_eq!(got.len(), want.len(), "{what}: sizes");
+    for (i, (a, b)) in got.iter().zip(want).enumerate() {
+        let close = (0..3).all(|c| (a[c] - b[c]).abs() <= 1e-5 * b[c].abs().max(1e-3));
+        assert!(close, "{what}, pixel {i}: {a:?}, host {b:?}");
+    }
+}
+
 #[test]
 fn the_gpu_resolve_matches_the_host_downsample_and_noise_estimate() {
     let ctx = ctx();
@@ -36,10 +45,11 @@ fn the_gpu_resolve_matches_the_host_downsample_and_noise_estimate() {
             .expect("a free slot");
         let gpu = take(&ctx, &mut pass, slot);
         assert_eq!((gpu.image.width, gpu.image.height), (12, 6));
-        for (i, (a, b)) in gpu.image.pixels.iter().zip(&host.pixels).enumerate() {
-            let close = (0..3).all(|c| (a[c] - b[c]).abs() <= 1e-5 * b[c].abs().max(1e-3));
-            assert!(close, "factor {factor}, pixel {i}: GPU {a:?}, host {b:?}");
-        }
+        assert_close(
+            &gpu.image.pixels,
+            &host.pixels,
+            &format!("factor {factor}, GPU"),
+        );
         let (g, h) = (gpu.noise.unwrap(), snap.noise_estimate().unwrap());
         assert!(
             (g - h).abs() <= 1e-4 * h,
@@ -99,10 +109,8 @@ fn the_gpu_resolve_adds_another_devices_sums_exactly() {
             )
             .unwrap();
         let both = take(&ctx, &mut pass, slot);
-        for (i, (a, b)) in both.image.pixels.iter().zip(&host.image.pixels).enumerate() {
-            let close = (0..3).all(|c| (a[c] - b[c]).abs() <= 1e-5 * b[c].abs().max(1e-3));
-            assert!(close, "factor {factor}, pixel {i}: GPU {a:?}, host {b:?}");
-        }
+        let what = format!("factor {factor}, both devices on the GPU");
+        assert_close(&both.image.pixels, &host.image.pixels, &what);
         let (g, h) = (both.noise.unwrap(), host.noise.unwrap());
         assert!(
             (g - h).abs() <= 1e-4 * h,
@@ -120,9 +128,8 @@ fn the_gpu_resolve_adds_another_devices_sums_exactly() {
         let own = take(&ctx, &mut pass, slot);
         let (ge, go, gi) = gpu.exact_sums();
         let alone = Resolved::from_sums(&ge, &go, (s.width, s.height), factor, gi);
-        for (a, b) in own.image.pixels.iter().zip(&alone.image.pixels) {
-            assert!((0..3).all(|c| (a[c] - b[c]).abs() <= 1e-5 * b[c].abs().max(1e-3)));
-        }
+        let what = format!("factor {factor}, cleared");
+        assert_close(&own.image.pixels, &alone.image.pixels, &what);
         assert_ne!(own.image.pixels, both.image.pixels);
     }
 }
@@ -175,10 +182,8 @@ fn the_cpu_tracers_frames_match_the_host_downsample_and_noise_estimate() {
             .resolve_on_host(factor)
             .expect("the CPU makes frames on the host");
         assert_eq!((frame.image.width, frame.image.height), (12, 6));
-        for (i, (a, b)) in frame.image.pixels.iter().zip(&host.pixels).enumerate() {
-            let close = (0..3).all(|c| (a[c] - b[c]).abs() <= 1e-5 * b[c].abs().max(1e-3));
-            assert!(close, "factor {factor}, pixel {i}: frame {a:?}, host {b:?}");
-        }
+        let what = format!("factor {factor}, the CPU's frame");
+        assert_close(&frame.image.pixels, &host.pixels, &what);
         let (f, h) = (frame.noise.unwrap(), snap.noise_estimate().unwrap());
         assert!(
             (f - h).abs() <= 1e-4 * h,

@@ -17,6 +17,33 @@ impl Drop for Session {
 }
 
 impl Session {
+    /// A tmux session `name`, 100×30, running a clean shell in `dir`, at its prompt.
+    fn start(name: &str, dir: &Path) -> Session {
+        let session = Session(name.to_string());
+        let shell = "env -i PATH=/usr/bin:/bin HOME=/tmp TERM=xterm-256color COLORTERM=truecolor PS1='$ ' bash --norc --noprofile";
+        let ok = Command::new("tmux")
+            .args([
+                "new-session",
+                "-d",
+                "-s",
+                name,
+                "-x",
+                "100",
+                "-y",
+                "30",
+                "-c",
+            ])
+            .arg(dir)
+            .arg(shell)
+            .status()
+            .unwrap();
+        assert!(ok.success(), "tmux new-session failed");
+        session.wait_for("the shell prompt", 10, |s| {
+            s.lines().any(|l| l.trim_end() == "$")
+        });
+        session
+    }
+
     fn keys(&self, keys: &[&str]) {
         for k in keys {
             let ok = Command::new("tmux")
@@ -77,29 +104,10 @@ fn edit_a_material_write_save_and_quit_in_tmux() {
          [[sphere]]\nname = \"red\"\ncenter = [0, 0, -1]\nradius = 0.5\ncolor = \"#ff0000\"\n",
     )
     .unwrap();
-    let name = format!("termtrace-test-{}", std::process::id());
-    let session = Session(name.clone());
-    let shell = "env -i PATH=/usr/bin:/bin HOME=/tmp TERM=xterm-256color COLORTERM=truecolor PS1='$ ' bash --norc --noprofile";
-    let ok = Command::new("tmux")
-        .args([
-            "new-session",
-            "-d",
-            "-s",
-            &name,
-            "-x",
-            "100",
-            "-y",
-            "30",
-            "-c",
-        ])
-        .arg(dir.path())
-        .arg(shell)
-        .status()
-        .unwrap();
-    assert!(ok.success(), "tmux new-session failed");
-    session.wait_for("the shell prompt", 10, |s| {
-        s.lines().any(|l| l.trim_end() == "$")
-    });
+    let session = Session::start(
+        &format!("termtrace-test-{}", std::process::id()),
+        dir.path(),
+    );
     let bin = env!("CARGO_BIN_EXE_termtrace");
     session.keys(&[&format!("{bin} scene.toml"), "Enter"]);
     let s = session.wait_for("the preview's status line", 60, |s| {
@@ -157,26 +165,8 @@ fn edit_a_material_write_save_and_quit_in_tmux() {
 /// the status lines.
 fn cornell_at_64_spp(args: &str, tag: &str) -> String {
     let name = format!("termtrace-test-{}-{tag}", std::process::id());
-    let session = Session(name.clone());
-    let shell = "env -i PATH=/usr/bin:/bin HOME=/tmp TERM=xterm-256color COLORTERM=truecolor PS1='$ ' bash --norc --noprofile";
-    let ok = Command::new("tmux")
-        .args([
-            "new-session",
-            "-d",
-            "-s",
-            &name,
-            "-x",
-            "100",
-            "-y",
-            "30",
-            shell,
-        ])
-        .status()
-        .unwrap();
-    assert!(ok.success(), "tmux new-session failed");
-    session.wait_for("the shell prompt", 10, |s| {
-        s.lines().any(|l| l.trim_end() == "$")
-    });
+    let dir = tempfile::tempdir().unwrap();
+    let session = Session::start(&name, dir.path());
     let bin = env!("CARGO_BIN_EXE_termtrace");
     session.keys(&[&format!("{bin} cornell --max-spp 64 {args}"), "Enter"]);
     session.wait_for("64 spp", 120, |s| s.contains(" 64 spp "));

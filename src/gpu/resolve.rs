@@ -172,6 +172,11 @@ impl ResolvePass {
         };
         ctx.queue
             .write_buffer(&self.uniforms, 0, bytemuck::bytes_of(&u));
+        // Unread unless `mode` says so: the accumulation stands in for no extra sums.
+        let (extra_even, extra_odd) = match (&self.extra, self.extra_on) {
+            (Some((e, o)), true) => (e, o),
+            _ => (&accum.even, &accum.odd),
+        };
         let bind_group = bind_buffers(
             device,
             "resolve.bind_group",
@@ -181,15 +186,8 @@ impl ResolvePass {
                 &accum.even,
                 &accum.odd,
                 output,
-                // Unread unless `mode` says so: the accumulation stands in for no extra sums.
-                self.extra
-                    .as_ref()
-                    .filter(|_| self.extra_on)
-                    .map_or(&accum.even, |(e, _)| e),
-                self.extra
-                    .as_ref()
-                    .filter(|_| self.extra_on)
-                    .map_or(&accum.odd, |(_, o)| o),
+                extra_even,
+                extra_odd,
             ],
         );
         let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {

@@ -7,6 +7,7 @@
 //! How much each device claims: `claims`.
 
 use super::claims::Claims;
+use super::shard::{Sums, add_sums};
 use super::{Backend, RenderOptions, Renderer, Snapshot};
 use crate::common::FrameSettings;
 use crate::common::accum::{AccumData, decode};
@@ -214,17 +215,13 @@ impl Team {
 
     /// The exact sums of every device added (`ACCUM_WORDS` words per pixel, even then odd
     /// half) and the samples discarded as invalid.
-    pub fn exact_sums(&self) -> (Vec<u32>, Vec<u32>, u64) {
-        let mut total: Option<(Vec<u32>, Vec<u32>, u64)> = None;
+    pub fn exact_sums(&self) -> Sums {
+        let mut total: Option<Sums> = None;
         for m in &self.members {
-            let (even, odd, invalid) = m.renderer.lock().expect("renderer poisoned").exact_sums();
+            let sums = m.renderer.lock().expect("renderer poisoned").exact_sums();
             match &mut total {
-                None => total = Some((even, odd, invalid)),
-                Some((e, o, n)) => {
-                    super::shard::add_words(e, &even);
-                    super::shard::add_words(o, &odd);
-                    *n += invalid;
-                }
+                None => total = Some(sums),
+                Some(t) => add_sums(t, &sums),
             }
         }
         total.expect("a team has a device")

@@ -215,6 +215,17 @@ pub fn add_words(a: &mut [u32], b: &[u32]) {
     }
 }
 
+/// A device's exact sums (`ACCUM_WORDS` words per pixel, even then odd half) and the
+/// samples it discarded as invalid, as `Renderer::exact_sums` reads them.
+pub type Sums = (Vec<u32>, Vec<u32>, u64);
+
+/// Adds the sums of another device (or part) of the same image to `total`.
+pub fn add_sums(total: &mut Sums, other: &Sums) {
+    add_words(&mut total.0, &other.0);
+    add_words(&mut total.1, &other.1);
+    total.2 += other.2;
+}
+
 /// Merges the parts of one render (in any order) into the whole: refused, naming the files,
 /// if a part belongs to another render (scene, settings, version), a shard is missing or
 /// given twice, or a part's range is not its shard's.

@@ -1,11 +1,13 @@
 //! The preview's other devices (`--adapter 0,1`, `--adapter all`): each traces, on its own
 //! thread, the samples it claims of the preview's accumulation (`render::claims`, shared
-//! with the render thread's device), and publishes its exact sums after every step; the
-//! render thread adds them to its own device's for the frames (`worker`). Every sample
+//! with the render thread's device), and publishes its exact sums about every frame
+//! interval and when its claims run out; the render thread adds them to its own device's
+//! for the frames (`worker`). Every sample
 //! index is traced once, so the preview shows what one device would have traced.
 
 use crate::common::FrameSettings;
 use crate::render::claims::Claims;
+use crate::render::shard::Sums;
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::Scene;
 use std::sync::mpsc::{Receiver, Sender, TryRecvError};
@@ -33,7 +35,6 @@ struct Published {
     epoch: u64,
     samples: u32,
     paths: u64,
-    /// Even and odd halves' exact sums, and the samples discarded as invalid.
     sums: Option<Arc<Sums>>,
 }
 
@@ -42,9 +43,6 @@ struct Helper {
     published: Arc<Mutex<Published>>,
     thread: Option<JoinHandle<()>>,
 }
-
-/// Even and odd halves' exact sums, and the samples discarded as invalid.
-pub type Sums = (Vec<u32>, Vec<u32>, u64);
 
 /// The preview's devices after the first, one thread each.
 pub struct Helpers {

@@ -24,6 +24,7 @@ use crate::gpu::denoise::DenoisePass;
 use crate::gpu::resolve::{ResolvePass, SLOTS};
 use crate::output::{Transfer, write_png};
 use crate::render::claims::Claims;
+use crate::render::shard::{Sums, add_sums};
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::Scene;
 use std::path::PathBuf;
@@ -109,7 +110,7 @@ struct Preview {
     /// When the last frame of every device's sums was made, and what making it took.
     last_combined: Option<(Instant, Duration)>,
     /// The other devices' sums last uploaded to the GPU's resolve pass.
-    uploaded: Vec<Arc<super::helpers::Sums>>,
+    uploaded: Vec<Arc<Sums>>,
     /// No samples are left for this device to claim (the others may still be tracing).
     exhausted: bool,
     /// The other devices have been told to trace this state (after its first frame, so
@@ -427,9 +428,10 @@ impl Worker {
         {
             return;
         }
-        // On several devices, once another has published: every device's sums added, the
-        // frame made on the host; such frames are spaced so that making them takes at most a
-        // quarter of the time (at a large size they cost more than the tracer's submissions).
+        // On several devices, once another has published: every device's sums added (by the
+        // GPU's resolve pass, after an upload, or on the host); such frames are spaced so that
+        // making them takes at most a quarter of the time (at a large size the upload or the
+        // host's work costs more than the tracer's submissions).
         if helper_paths > 0
             && busy
             && let Some((at, took)) = p.last_combined
@@ -453,30 +455,31 @@ impl Worker {
                         .zip(&p.uploaded)
                         .any(|(a, b)| !Arc::ptr_eq(a, b));
                 if combined && changed {
-                    let mut added: Option<(Vec<u32>, Vec<u32>)> = None;
-                    for part in &parts[1..] {
-                        let (e, o) =
-                            added.get_or_insert_with(|| (parts[0].0.clone(), parts[0].1.clone()));
-                        crate::render::shard::add_words(e, &part.0);
-                        crate::render::shard::add_words(o, &part.1);
-                    }
-                    match &added {
-                        Some((e, o)) => resolve.set_extra(ctx, e, o),
-                        None => resolve.set_extra(ctx, &parts[0].0, &parts[0].1),
-                    }
+                    // One helper's sums are uploaded as they are; several are added first.
+                    let added;
+                    let sums: &Sums = match parts.as_slice() {
+                        [one] => one,
+                        [first, rest @ ..] => {
+                            added = rest.iter().fold((**first).clone(), |mut t, part| {
+                                add_sums(&mut t, part);
+                                t
+                            });
+                            &added
+                        }
+                        [] => unreachable!("combined: some parts"),
+                    };
+                    resolve.set_extra(ctx, &sums.0, &sums.1);
                     p.uploaded = parts.clone();
                 }
                 tag.extra_invalid = parts.iter().map(|s| s.2).sum();
                 None
             }
             _ => combined.then(|| {
-                let (mut even, mut odd, mut invalid) = p.renderer.exact_sums();
+                let mut total = p.renderer.exact_sums();
                 for part in &parts {
-                    crate::render::shard::add_words(&mut even, &part.0);
-                    crate::render::shard::add_words(&mut odd, &part.1);
-                    invalid += part.2;
+                    add_sums(&mut total, part);
                 }
-                (even, odd, invalid)
+                total
             }),
         };
         if denoise {
