@@ -268,6 +268,10 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     drop(r);
     if team.len() > 1 {
         for s in team.shares() {
+            if let Some(why) = &s.failed {
+                println!("device       failed ({why}): {}", s.device);
+                continue;
+            }
             println!(
                 "device       {:.4e} samples/s, {:.1} % of the samples ({} claims): {}",
                 s.paths as f64 / secs,

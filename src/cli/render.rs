@@ -316,6 +316,13 @@ pub(crate) fn report_shares(team: &Team) {
     }
     let total = team.paths().max(1) as f64;
     for s in team.shares() {
+        if let Some(why) = &s.failed {
+            eprintln!(
+                "  failed: {} ({why}); what it had claimed was traced by the others",
+                s.device
+            );
+            continue;
+        }
         eprintln!(
             "  {:5.1}% of the samples ({} spp in {} claims, {}) on {}",
             100.0 * s.paths as f64 / total,

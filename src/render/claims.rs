@@ -2,7 +2,8 @@
 //! when it is ready, by guided self-scheduling weighted by rate (Polychronopoulos and Kuck
 //! 1987): at most half of its rate's share of what is left, so that the claims shrink
 //! towards the end and the devices finish together; a device that could not finish one
-//! sample before the others still claiming finish the rest stops claiming.
+//! sample before the others still claiming finish the rest stops claiming. A device that
+//! fails (`release`) gives back every sample it claimed, for the others to claim again.
 
 use std::ops::Range;
 use std::sync::Mutex;
@@ -24,6 +25,20 @@ struct ClaimState {
     /// Devices refused as too slow: they claim no more, and the others no longer wait on
     /// them (so the last device still claiming takes the rest, whatever the rates).
     stopped: Vec<bool>,
+    /// Devices that failed: they claim no more, ever.
+    failed: Vec<bool>,
+    /// Samples a failed device had claimed, claimed again first, in order.
+    returned: Vec<Range<u32>>,
+    /// A test's device failure: device, and the claims it makes before it fails.
+    #[cfg(test)]
+    fail: Option<(usize, u32)>,
+}
+
+impl ClaimState {
+    /// Samples of every pixel not claimed (or given back).
+    fn left(&self) -> u32 {
+        self.end - self.next + self.returned.iter().map(|r| r.len() as u32).sum::<u32>()
+    }
 }
 
 impl Claims {
@@ -36,6 +51,10 @@ impl Claims {
                 rates: vec![None; devices],
                 claimed: vec![Vec::new(); devices],
                 stopped: vec![false; devices],
+                failed: vec![false; devices],
+                returned: Vec::new(),
+                #[cfg(test)]
+                fail: None,
             }),
         }
     }
@@ -49,14 +68,14 @@ impl Claims {
         if let Some(r) = rate.filter(|r| r.is_finite() && *r > 0.0) {
             s.rates[device] = Some(r);
         }
-        let left = s.end - s.next;
-        if left == 0 || s.stopped[device] {
+        let left = s.left();
+        if left == 0 || s.stopped[device] || s.failed[device] {
             return None;
         }
         let mut take = want.clamp(1, left);
         // The devices still claiming: the rates that share what is left.
         let active: Vec<Option<f64>> = (0..s.rates.len())
-            .filter(|&d| !s.stopped[d])
+            .filter(|&d| !s.stopped[d] && !s.failed[d])
             .map(|d| s.rates[d])
             .collect();
         if active.len() > 1 {
@@ -76,10 +95,59 @@ impl Claims {
                 take = 1;
             }
         }
-        let first = s.next;
-        s.next += take;
+        // Samples given back by a failed device first, one contiguous run at a time.
+        let first = match s.returned.first_mut() {
+            Some(r) => {
+                let first = r.start;
+                take = take.min(r.len() as u32);
+                r.start += take;
+                if r.start == r.end {
+                    s.returned.remove(0);
+                }
+                first
+            }
+            None => {
+                let first = s.next;
+                s.next += take;
+                first
+            }
+        };
         s.claimed[device].push(first..first + take);
         Some((first, take))
+    }
+
+    /// `device` failed: it claims no more, and every sample it claimed (traced or not: its
+    /// sums are lost with it) is given back to be claimed again, so the others still trace
+    /// every sample once. The devices stopped as too slow may claim again. Returns the
+    /// samples per pixel given back.
+    pub fn release(&self, device: usize) -> u32 {
+        let mut s = self.state.lock().expect("claims poisoned");
+        s.failed[device] = true;
+        let given: Vec<Range<u32>> = std::mem::take(&mut s.claimed[device]);
+        let n = given.iter().map(|r| r.len() as u32).sum();
+        s.returned.extend(given);
+        s.stopped.iter_mut().for_each(|d| *d = false);
+        n
+    }
+
+    /// Samples of every pixel not yet claimed (including those given back).
+    pub fn left(&self) -> u32 {
+        self.state.lock().expect("claims poisoned").left()
+    }
+
+    /// A test's device failure: `device` fails (its renderer panics, `Renderer::start_round`)
+    /// when it asks for its claim after `after` claims.
+    #[cfg(test)]
+    pub(crate) fn fail_after(&self, device: usize, after: u32) {
+        self.state.lock().expect("claims poisoned").fail = Some((device, after));
+    }
+
+    /// Whether `device` is to fail now (`fail_after`).
+    #[cfg(test)]
+    pub(crate) fn failing(&self, device: usize) -> bool {
+        let s = self.state.lock().expect("claims poisoned");
+        s.fail
+            .is_some_and(|(d, after)| d == device && s.claimed[d].len() as u32 >= after)
     }
 
     /// Makes the samples up to `end` claimable too (a render continued to more samples).
@@ -173,5 +241,37 @@ mod tests {
             at = r.end;
         }
         assert_eq!(at, 100);
+    }
+
+    #[test]
+    fn a_failed_device_gives_its_samples_back() {
+        let c = Claims::new(0..20, 2);
+        assert_eq!(c.claim(0, 3, None), Some((0, 1)));
+        assert_eq!(c.claim(1, 3, None), Some((1, 1)));
+        assert_eq!(
+            c.claim(1, 8, Some(1.0)),
+            Some((2, 1)),
+            "one at a time: a rate unknown"
+        );
+        assert_eq!(c.claim(0, 3, Some(1.0)), Some((3, 3)));
+        assert_eq!(c.left(), 14);
+        assert_eq!(c.release(1), 2, "samples 1 and 2");
+        assert_eq!(c.left(), 16);
+        assert_eq!(
+            c.claim(1, 3, Some(100.0)),
+            None,
+            "a failed device claims no more"
+        );
+        // The one device left takes the given-back samples first, a run at a time, then the
+        // rest, whatever it asks for.
+        assert_eq!(c.claim(0, 10, Some(1.0)), Some((1, 1)));
+        assert_eq!(c.claim(0, 10, Some(1.0)), Some((2, 1)));
+        assert_eq!(c.claim(0, 100, Some(1.0)), Some((6, 14)));
+        assert_eq!(c.claim(0, 100, Some(1.0)), None);
+        assert_eq!(c.left(), 0);
+        assert!(c.claimed()[1].is_empty());
+        let mut all = c.claimed()[0].clone();
+        all.sort_by_key(|r| r.start);
+        assert_eq!(all, vec![0..1, 1..2, 2..3, 3..6, 6..20]);
     }
 }

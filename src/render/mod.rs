@@ -12,6 +12,7 @@
 //! submission there is traced on every core before `submit` returns.
 
 pub mod claims;
+pub mod failure;
 pub mod multi;
 mod schedule;
 pub mod shard;
@@ -495,6 +496,12 @@ impl Renderer {
     /// tuner's next candidate while it has not chosen; `None` when the shared claims are
     /// used up.
     fn start_round(&mut self, k: u32, stride: u32) -> Option<Round> {
+        #[cfg(test)]
+        if let Some((c, device)) = &self.claims
+            && c.failing(*device)
+        {
+            panic!("device {device} failed (a test's injected failure)");
+        }
         let (base, k) = match &self.claims {
             Some((c, device)) => c.claim(*device, k, self.schedule.rate())?,
             None => (self.options.first_sample + self.samples, k),

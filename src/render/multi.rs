@@ -4,9 +4,12 @@
 //! claimed it, with its own random stream, so on devices that compute alike the image is
 //! the one a single device makes, bit for bit (the sums do not depend on the order).
 //!
-//! How much each device claims: `claims`.
+//! How much each device claims: `claims`. A device that fails (its driver lost, a panic on
+//! its thread) gives back every sample it claimed and its sums are left out; the others trace
+//! those samples again (`failure`), so the image is still every sample's, once.
 
 use super::claims::Claims;
+use super::failure::contained;
 use super::shard::{Sums, add_sums};
 use super::{Backend, RenderOptions, Renderer, Snapshot};
 use crate::common::FrameSettings;
@@ -28,6 +31,23 @@ struct Member {
     gpu_nanos: AtomicU64,
     /// Samples per pixel of its completed rounds.
     samples: AtomicU64,
+    /// Why it failed, once it has: it traces no more and its sums are left out.
+    failed: Mutex<Option<String>>,
+}
+
+impl Member {
+    fn failure(&self) -> Option<String> {
+        self.failed.lock().expect("failure poisoned").clone()
+    }
+
+    /// Its renderer, or `None` once it has failed (a renderer that panicked while held is
+    /// poisoned until its failure is recorded).
+    fn renderer(&self) -> Option<MutexGuard<'_, Renderer>> {
+        if self.failure().is_some() {
+            return None;
+        }
+        self.renderer.lock().ok()
+    }
 }
 
 /// What one device of a team did.
@@ -39,6 +59,8 @@ pub struct Share {
     /// Samples per pixel it traced, and the ranges they were (`Claims::claimed`).
     pub samples: u64,
     pub ranges: Vec<Range<u32>>,
+    /// Why it failed, if it did (its samples were traced again by the others).
+    pub failed: Option<String>,
 }
 
 /// Several renderers of one scene sharing the samples of one render.
@@ -81,6 +103,7 @@ impl Team {
                 micros: AtomicU64::new(0),
                 gpu_nanos: AtomicU64::new(0),
                 samples: AtomicU64::new(0),
+                failed: Mutex::new(None),
             })
             .collect();
         let mut team = Team {
@@ -93,10 +116,15 @@ impl Team {
         team
     }
 
-    /// Starts afresh: every accumulation empty, samples `range` to share.
+    /// Starts afresh: every accumulation empty, samples `range` to share (a device that
+    /// failed takes no part).
     pub fn restart(&mut self, range: Range<u32>) {
         self.claims = Arc::new(Claims::new(range, self.members.len()));
         for (i, m) in self.members.iter_mut().enumerate() {
+            if m.failure().is_some() {
+                self.claims.release(i);
+                continue;
+            }
             let r = m.renderer.get_mut().expect("renderer poisoned");
             r.share(self.claims.clone(), i);
             m.paths.store(0, Ordering::Relaxed);
@@ -119,31 +147,32 @@ impl Team {
         names.join(" + ")
     }
 
-    /// The first device's renderer (its features, guides, BVH statistics).
+    /// The devices that have not failed.
+    fn live(&self) -> impl Iterator<Item = &Member> {
+        self.members.iter().filter(|m| m.failure().is_none())
+    }
+
+    /// The first working device's renderer (its features, guides, BVH statistics).
     pub fn first(&self) -> MutexGuard<'_, Renderer> {
-        self.members[0].renderer.lock().expect("renderer poisoned")
+        self.members
+            .iter()
+            .find_map(Member::renderer)
+            .expect("every device of the team failed")
     }
 
-    /// Samples per pixel of the completed rounds of every device.
+    /// Samples per pixel of the completed rounds of every working device.
     pub fn samples(&self) -> u64 {
-        self.members
-            .iter()
-            .map(|m| m.samples.load(Ordering::Relaxed))
-            .sum()
+        self.live().map(|m| m.samples.load(Ordering::Relaxed)).sum()
     }
 
-    /// Paths traced since the last restart.
+    /// Paths the working devices traced since the last restart.
     pub fn paths(&self) -> u64 {
-        self.members
-            .iter()
-            .map(|m| m.paths.load(Ordering::Relaxed))
-            .sum()
+        self.live().map(|m| m.paths.load(Ordering::Relaxed)).sum()
     }
 
-    /// Seconds the passes of every device took on the GPU, where timed.
+    /// Seconds the passes of every working device took on the GPU, where timed.
     pub fn gpu_seconds(&self) -> f64 {
-        self.members
-            .iter()
+        self.live()
             .map(|m| m.gpu_nanos.load(Ordering::Relaxed) as f64 * 1e-9)
             .sum()
     }
@@ -152,7 +181,14 @@ impl Team {
     pub fn tuning(&self) -> bool {
         self.members
             .iter()
-            .any(|m| m.renderer.lock().expect("renderer poisoned").tuning())
+            .filter_map(Member::renderer)
+            .any(|r| r.tuning())
+    }
+
+    /// Makes device `device` fail at its claim after `after` claims (a test's device loss).
+    #[cfg(test)]
+    pub(crate) fn fail_after(&self, device: usize, after: u32) {
+        self.claims.fail_after(device, after);
     }
 
     /// Goes on to samples up to `end` of every pixel (the accumulation kept).
@@ -163,7 +199,9 @@ impl Team {
     /// Traces until every sample is claimed and traced, `deadline` passes, or `watch`
     /// (called about every `every` from this thread, with the team to read) returns false;
     /// then every device finishes its submissions in flight and stops. One device traces on
-    /// this thread, several on one thread each.
+    /// this thread, several on one thread each. A device that fails on its thread gives its
+    /// samples back and the others trace them; only when every device has failed does the
+    /// failure go on (as the panic it was).
     pub fn run(
         &self,
         every: Duration,
@@ -171,7 +209,6 @@ impl Team {
         mut watch: impl FnMut(&Team) -> bool,
     ) {
         let stop = AtomicBool::new(false);
-        let done = AtomicU64::new(0);
         let past = || deadline.is_some_and(|d| Instant::now() >= d);
         let trace = |m: &Member| {
             let budget = match deadline {
@@ -192,39 +229,71 @@ impl Team {
             while trace(one) && watch(self) && !past() {}
             return;
         }
-        std::thread::scope(|s| {
-            for m in &self.members {
-                let (stop, done) = (&stop, &done);
-                s.spawn(move || {
-                    while !stop.load(Ordering::Relaxed) && !past() && trace(m) {}
-                    done.fetch_add(1, Ordering::Relaxed);
-                });
-            }
-            let mut next = Instant::now() + every;
-            while done.load(Ordering::Relaxed) < self.members.len() as u64 {
-                std::thread::sleep(Duration::from_millis(5));
-                if Instant::now() >= next && !stop.load(Ordering::Relaxed) {
-                    next = Instant::now() + every;
-                    if !watch(self) {
-                        stop.store(true, Ordering::Relaxed);
+        // Again while a failed device's samples are left and another device works (the
+        // others may have stopped before it failed).
+        while !stop.load(Ordering::Relaxed) && !past() && self.live().next().is_some() {
+            let done = AtomicU64::new(0);
+            let live: Vec<(usize, &Member)> = self
+                .members
+                .iter()
+                .enumerate()
+                .filter(|(_, m)| m.failure().is_none())
+                .collect();
+            std::thread::scope(|s| {
+                for &(i, m) in &live {
+                    let (stop, done) = (&stop, &done);
+                    s.spawn(move || {
+                        let traced = contained(|| {
+                            while !stop.load(Ordering::Relaxed) && !past() && trace(m) {}
+                        });
+                        if let Err(why) = traced {
+                            // Left out first, then its samples given back.
+                            *m.failed.lock().expect("failure poisoned") = Some(why.clone());
+                            m.samples.store(0, Ordering::Relaxed);
+                            m.paths.store(0, Ordering::Relaxed);
+                            let given = self.claims.release(i);
+                            tracing::warn!(
+                                "{} failed ({why}); its {given} samples per pixel go to the \
+                                 other devices",
+                                m.name
+                            );
+                        }
+                        done.fetch_add(1, Ordering::Relaxed);
+                    });
+                }
+                let mut next = Instant::now() + every;
+                while done.load(Ordering::Relaxed) < live.len() as u64 {
+                    std::thread::sleep(Duration::from_millis(5));
+                    if Instant::now() >= next && !stop.load(Ordering::Relaxed) {
+                        next = Instant::now() + every;
+                        if !watch(self) {
+                            stop.store(true, Ordering::Relaxed);
+                        }
                     }
                 }
+            });
+            if self.claims.left() == 0 || live.iter().all(|(_, m)| m.failure().is_none()) {
+                break;
             }
-        });
+        }
+        if self.live().next().is_none() {
+            let why: Vec<String> = self.members.iter().filter_map(Member::failure).collect();
+            panic!("every device failed: {}", why.join("; "));
+        }
     }
 
     /// The exact sums of every device added (`ACCUM_WORDS` words per pixel, even then odd
     /// half) and the samples discarded as invalid.
     pub fn exact_sums(&self) -> Sums {
         let mut total: Option<Sums> = None;
-        for m in &self.members {
-            let sums = m.renderer.lock().expect("renderer poisoned").exact_sums();
+        for r in self.members.iter().filter_map(Member::renderer) {
+            let sums = r.exact_sums();
             match &mut total {
                 None => total = Some(sums),
                 Some(t) => add_sums(t, &sums),
             }
         }
-        total.expect("a team has a device")
+        total.expect("a team has a working device")
     }
 
     /// The accumulation of every device added, read back; with one device, its own (with
@@ -239,13 +308,11 @@ impl Team {
             ..AccumData::from_halves(decode(&even), decode(&odd))
         };
         // A second readback of every device, for a benchmark's counters alone.
-        for m in self.members.iter().filter(|_| self.counted) {
-            let d = m
-                .renderer
-                .lock()
-                .expect("renderer poisoned")
-                .snapshot()
-                .data;
+        for r in self.members.iter().filter_map(Member::renderer) {
+            if !self.counted {
+                break;
+            }
+            let d = r.snapshot().data;
             data.segments += d.segments;
             data.node_visits += d.node_visits;
             data.primitive_tests += d.primitive_tests;
@@ -270,7 +337,58 @@ impl Team {
                 seconds: m.micros.load(Ordering::Relaxed) as f64 * 1e-6,
                 samples: m.samples.load(Ordering::Relaxed),
                 ranges,
+                failed: m.failure(),
             })
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn settings() -> FrameSettings {
+        FrameSettings::new(24, 16, 6, 1)
+    }
+
+    #[test]
+    fn a_failed_device_s_samples_are_traced_by_the_others() {
+        // Two CPU tracers, the second lost at its third claim (its renderer panics, as one
+        // waiting on a lost GPU does): the first traces every sample the second had, and the
+        // image is one device's bit for bit.
+        let scene = Scene::load("showcase").unwrap();
+        let spp = 24;
+        let one = Team::new(
+            &[Backend::Cpu],
+            &scene,
+            settings(),
+            RenderOptions::default(),
+            0..spp,
+        );
+        one.run(Duration::from_millis(20), None, |_| true);
+        let team = Team::new(
+            &[Backend::Cpu, Backend::Cpu],
+            &scene,
+            settings(),
+            RenderOptions::default(),
+            0..spp,
+        );
+        team.fail_after(1, 2);
+        team.run(Duration::from_millis(20), None, |_| true);
+        let shares = team.shares();
+        assert!(shares[0].failed.is_none(), "{shares:?}");
+        let why = shares[1]
+            .failed
+            .as_deref()
+            .expect("the second device failed");
+        assert!(why.contains("injected"), "{why}");
+        assert!(shares[1].ranges.is_empty(), "its claims given back");
+        assert_eq!(team.samples(), spp as u64);
+        let mut ranges = shares[0].ranges.clone();
+        ranges.sort_by_key(|r| r.start);
+        let covered: u32 = ranges.iter().map(|r| r.len() as u32).sum();
+        assert_eq!(covered, spp, "{ranges:?}");
+        assert!(ranges.windows(2).all(|w| w[0].end == w[1].start));
+        assert_eq!(team.exact_sums(), one.exact_sums());
     }
 }

@@ -31,6 +31,8 @@ pub enum Event {
         total: u32,
     },
     Saved(Result<String, String>),
+    /// Another device of the preview failed (what to tell the user); the others go on.
+    DeviceLost(String),
     /// SIGTERM, SIGHUP or SIGINT from outside.
     Signal,
     /// The terminal answered a status query (`flow`): everything written before it has

@@ -3,15 +3,19 @@
 //! with the render thread's device), and publishes its exact sums about every frame
 //! interval and when its claims run out; the render thread adds them to its own device's
 //! for the frames (`worker`). Every sample
-//! index is traced once, so the preview shows what one device would have traced.
+//! index is traced once, so the preview shows what one device would have traced. A helper
+//! whose device fails (a panic on its thread: `render::failure`) gives back every sample it
+//! claimed, publishes why, and ends; the render thread takes it out and the others trace
+//! those samples.
 
 use crate::common::FrameSettings;
 use crate::render::claims::Claims;
+use crate::render::failure::contained;
 use crate::render::shard::Sums;
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::Scene;
 use std::sync::mpsc::{Receiver, Sender, TryRecvError};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -26,6 +30,11 @@ enum Order {
         device: usize,
         epoch: u64,
     },
+    /// Go on tracing `epoch` if its claims have samples again (a device failed and gave
+    /// its back).
+    Resume {
+        epoch: u64,
+    },
     Quit,
 }
 
@@ -36,12 +45,25 @@ struct Published {
     samples: u32,
     paths: u64,
     sums: Option<Arc<Sums>>,
+    /// The claims it takes from, and as which device (given back if it fails).
+    claims: Option<(Arc<Claims>, usize)>,
+    /// Why its device failed: it traces no more.
+    failed: Option<String>,
 }
 
 struct Helper {
+    name: String,
     orders: Sender<Order>,
     published: Arc<Mutex<Published>>,
     thread: Option<JoinHandle<()>>,
+}
+
+impl Helper {
+    /// What it has published (a helper that failed while holding it left it whole: every
+    /// write is one assignment).
+    fn published(&self) -> MutexGuard<'_, Published> {
+        self.published.lock().unwrap_or_else(|e| e.into_inner())
+    }
 }
 
 /// The preview's devices after the first, one thread each.
@@ -72,14 +94,22 @@ impl Helpers {
                             .ok()
                     })
                     .flatten();
+                let name = backend.describe();
                 let thread = std::thread::Builder::new()
                     .name(format!("render helper {}", i + 1))
-                    .spawn(move || match pool {
-                        Some(pool) => pool.install(|| run(backend, options, every, rx, shared)),
-                        None => run(backend, options, every, rx, shared),
+                    .spawn(move || {
+                        let to_run = shared.clone();
+                        let ran = contained(|| match pool {
+                            Some(pool) => pool.install(|| run(backend, options, every, rx, to_run)),
+                            None => run(backend, options, every, rx, to_run),
+                        });
+                        if let Err(why) = ran {
+                            fail(&shared, why);
+                        }
                     })
                     .expect("spawn a helper thread");
                 Helper {
+                    name,
                     orders,
                     published,
                     thread: Some(thread),
@@ -91,6 +121,35 @@ impl Helpers {
 
     pub fn len(&self) -> usize {
         self.helpers.len()
+    }
+
+    /// The helpers whose device failed, taken out (their threads have ended): each one's
+    /// device and why. The samples each had claimed are back in its claims.
+    pub fn take_failed(&mut self) -> Vec<(String, String)> {
+        let mut failed = Vec::new();
+        let mut i = 0;
+        while i < self.helpers.len() {
+            let why = self.helpers[i].published().failed.clone();
+            match why {
+                Some(why) => {
+                    let mut h = self.helpers.remove(i);
+                    if let Some(t) = h.thread.take() {
+                        let _ = t.join();
+                    }
+                    failed.push((h.name.clone(), why));
+                }
+                None => i += 1,
+            }
+        }
+        failed
+    }
+
+    /// Every helper goes on tracing `epoch` where it stopped, if its claims have samples
+    /// again.
+    pub fn resume(&self, epoch: u64) {
+        for h in &self.helpers {
+            let _ = h.orders.send(Order::Resume { epoch });
+        }
     }
 
     /// Every helper traces `scene` from now on, helper `i` as device `i + 1` of `claims`
@@ -118,7 +177,7 @@ impl Helpers {
         self.helpers
             .iter()
             .map(|h| {
-                let p = h.published.lock().expect("helper poisoned");
+                let p = h.published();
                 if p.epoch == epoch {
                     (p.samples, p.paths)
                 } else {
@@ -134,7 +193,7 @@ impl Helpers {
         self.helpers
             .iter()
             .filter_map(|h| {
-                let p = h.published.lock().expect("helper poisoned");
+                let p = h.published();
                 p.sums.clone().filter(|_| p.epoch == epoch)
             })
             .collect()
@@ -153,6 +212,21 @@ impl Drop for Helpers {
             }
         }
     }
+}
+
+/// A helper's device failed with `why`: it gives back the samples it claimed and publishes
+/// nothing more but why.
+fn fail(published: &Mutex<Published>, why: String) {
+    let mut p = published.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((claims, device)) = p.claims.take() {
+        let given = claims.release(device);
+        tracing::warn!("a helper's device failed ({why}); its {given} spp go to the others");
+    }
+    *p = Published {
+        epoch: p.epoch,
+        failed: Some(why),
+        ..Published::default()
+    };
 }
 
 /// A helper's thread: idle until told to trace; then steps of one submission (so that an
@@ -194,6 +268,7 @@ fn run(
         }
         match last {
             Some(Order::Quit) => return,
+            Some(Order::Resume { epoch: e }) => tracing |= renderer.is_some() && e == epoch,
             Some(Order::Trace {
                 scene,
                 settings,
@@ -210,13 +285,14 @@ fn run(
                         renderer.insert(Renderer::new(backend.clone(), &scene, settings, options))
                     }
                 };
-                r.share(claims, device);
+                r.share(claims.clone(), device);
                 epoch = e;
                 paths = 0;
                 tracing = true;
                 unpublished = false;
                 *published.lock().expect("helper poisoned") = Published {
                     epoch,
+                    claims: Some((claims, device)),
                     ..Published::default()
                 };
             }
@@ -233,12 +309,11 @@ fn run(
         let done = step.paths == 0;
         if unpublished && (done || last_published.elapsed() >= every) {
             let sums = r.exact_sums();
-            *published.lock().expect("helper poisoned") = Published {
-                epoch,
-                samples: r.samples(),
-                paths,
-                sums: Some(Arc::new(sums)),
-            };
+            let mut p = published.lock().expect("helper poisoned");
+            p.samples = r.samples();
+            p.paths = paths;
+            p.sums = Some(Arc::new(sums));
+            drop(p);
             unpublished = false;
             last_published = Instant::now();
         }

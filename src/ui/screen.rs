@@ -222,6 +222,11 @@ impl Ui {
                 }
                 self.app.say(m);
             }
+            Event::DeviceLost(m) => {
+                // Said again once the terminal is restored.
+                self.farewell.push(m.clone());
+                self.app.say(m);
+            }
             Event::Signal => self.quit = true,
             Event::StatusReport(at) => self.flow.answered(at),
         }

@@ -72,7 +72,11 @@ fn install_panic_hook() {
     ONCE.call_once(|| {
         let previous = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
-            restore();
+            // A device's failure on its own thread is caught and the preview goes on
+            // (`render::failure`): the terminal stays as it is; stderr goes to the log.
+            if !crate::render::failure::containing() {
+                restore();
+            }
             previous(info);
         }));
     });

@@ -142,14 +142,28 @@ struct Worker {
     /// Counts every restart of the accumulation: frames of an older epoch are dropped.
     epoch: u64,
     save: Option<SaveJob>,
+    /// A test's device failure: this device of every claims fails after so many claims.
+    #[cfg(test)]
+    fail: Option<(usize, u32)>,
 }
 
 /// Starts the render thread on the first of `backends` (and a helper on each other); it
 /// ends on `Request::Quit` or when either channel closes.
 pub fn spawn(
+    backends: Vec<Backend>,
+    opts: WorkerOptions,
+    events: Sender<Event>,
+) -> (Sender<Request>, JoinHandle<()>) {
+    spawn_failing(backends, opts, events, None)
+}
+
+/// `spawn`, with device `fail.0` failing after `fail.1` claims of every state (a test's
+/// device loss; `None` outside tests).
+fn spawn_failing(
     mut backends: Vec<Backend>,
     opts: WorkerOptions,
     events: Sender<Event>,
+    #[allow(unused_variables)] fail: Option<(usize, u32)>,
 ) -> (Sender<Request>, JoinHandle<()>) {
     let (tx, rx) = std::sync::mpsc::channel();
     let handle = std::thread::Builder::new()
@@ -172,6 +186,8 @@ pub fn spawn(
                 generation: 0,
                 epoch: 0,
                 save: None,
+                #[cfg(test)]
+                fail,
             };
             if !backends.is_empty() {
                 let every = w.frame_interval();
@@ -237,6 +253,7 @@ impl Worker {
 
     fn run(&mut self, rx: Receiver<Request>) {
         loop {
+            self.check_helpers();
             // Wait when there is nothing to do; otherwise take what has arrived.
             let mut requests = Vec::new();
             let idle = !self.preview_tracing()
@@ -369,9 +386,38 @@ impl Worker {
             // others start after the first frame: `tell_helpers`).
             if let Some(h) = &self.helpers {
                 let claims = Arc::new(Claims::new(0..self.opts.max_spp, 1 + h.len()));
+                #[cfg(test)]
+                if let Some((device, after)) = self.fail {
+                    claims.fail_after(device, after);
+                }
                 p.renderer.share(claims.clone(), 0);
                 self.claims = Some(claims);
             }
+        }
+    }
+
+    /// Takes out the other devices that failed, tells the UI, and has the devices left
+    /// trace the samples they had claimed (given back to the claims).
+    fn check_helpers(&mut self) {
+        let Some(h) = &mut self.helpers else { return };
+        let failed = h.take_failed();
+        if failed.is_empty() {
+            return;
+        }
+        for (device, why) in failed {
+            tracing::warn!("{device} failed ({why}); the preview goes on without it");
+            let _ = self.events.send(Event::DeviceLost(format!(
+                "{device} failed ({why}); the other devices trace its samples"
+            )));
+        }
+        h.resume(self.epoch);
+        // Its sums are left out of the frames from now on.
+        if let Some(r) = &mut self.resolve {
+            r.clear_extra();
+        }
+        if let Some(p) = &mut self.preview {
+            p.exhausted = false;
+            p.uploaded.clear();
         }
     }
 
@@ -701,19 +747,21 @@ mod tests {
     /// frame's image and spp.
     fn final_frame(backends: Vec<Backend>, max_spp: u32, edits: &[Scene]) -> (LinearImage, Stats) {
         let off = crate::denoise::Mode::Off;
-        let (image, stats, _) = frames(backends, (64, 48), max_spp, edits, off);
+        let (image, stats, _) = frames(backends, (64, 48), max_spp, edits, off, None);
         (image, stats)
     }
 
     /// As `final_frame`, in denoiser `mode`, with whether any frame with samples of the
-    /// other devices in it was denoised.
+    /// other devices in it was denoised (with `fail`: what the UI was told of the devices
+    /// lost instead).
     fn frames(
         backends: Vec<Backend>,
         size: (u32, u32),
         max_spp: u32,
         edits: &[Scene],
         denoise: crate::denoise::Mode,
-    ) -> (LinearImage, Stats, bool) {
+        fail: Option<(usize, u32)>,
+    ) -> (LinearImage, Stats, Vec<String>) {
         let scene = Scene::load("cornell").unwrap();
         let settings = FrameSettings::new(size.0, size.1, scene.render.max_bounces, 1);
         let (events, rx) = std::sync::mpsc::channel();
@@ -723,7 +771,7 @@ mod tests {
             generic: false,
             denoise,
         };
-        let (tx, handle) = spawn(backends, opts, events);
+        let (tx, handle) = spawn_failing(backends, opts, events, fail);
         let mut generation = 1;
         let send = |scene: &Scene, generation| {
             tx.send(Request::Scene {
@@ -737,19 +785,20 @@ mod tests {
         send(&scene, generation);
         let mut edits = edits.iter();
         let mut denoised_helped = false;
+        let mut lost = Vec::new();
         let last = loop {
-            let Event::Frame(f) = rx.recv_timeout(Duration::from_secs(120)).expect("a frame")
-            else {
-                continue;
+            let f = match rx.recv_timeout(Duration::from_secs(120)).expect("a frame") {
+                Event::Frame(f) => f,
+                Event::DeviceLost(m) => {
+                    lost.push(m);
+                    continue;
+                }
+                _ => continue,
             };
             if f.generation != generation {
                 continue;
             }
             denoised_helped |= f.stats.denoised.is_some() && f.stats.helped > 0;
-            eprintln!(
-                "DBG frame {} spp {} helped {} last {}",
-                f.generation, f.stats.spp, f.stats.helped, f.last
-            );
             if let Some(e) = edits.next() {
                 generation += 1;
                 send(e, generation);
@@ -761,7 +810,11 @@ mod tests {
         };
         tx.send(Request::Quit).unwrap();
         handle.join().unwrap();
-        (last.image, last.stats, denoised_helped)
+        if fail.is_none() {
+            assert!(lost.is_empty(), "{lost:?}");
+            lost.push(if denoised_helped { "denoised" } else { "" }.into());
+        }
+        (last.image, last.stats, lost)
     }
 
     #[test]
@@ -795,8 +848,15 @@ mod tests {
             "the software adapter (lavapipe): apt-get install mesa-vulkan-drivers libvulkan1",
         );
         for mode in [crate::denoise::Mode::Off, crate::denoise::Mode::On] {
-            let (image, stats, denoised) =
-                frames(vec![gpu.clone(), Backend::Cpu], (24, 16), 24, &[], mode);
+            let (image, stats, said) = frames(
+                vec![gpu.clone(), Backend::Cpu],
+                (24, 16),
+                24,
+                &[],
+                mode,
+                None,
+            );
+            let denoised = said == ["denoised"];
             assert_eq!(stats.spp, 24);
             assert!(
                 (1..24).contains(&stats.helped),
@@ -806,5 +866,48 @@ mod tests {
             assert_eq!(denoised, mode == crate::denoise::Mode::On);
             assert!(image.pixels.iter().flatten().all(|v| v.is_finite()));
         }
+    }
+
+    #[test]
+    fn a_device_lost_mid_preview_leaves_the_image_whole() {
+        // Two CPU tracers, the second failing at its second claim (its renderer panics, as
+        // one waiting on a lost GPU does), with an edit after the first frame: the UI is
+        // told, the first device traces what the second had claimed, and the preview still
+        // ends on one device's image, bit for bit. Then the software adapter making the
+        // frames with the CPU tracer failing beside it: the resolve pass drops the sums it
+        // had added, and the image is the software adapter's alone.
+        let mut edited = Scene::load("cornell").unwrap();
+        edited.camera.vfov += 5.0;
+        // 512 spp, so that the second device asks for its second claim before the first has
+        // claimed them all.
+        let (one, _) = final_frame(vec![Backend::Cpu], 512, std::slice::from_ref(&edited));
+        let off = crate::denoise::Mode::Off;
+        let two = vec![Backend::Cpu, Backend::Cpu];
+        let edits = [edited.clone()];
+        let (image, stats, lost) = frames(two, (64, 48), 512, &edits, off, Some((1, 1)));
+        assert_eq!(
+            (stats.spp, stats.helped),
+            (512, 0),
+            "the first device traced all"
+        );
+        assert_eq!(lost.len(), 1, "{lost:?}");
+        assert!(lost[0].contains("injected"), "{}", lost[0]);
+        assert_eq!(image.pixels, one.pixels);
+
+        let gpu = Backend::open(Some("vulkan")).expect(
+            "the software adapter (lavapipe): apt-get install mesa-vulkan-drivers libvulkan1",
+        );
+        let (alone, _, _) = frames(vec![gpu.clone()], (24, 16), 24, &[], off, None);
+        let (image, stats, lost) = frames(
+            vec![gpu, Backend::Cpu],
+            (24, 16),
+            24,
+            &[],
+            off,
+            Some((1, 2)),
+        );
+        assert_eq!((stats.spp, stats.helped), (24, 0));
+        assert_eq!(lost.len(), 1, "{lost:?}");
+        assert_eq!(image.pixels, alone.pixels);
     }
 }
