@@ -1,10 +1,12 @@
 // #include "common/types.wgsl"
 // #include "common/fixed.wgsl"
-// The denoiser on the GPU (src/gpu/denoise.rs drives it; src/denoise is the same filter on
+// The denoiser on the GPU (src/gpu/denoise.rs drives it; src/denoise is the same filters on
 // the host, and its comments say why): the halves of the accumulation demodulated by the
 // guides' albedo, fireflies clamped, five iterations of the edge-avoiding à-trous filter on
-// both halves at once, the estimate of the shown image's error summed per 16×16 tile, and
-// the preview's image composed tile by tile from the raw or the denoised image.
+// both halves at once, then each half's radiance regressed on the guides with weights from
+// that filter's output (src/denoise/regress.rs), the estimates of the raw image's and both
+// filters' errors summed per 16×16 tile, and the preview's image composed tile by tile from
+// whichever is estimated best.
 
 const TILE: u32 = 16u;
 const ALBEDO_EPSILON: f32 = 0.01;
@@ -17,25 +19,40 @@ const VARIANCE_RADIUS: i32 = 3;
 const REL_MSE_EPSILON: f32 = 0.01;
 const GUIDE_WORDS: u32 = 7u;
 const LAYER: u32 = 10u;
-const DEMOD: u32 = 9u;
+const DEMOD: u32 = 12u;
+const IMAGES: u32 = 9u;
+// The regression (src/denoise/regress.rs): window radius, spatial sigma, luminance sigma and
+// epsilon, ridge, and terms (1, albedo, normal, y, x).
+const REGRESS_RADIUS: i32 = 2;
+const REGRESS_SPATIAL_SIGMA: f32 = 1.5;
+const REGRESS_LUMINANCE_SIGMA: f32 = 1.0;
+const REGRESS_LUMINANCE_EPSILON: f32 = 1e-10;
+const RIDGE: f32 = 1e-3;
+const TERMS: u32 = 9u;
 
 // `mode`: the à-trous iteration's step in pixels.
 @group(0) @binding(0) var<uniform> params: ResolveUniforms;
 @group(0) @binding(1) var<storage, read> accum_even: array<u32>;
 @group(0) @binding(2) var<storage, read> accum_odd: array<u32>;
 @group(0) @binding(3) var<storage, read> guide_sums: array<u32>;
-// Per pixel: (albedo, sky ? 1 : 0), (unit normal or 0, 0).
+// Per pixel: (albedo, sky ? 1 : 0), (unit normal or 0, the variance of one half's radiance
+// luminance: a 7×7 mean, for the regression's weights).
 @group(0) @binding(4) var<storage, read_write> texels: array<vec4f>;
 // Per pixel: both halves demodulated (6), the squared difference of their luminances / 2, and
-// their luminances (2, for the firefly clamp's neighbours).
+// their luminances (2, for the firefly clamp's neighbours); then the same three of the
+// radiance (not demodulated).
 @group(0) @binding(5) var<storage, read_write> demod: array<f32>;
 // Per pixel, LAYER floats: each half's (r, g, b, luminance, variance); read from `src`,
-// written to `dst` (the passes swap them).
+// written to `dst` (the passes swap them). After the iterations `src` holds the à-trous
+// output, and `regress` writes the regression's (radiance, not demodulated) to `dst`.
 @group(0) @binding(6) var<storage, read> src: array<f32>;
 @group(0) @binding(7) var<storage, read_write> dst: array<f32>;
-// Per pixel: the raw mean (3) and the denoised image ½(D(A) + D(B)) (3).
+// Per pixel: the raw mean (3) and the denoised image ½(D(A) + D(B)) of the à-trous filter (3)
+// and of the regression (3). Until `finish`, each half's radiance with its fireflies clamped
+// (`settle` writes it, `regress` reads it).
 @group(0) @binding(8) var<storage, read_write> images: array<f32>;
-// Per tile, 8 floats: raw (mse, rel, rel²), denoised (mse, rel, rel²), pixels, 0.
+// Per tile, 8 floats: raw (mse, rel, rel²), denoised (mse, rel, rel², of the filter chosen),
+// pixels, and 1 where the regression is chosen (0: the à-trous filter).
 @group(0) @binding(9) var<storage, read_write> tiles: array<f32>;
 // Per output pixel: r, g, b (12 bytes: the preview at 960×608 reads back 7 MB, not the 19
 // of resolve.wgsl's two vec4f).
@@ -93,11 +110,16 @@ fn prepare(@builtin(global_invocation_id) gid: vec3u) {
     texels[2u * p] = vec4f(albedo, select(0.0, 1.0, sky));
     texels[2u * p + 1u] = vec4f(select(normal / len, vec3f(0.0), sky), 0.0);
     let m = albedo + ALBEDO_EPSILON;
-    let a = half_mean(0u, p).xyz / m;
-    let b = half_mean(1u, p).xyz / m;
+    let ra = half_mean(0u, p).xyz;
+    let rb = half_mean(1u, p).xyz;
+    let a = ra / m;
+    let b = rb / m;
     let la = lum(a);
     let lb = lum(b);
     let d = la - lb;
+    let lra = lum(ra);
+    let lrb = lum(rb);
+    let dr = lra - lrb;
     let o = p * DEMOD;
     demod[o] = a.x;
     demod[o + 1u] = a.y;
@@ -108,6 +130,9 @@ fn prepare(@builtin(global_invocation_id) gid: vec3u) {
     demod[o + 6u] = 0.5 * d * d;
     demod[o + 7u] = la;
     demod[o + 8u] = lb;
+    demod[o + 9u] = 0.5 * dr * dr;
+    demod[o + 10u] = lra;
+    demod[o + 11u] = lrb;
 }
 
 fn demod_half(p: u32, h: u32) -> vec3f {
@@ -115,8 +140,9 @@ fn demod_half(p: u32, h: u32) -> vec3f {
     return vec3f(demod[o], demod[o + 1u], demod[o + 2u]);
 }
 
-// A half's colour with a firefly clamped to its 24 neighbours' mean + 3 s.d. of luminance.
-fn clamped(x: i32, y: i32, h: u32) -> vec3f {
+// `c`, the colour at (x, y) whose luminance is in `demod` at `slot`, with a firefly clamped
+// to its 24 neighbours' mean + 3 s.d. of that luminance.
+fn clamp_firefly(x: i32, y: i32, slot: u32, c: vec3f) -> vec3f {
     let w = i32(params.width);
     let hh = i32(params.height);
     var n = 0.0;
@@ -125,7 +151,7 @@ fn clamped(x: i32, y: i32, h: u32) -> vec3f {
     for (var qy = max(y - OUTLIER_RADIUS, 0); qy <= min(y + OUTLIER_RADIUS, hh - 1); qy++) {
         for (var qx = max(x - OUTLIER_RADIUS, 0); qx <= min(x + OUTLIER_RADIUS, w - 1); qx++) {
             if qx != x || qy != y {
-                let l = demod[u32(qy * w + qx) * DEMOD + 7u + h];
+                let l = demod[u32(qy * w + qx) * DEMOD + slot];
                 n += 1.0;
                 s += l;
                 s2 += l * l;
@@ -135,12 +161,16 @@ fn clamped(x: i32, y: i32, h: u32) -> vec3f {
     let mean = s / max(n, 1.0);
     let sd = sqrt(max(s2 / max(n, 1.0) - mean * mean, 0.0));
     let limit = mean + OUTLIER_SIGMAS * sd;
-    let c = demod_half(u32(y * w + x), h);
-    let l = demod[u32(y * w + x) * DEMOD + 7u + h];
+    let l = demod[u32(y * w + x) * DEMOD + slot];
     if l > limit && l > 0.0 {
         return c * (limit / l);
     }
     return c;
+}
+
+// A half's demodulated colour with a firefly clamped.
+fn clamped(x: i32, y: i32, h: u32) -> vec3f {
+    return clamp_firefly(x, y, 7u + h, demod_half(u32(y * i32(params.width) + x), h));
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -153,15 +183,30 @@ fn settle(@builtin(global_invocation_id) gid: vec3u) {
     let w = i32(params.width);
     let hh = i32(params.height);
     var v = 0.0;
+    var vr = 0.0;
     var n = 0.0;
     for (var qy = max(y - VARIANCE_RADIUS, 0); qy <= min(y + VARIANCE_RADIUS, hh - 1); qy++) {
         for (var qx = max(x - VARIANCE_RADIUS, 0); qx <= min(x + VARIANCE_RADIUS, w - 1); qx++) {
-            v += demod[u32(qy * w + qx) * DEMOD + 6u];
+            let o = u32(qy * w + qx) * DEMOD;
+            v += demod[o + 6u];
+            vr += demod[o + 9u];
             n += 1.0;
         }
     }
     v /= n;
     let p = gid.y * params.width + gid.x;
+    texels[2u * p + 1u].w = vr / n;
+    // Each half's radiance, fireflies clamped, for the regression.
+    let m = modulation(p);
+    let ra = clamp_firefly(x, y, 10u, demod_half(p, 0u) * m);
+    let rb = clamp_firefly(x, y, 11u, demod_half(p, 1u) * m);
+    let i = p * IMAGES;
+    images[i] = ra.x;
+    images[i + 1u] = ra.y;
+    images[i + 2u] = ra.z;
+    images[i + 3u] = rb.x;
+    images[i + 4u] = rb.y;
+    images[i + 5u] = rb.z;
     let a = clamped(x, y, 0u);
     let b = clamped(x, y, 1u);
     let o = p * LAYER;
@@ -270,14 +315,171 @@ fn atrous(@builtin(global_invocation_id) gid: vec3u) {
     store_half(p, 1u, cb, wb, vb);
 }
 
-var<workgroup> partial: array<array<f32, 7>, 256>;
+// One half's weighted normal equations (the lower triangle of XᵀWX row by row, and XᵀWY):
+// src/denoise/regress.rs's `Normal`.
+struct Normal {
+    xx: array<f32, 45>,
+    xy: array<vec3f, 9>,
+}
 
-// One workgroup per tile: the images and the tile's estimate sums (src/denoise/mod.rs, "The
-// estimator").
+fn normal_add(n: ptr<function, Normal>, t: ptr<function, array<f32, 9>>, w: f32, y: vec3f) {
+    var k = 0u;
+    for (var i = 0u; i < TERMS; i++) {
+        let wi = w * (*t)[i];
+        for (var j = 0u; j <= i; j++) {
+            (*n).xx[k] += wi * (*t)[j];
+            k++;
+        }
+        (*n).xy[i] += wi * y;
+    }
+}
+
+// The intercept of the ridge-regularized solution by Cholesky (w = 1), or w = 0 where the
+// factorization fails.
+fn intercept(n: ptr<function, Normal>) -> vec4f {
+    let ridge = RIDGE * (*n).xx[0];
+    var l: array<array<f32, 9>, 9>;
+    var k = 0u;
+    for (var i = 0u; i < TERMS; i++) {
+        for (var j = 0u; j <= i; j++) {
+            l[i][j] = (*n).xx[k] + select(0.0, ridge, i == j && i > 0u);
+            k++;
+        }
+    }
+    for (var j = 0u; j < TERMS; j++) {
+        var d = l[j][j];
+        for (var m = 0u; m < j; m++) {
+            d -= l[j][m] * l[j][m];
+        }
+        if !(d > 0.0) {
+            return vec4f(0.0);
+        }
+        d = sqrt(d);
+        l[j][j] = d;
+        for (var i = j + 1u; i < TERMS; i++) {
+            var s = l[i][j];
+            for (var m = 0u; m < j; m++) {
+                s -= l[i][m] * l[j][m];
+            }
+            l[i][j] = s / d;
+        }
+    }
+    var z: array<vec3f, 9>;
+    for (var i = 0u; i < TERMS; i++) {
+        var s = (*n).xy[i];
+        for (var m = 0u; m < i; m++) {
+            s -= l[i][m] * z[m];
+        }
+        z[i] = s / l[i][i];
+    }
+    var b: array<vec3f, 9>;
+    for (var ii = 0u; ii < TERMS; ii++) {
+        let i = TERMS - 1u - ii;
+        var s = z[i];
+        for (var m = i + 1u; m < TERMS; m++) {
+            s -= l[m][i] * b[m];
+        }
+        b[i] = s / l[i][i];
+    }
+    let r = b[0];
+    // Not finite (NaN or ±inf): the à-trous output stays.
+    if !(abs(r.x) < 3.0e38 && abs(r.y) < 3.0e38 && abs(r.z) < 3.0e38) {
+        return vec4f(0.0);
+    }
+    return vec4f(r, 1.0);
+}
+
+// Each half's radiance at every pixel made the intercept of a weighted first-order regression
+// of its neighbours' on the guides and the position (src/denoise/regress.rs), the weights from
+// that half's à-trous output in `src`; written to `dst` (radiance).
+@compute @workgroup_size(8, 8, 1)
+fn regress(@builtin(global_invocation_id) gid: vec3u) {
+    if gid.x >= params.width || gid.y >= params.height {
+        return;
+    }
+    let x = i32(gid.x);
+    let y = i32(gid.y);
+    let w = i32(params.width);
+    let p = gid.y * params.width + gid.x;
+    let tp = texels[2u * p];
+    let np = texels[2u * p + 1u];
+    let mp = modulation(p);
+    let fa = vec3f(src[p * LAYER], src[p * LAYER + 1u], src[p * LAYER + 2u]) * mp;
+    let fb = vec3f(src[p * LAYER + 5u], src[p * LAYER + 6u], src[p * LAYER + 7u]) * mp;
+    let la = lum(fa);
+    let lb = lum(fb);
+    var na: Normal;
+    var nb: Normal;
+    var t: array<f32, 9>;
+    let r = f32(REGRESS_RADIUS);
+    for (var dy = -REGRESS_RADIUS; dy <= REGRESS_RADIUS; dy++) {
+        let qy = y + dy;
+        if qy < 0 || qy >= i32(params.height) {
+            continue;
+        }
+        for (var dx = -REGRESS_RADIUS; dx <= REGRESS_RADIUS; dx++) {
+            let qx = x + dx;
+            if qx < 0 || qx >= w {
+                continue;
+            }
+            let q = u32(qy * w + qx);
+            let tq = texels[2u * q];
+            let nq = texels[2u * q + 1u];
+            t[0] = 1.0;
+            t[1] = tq.x - tp.x;
+            t[2] = tq.y - tp.y;
+            t[3] = tq.z - tp.z;
+            t[4] = nq.x - np.x;
+            t[5] = nq.y - np.y;
+            t[6] = nq.z - np.z;
+            t[7] = f32(dy) / r;
+            t[8] = f32(dx) / r;
+            let spatial = exp(-f32(dy * dy + dx * dx)
+                / (2.0 * REGRESS_SPATIAL_SIGMA * REGRESS_SPATIAL_SIGMA));
+            let scale = 1.0 / (REGRESS_LUMINANCE_SIGMA * REGRESS_LUMINANCE_SIGMA * (np.w + nq.w)
+                + REGRESS_LUMINANCE_EPSILON);
+            let mq = modulation(q);
+            let qa = vec3f(src[q * LAYER], src[q * LAYER + 1u], src[q * LAYER + 2u]) * mq;
+            let qb = vec3f(src[q * LAYER + 5u], src[q * LAYER + 6u], src[q * LAYER + 7u]) * mq;
+            let da = la - lum(qa);
+            let db = lb - lum(qb);
+            let i = q * IMAGES;
+            let ya = vec3f(images[i], images[i + 1u], images[i + 2u]);
+            let yb = vec3f(images[i + 3u], images[i + 4u], images[i + 5u]);
+            normal_add(&na, &t, spatial * exp(-da * da * scale), ya);
+            normal_add(&nb, &t, spatial * exp(-db * db * scale), yb);
+        }
+    }
+    let ra = intercept(&na);
+    let rb = intercept(&nb);
+    let a = select(fa, ra.xyz, ra.w > 0.5);
+    let b = select(fb, rb.xyz, rb.w > 0.5);
+    let o = p * LAYER;
+    dst[o] = a.x;
+    dst[o + 1u] = a.y;
+    dst[o + 2u] = a.z;
+    dst[o + 5u] = b.x;
+    dst[o + 6u] = b.y;
+    dst[o + 7u] = b.z;
+}
+
+var<workgroup> partial: array<array<f32, 10>, 256>;
+
+// The estimate's terms of one denoised image at a pixel (src/denoise/mod.rs, "The
+// estimator"): its squared error summed over channels, and the relative one.
+fn estimate_terms(fa: vec3f, fb: vec3f, x: vec3f, y: vec3f, scale: vec3f) -> vec2f {
+    let dd = 0.5 * (fa - y) * (fa - y) + 0.5 * (fb - x) * (fb - x)
+        - 0.5 * (x - y) * (x - y) - 0.25 * (fa - fb) * (fa - fb);
+    return vec2f(dd.x + dd.y + dd.z, dot(dd * scale, vec3f(1.0)));
+}
+
+// One workgroup per tile: the images and the tile's estimate sums of the raw image and of
+// both filters' (the à-trous output in `src`, the regression's in `dst`); the tile keeps the
+// filter estimated better (the regression on a tie, as the host's).
 @compute @workgroup_size(16, 16, 1)
 fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_index) lid: u32,
           @builtin(workgroup_id) wid: vec3u) {
-    var terms = array<f32, 7>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    var terms = array<f32, 10>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
     if gid.x < params.width && gid.y < params.height {
         let p = gid.y * params.width + gid.x;
         let e = half_mean(0u, p);
@@ -285,37 +487,43 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
         let m = modulation(p);
         let fa = vec3f(src[p * LAYER], src[p * LAYER + 1u], src[p * LAYER + 2u]) * m;
         let fb = vec3f(src[p * LAYER + 5u], src[p * LAYER + 6u], src[p * LAYER + 7u]) * m;
+        let ga = vec3f(dst[p * LAYER], dst[p * LAYER + 1u], dst[p * LAYER + 2u]);
+        let gb = vec3f(dst[p * LAYER + 5u], dst[p * LAYER + 6u], dst[p * LAYER + 7u]);
         let n = e.w + o.w;
         var raw = vec3f(0.0);
         if n > 0.0 {
             raw = (e.xyz * e.w + o.xyz * o.w) / n;
         }
-        let dbar = 0.5 * (fa + fb);
-        let i = p * 6u;
+        let da = 0.5 * (fa + fb);
+        let dg = 0.5 * (ga + gb);
+        let i = p * IMAGES;
         images[i] = raw.x;
         images[i + 1u] = raw.y;
         images[i + 2u] = raw.z;
-        images[i + 3u] = dbar.x;
-        images[i + 4u] = dbar.y;
-        images[i + 5u] = dbar.z;
+        images[i + 3u] = da.x;
+        images[i + 4u] = da.y;
+        images[i + 5u] = da.z;
+        images[i + 6u] = dg.x;
+        images[i + 7u] = dg.y;
+        images[i + 8u] = dg.z;
         if e.w >= 1.0 && o.w >= 1.0 {
             let k = e.w * o.w / (n * n);
             let x = e.xyz;
             let y = o.xyz;
             let scale = 1.0 / (max(x * y, vec3f(0.0)) + REL_MSE_EPSILON);
             let r = (x - y) * (x - y) * k;
-            let dd = 0.5 * (fa - y) * (fa - y) + 0.5 * (fb - x) * (fb - x)
-                - 0.5 * (x - y) * (x - y) - 0.25 * (fa - fb) * (fa - fb);
             let rr = dot(r * scale, vec3f(1.0));
-            let rd = dot(dd * scale, vec3f(1.0));
-            terms = array<f32, 7>(r.x + r.y + r.z, rr, rr * rr, dd.x + dd.y + dd.z, rd, rd * rd, 1.0);
+            let ta = estimate_terms(fa, fb, x, y, scale);
+            let tg = estimate_terms(ga, gb, x, y, scale);
+            terms = array<f32, 10>(r.x + r.y + r.z, rr, rr * rr, ta.x, ta.y, ta.y * ta.y,
+                                   tg.x, tg.y, tg.y * tg.y, 1.0);
         }
     }
     partial[lid] = terms;
     workgroupBarrier();
     for (var s = 128u; s > 0u; s >>= 1u) {
         if lid < s {
-            for (var t = 0u; t < 7u; t++) {
+            for (var t = 0u; t < 10u; t++) {
                 partial[lid][t] += partial[lid + s][t];
             }
         }
@@ -324,15 +532,22 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
     if lid == 0u {
         let tiles_x = (params.width + TILE - 1u) / TILE;
         let t = wid.y * tiles_x + wid.x;
-        for (var i = 0u; i < 7u; i++) {
-            tiles[t * 8u + i] = partial[0][i];
-        }
-        tiles[t * 8u + 7u] = 0.0;
+        let regression = partial[0][7] <= partial[0][4];
+        let f = select(3u, 6u, regression);
+        tiles[t * 8u] = partial[0][0];
+        tiles[t * 8u + 1u] = partial[0][1];
+        tiles[t * 8u + 2u] = partial[0][2];
+        tiles[t * 8u + 3u] = partial[0][f];
+        tiles[t * 8u + 4u] = partial[0][f + 1u];
+        tiles[t * 8u + 5u] = partial[0][f + 2u];
+        tiles[t * 8u + 6u] = partial[0][9];
+        tiles[t * 8u + 7u] = select(0.0, 1.0, regression);
     }
 }
 
 // One invocation per output pixel: the mean of its factor × factor block of the shown
-// image (per tile the denoised one where its estimate is below the raw one's).
+// image (per tile the denoised one, of the filter chosen there, where its estimate is below
+// the raw one's).
 @compute @workgroup_size(8, 8, 1)
 fn compose(@builtin(global_invocation_id) gid: vec3u) {
     if gid.x >= params.out_width || gid.y >= params.out_height {
@@ -347,7 +562,8 @@ fn compose(@builtin(global_invocation_id) gid: vec3u) {
             let p = y * params.width + x;
             let t = (y / TILE) * tiles_x + x / TILE;
             let denoised = tiles[t * 8u + 4u] < tiles[t * 8u + 1u];
-            let i = p * 6u + select(0u, 3u, denoised);
+            let chosen = select(3u, 6u, tiles[t * 8u + 7u] > 0.5);
+            let i = p * IMAGES + select(0u, chosen, denoised);
             rgb += vec3f(images[i], images[i + 1u], images[i + 2u]);
         }
     }

@@ -43,13 +43,13 @@ pub struct Guide<'a> {
 /// A pixel's guide as the weights read it: albedo, and the normal made unit length (zero
 /// for the sky: a guide normal shorter than 0.1).
 #[derive(Clone, Copy)]
-struct Texel {
-    albedo: [f32; 3],
-    normal: [f32; 3],
-    sky: bool,
+pub(super) struct Texel {
+    pub albedo: [f32; 3],
+    pub normal: [f32; 3],
+    pub sky: bool,
 }
 
-fn texels(g: &Guide) -> Vec<Texel> {
+pub(super) fn texels(g: &Guide) -> Vec<Texel> {
     g.albedo
         .iter()
         .zip(g.normal)
@@ -70,7 +70,7 @@ fn texels(g: &Guide) -> Vec<Texel> {
 /// in the exponent bits, 2^fraction by a degree-5 polynomial. libm's expf was a third of the
 /// filter's time.
 #[inline(always)]
-fn exp_neg(x: f32) -> f32 {
+pub(super) fn exp_neg(x: f32) -> f32 {
     if x < -80.0 {
         return 0.0;
     }
@@ -211,7 +211,7 @@ const OUTLIER_SIGMAS: f32 = 3.0;
 /// 24 pixels around them in the same image, scaling the colour. A firefly would otherwise
 /// stop every luminance weight and stay as it is. Biased, as any filter is; the estimate
 /// measures it, and the raw image wins back a tile where it is better.
-fn clamp_outliers(w: usize, h: usize, color: &[[f32; 3]]) -> Vec<[f32; 3]> {
+pub(super) fn clamp_outliers(w: usize, h: usize, color: &[[f32; 3]]) -> Vec<[f32; 3]> {
     let lum: Vec<f32> = color.iter().map(|&c| luminance(c)).collect();
     (0..w * h)
         .into_par_iter()

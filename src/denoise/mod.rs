@@ -1,7 +1,9 @@
-//! The denoiser: filters each half of the samples on its own (`atrous`), guided by the
-//! albedo and normal the tracers make (`common::Guides`), shows their mean, and estimates its
-//! error from the halves, tile by tile, showing the raw image wherever that is estimated
-//! better.
+//! The denoiser: filters each half of the samples on its own, guided by the albedo and normal
+//! the tracers make (`common::Guides`), twice: an à-trous filter (`atrous`), and a
+//! first-order regression of each pixel's neighbours on the guides weighted by that filter's
+//! output (`regress`); shows the halves' mean, and estimates its error from the halves, tile
+//! by tile, showing in each tile whichever of the raw image and the two filters' is
+//! estimated best.
 //!
 //! The estimator. Each pixel keeps two independent means of its samples, A and B (the even
 //! and odd halves), of variances v_A and v_B, unbiased for the true value μ. D(X) is the
@@ -16,22 +18,29 @@
 //! So e = ½(D(A) − B)² + ½(D(B) − A)² − ½(A − B)² − ¼(D(A) − D(B))² is an unbiased estimate
 //! of D̄'s squared error at every pixel (one term per channel), whatever the filter. It is
 //! noisy pixel by pixel, and is summed over tiles. Two biases remain, both small: the
-//! filter's luminance weights read a noise variance that is a 7×7 mean of (A − B)², so D(A)
-//! depends on B through it (1/49 of a pixel's term); and choosing per tile the lower of two
-//! noisy estimates understates the shown image's error a little (the minimum of two
-//! estimates is biased low), most where the two are close.
+//! filters' luminance weights read a noise variance that is a 7×7 mean of (A − B)², so D(A)
+//! depends on B through it (1/49 of a pixel's term); and choosing per tile the lowest of
+//! three noisy estimates (the raw image's, the à-trous filter's, the regression's)
+//! understates the shown image's error a little (the minimum of noisy estimates is biased
+//! low), most where they are close.
+//!
+//! Two filters, chosen per tile by that estimate: the à-trous filter (`atrous`) averages
+//! widely and wins in the first frames of a few samples; the regression (`regress`), run on
+//! the radiance with weights from the à-trous output, keeps what a pixel straddling two
+//! surfaces holds and wins from tens of samples on (BENCHMARKS.md, "Denoising").
 //!
 //! The raw image's estimate is `render::Snapshot::error_estimate`'s: (A − B)²·n_A·n_B/(n_A +
 //! n_B)². Both are reported as pbrt's relative MSE, each channel's term divided by the
 //! estimated reference² (A·B, unbiased) + 0.01, as the preview's noise figure is.
 
 pub mod atrous;
+pub mod regress;
 
 use crate::common::resolved::Estimate;
 use crate::common::resolved::REL_MSE_EPSILON;
 use crate::common::{Guides, Resolved};
 use crate::output::LinearImage;
-use atrous::{Guide, box_blur, filter_pair, luminance};
+use atrous::{Guide, box_blur, clamp_outliers, filter_pair, luminance};
 
 /// Traced pixels per side of the tiles whose raw or denoised image is chosen.
 pub const TILE: usize = 16;
@@ -112,12 +121,17 @@ pub struct Denoised {
     pub height: u32,
     /// The pooled mean of both halves (the unbiased image).
     pub raw: Vec<[f32; 3]>,
-    /// ½(D(A) + D(B)) everywhere.
+    /// ½(D(A) + D(B)) everywhere, per tile of the filter estimated better: the à-trous
+    /// filter's or the regression's.
     pub denoised: Vec<[f32; 3]>,
     /// Per tile (row-major, `tiles_x` a row) whether the denoised image is shown there.
     pub tiles: Vec<bool>,
     pub tiles_x: usize,
-    /// Per tile, the estimated error sums of the raw and the denoised image.
+    /// Per tile whether the denoised image there is the regression's (else the à-trous
+    /// filter's).
+    pub tile_regression: Vec<bool>,
+    /// Per tile, the estimated error sums of the raw and the denoised image (of the filter
+    /// chosen there).
     pub tile_raw: Vec<Sums>,
     pub tile_denoised: Vec<Sums>,
     /// Channels the sums are over (3 × pixels).
@@ -133,8 +147,8 @@ impl Denoised {
         raw: Vec<[f32; 3]>,
         denoised: Vec<[f32; 3]>,
         tiles_x: usize,
-        tile_raw: Vec<Sums>,
-        tile_denoised: Vec<Sums>,
+        tile_regression: Vec<bool>,
+        (tile_raw, tile_denoised): (Vec<Sums>, Vec<Sums>),
     ) -> Denoised {
         let tiles = tile_raw
             .iter()
@@ -148,6 +162,7 @@ impl Denoised {
             denoised,
             tiles,
             tiles_x,
+            tile_regression,
             tile_raw,
             tile_denoised,
             channels: 3 * width as usize * height as usize,
@@ -284,8 +299,11 @@ pub fn from_gpu(
         Vec::new(),
         Vec::new(),
         g.tiles_x as usize,
-        g.tiles.iter().map(|t| sums(t, 0)).collect(),
-        g.tiles.iter().map(|t| sums(t, 3)).collect(),
+        g.tiles.iter().map(|t| t[7] > 0.5).collect(),
+        (
+            g.tiles.iter().map(|t| sums(t, 0)).collect(),
+            g.tiles.iter().map(|t| sums(t, 3)).collect(),
+        ),
     );
     d.frame(g.blocks, factor, g.invalid)
 }
@@ -353,15 +371,21 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
     };
     let (fa, fb) = filter_pair(&g, &da, &db, &variance);
     let (fa, fb) = (remod(fa), remod(fb));
-    let denoised: Vec<[f32; 3]> = fa
+    // The regression's luminance weights read the variance of one half's radiance.
+    let per_pixel: Vec<f32> = a
         .iter()
-        .zip(&fb)
-        .map(|(x, y)| std::array::from_fn(|c| 0.5 * (x[c] + y[c])))
+        .zip(&b)
+        .map(|(x, y)| 0.5 * (luminance(*x) - luminance(*y)).powi(2))
         .collect();
+    let radiance_variance = box_blur(&per_pixel, w, h, VARIANCE_RADIUS);
+    let (ca, cb) = (clamp_outliers(w, h, &a), clamp_outliers(w, h, &b));
+    let (ra, rb) = regress::regress_pair(&g, (&ca, &cb), (&fa, &fb), &radiance_variance);
     let tiles_x = w.div_ceil(TILE);
     let tiles_y = h.div_ceil(TILE);
+    // The raw image's estimate, and each filter's (the à-trous output, the regression's).
     let mut tile_raw = vec![Sums::default(); tiles_x * tiles_y];
-    let mut tile_denoised = tile_raw.clone();
+    let mut tile_filters = [tile_raw.clone(), tile_raw.clone()];
+    let filters = [(&fa, &fb), (&ra, &rb)];
     for p in 0..w * h {
         let t = tile_index(p % w, p / w, tiles_x);
         let (ne, no) = (even[p][3] as f64, odd[p][3] as f64);
@@ -369,42 +393,58 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
             continue;
         }
         let k = ne * no / ((ne + no) * (ne + no));
-        let (mut pixel_r, mut pixel_d) = (0.0, 0.0);
+        let (mut pixel_r, mut pixel_d) = (0.0, [0.0; 2]);
         for c in 0..3 {
             let (x, y) = (a[p][c] as f64, b[p][c] as f64);
-            let (dx, dy) = (fa[p][c] as f64, fb[p][c] as f64);
             let scale = 1.0 / ((x * y).max(0.0) + REL_MSE_EPSILON);
             let r = (x - y).powi(2) * k;
-            let e = 0.5 * (dx - y).powi(2) + 0.5 * (dy - x).powi(2)
-                - 0.5 * (x - y).powi(2)
-                - 0.25 * (dx - dy).powi(2);
             tile_raw[t].add(Sums {
                 mse: r,
                 rel: r * scale,
                 ..Sums::default()
             });
-            tile_denoised[t].add(Sums {
-                mse: e,
-                rel: e * scale,
-                ..Sums::default()
-            });
             pixel_r += r * scale;
-            pixel_d += e * scale;
+            for (f, (da, db)) in filters.iter().enumerate() {
+                let (dx, dy) = (da[p][c] as f64, db[p][c] as f64);
+                let e = 0.5 * (dx - y).powi(2) + 0.5 * (dy - x).powi(2)
+                    - 0.5 * (x - y).powi(2)
+                    - 0.25 * (dx - dy).powi(2);
+                tile_filters[f][t].add(Sums {
+                    mse: e,
+                    rel: e * scale,
+                    ..Sums::default()
+                });
+                pixel_d[f] += e * scale;
+            }
         }
-        for (s, v) in [
-            (&mut tile_raw[t], pixel_r),
-            (&mut tile_denoised[t], pixel_d),
-        ] {
-            s.rel2 += v * v;
-            s.pixels += 1.0;
+        tile_raw[t].rel2 += pixel_r * pixel_r;
+        tile_raw[t].pixels += 1.0;
+        for f in 0..2 {
+            tile_filters[f][t].rel2 += pixel_d[f] * pixel_d[f];
+            tile_filters[f][t].pixels += 1.0;
         }
     }
+    // Per tile the filter estimated better (the regression on a tie, as the GPU's `finish`).
+    let regression: Vec<bool> = tile_filters[1]
+        .iter()
+        .zip(&tile_filters[0])
+        .map(|(r, a)| r.rel <= a.rel)
+        .collect();
+    let tile_denoised = (0..tiles_x * tiles_y)
+        .map(|t| tile_filters[usize::from(regression[t])][t])
+        .collect();
+    let denoised: Vec<[f32; 3]> = (0..w * h)
+        .map(|p| {
+            let (x, y) = filters[usize::from(regression[tile_index(p % w, p / w, tiles_x)])];
+            std::array::from_fn(|c| 0.5 * (x[p][c] + y[p][c]))
+        })
+        .collect();
     Denoised::new(
         (w as u32, h as u32),
         raw,
         denoised,
         tiles_x,
-        tile_raw,
-        tile_denoised,
+        regression,
+        (tile_raw, tile_denoised),
     )
 }

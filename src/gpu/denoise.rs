@@ -1,7 +1,8 @@
 //! The denoiser's pass on the GPU (`shaders/denoise.wgsl`): the filter of `src/denoise` run
 //! where the accumulation and the guides already are, so that a denoised preview frame reads
-//! back only the small image and the tiles' estimate sums. Five entry points of one module
-//! over one bind group layout; the two filter layers swap between iterations.
+//! back only the small image and the tiles' estimate sums. Six entry points of one module
+//! over one bind group layout; the two filter layers swap between iterations, and the
+//! regression writes the one the last iteration did not.
 
 use super::accum::Accumulation;
 use super::{GpuContext, bind_buffers};
@@ -13,8 +14,8 @@ const ITERATIONS: u32 = 5;
 pub const TILE: u32 = 16;
 /// Floats per pixel of the filter's layers, of the demodulated halves, of the images.
 const LAYER: u64 = 10;
-const DEMOD: u64 = 9;
-const IMAGES: u64 = 6;
+const DEMOD: u64 = 12;
+const IMAGES: u64 = 9;
 /// Bytes per tile of the estimate's sums (eight floats), and per output pixel (r, g, b).
 const TILE_BYTES: u64 = 32;
 const OUT_BYTES: u64 = 12;
@@ -23,7 +24,8 @@ const OUT_BYTES: u64 = 12;
 const COUNTER_BYTES: u64 = 8;
 
 /// What one run brings back: per output pixel its colour, per tile (row-major, `tiles_x` a
-/// row) the estimate's sums (raw mse, rel, rel², denoised mse, rel, rel², pixels, 0), and
+/// row) the estimate's sums (raw mse, rel, rel², denoised mse, rel, rel², pixels, and 1 where
+/// the regression's image is the denoised one, 0 where the à-trous filter's is), and
 /// the samples discarded as invalid so far.
 pub struct GpuDenoised {
     pub out: (u32, u32),
@@ -49,7 +51,7 @@ struct Buffers {
 
 pub struct DenoisePass {
     layout: wgpu::BindGroupLayout,
-    /// prepare, settle, atrous, finish, compose.
+    /// prepare, settle, atrous, regress, finish, compose.
     pipelines: Vec<wgpu::ComputePipeline>,
     /// Uniforms of the passes without a step (0) and of each iteration (1..).
     uniforms: Vec<wgpu::Buffer>,
@@ -80,10 +82,12 @@ struct Profile {
     period_ns: f64,
 }
 
-/// prepare, settle, the iterations, finish, compose.
-const DISPATCHES: u32 = 4 + ITERATIONS;
+/// prepare, settle, the iterations, regress, finish, compose.
+const DISPATCHES: u32 = 5 + ITERATIONS;
 
-const ENTRY_POINTS: [&str; 5] = ["prepare", "settle", "atrous", "finish", "compose"];
+const ENTRY_POINTS: [&str; 6] = [
+    "prepare", "settle", "atrous", "regress", "finish", "compose",
+];
 
 impl DenoisePass {
     pub fn new(device: &wgpu::Device) -> DenoisePass {
@@ -141,7 +145,7 @@ impl DenoisePass {
     }
 
     /// Milliseconds each dispatch of the last run took on the GPU (prepare, settle, the
-    /// iterations, finish, compose), where profiling.
+    /// iterations, regress, finish, compose), where profiling.
     pub fn profile(&self, ctx: &GpuContext) -> Option<Vec<f64>> {
         let p = self.profile.as_ref()?;
         let slice = p.readback.slice(..);
@@ -262,7 +266,8 @@ impl DenoisePass {
                 )
             };
             // settle writes layer a; iteration i reads a and writes b when i is even; the
-            // result (after an odd number of iterations) is in b, which finish reads.
+            // result (after an odd number of iterations) is in b, which regress reads,
+            // writing a, and finish reads both.
             let mut groups = vec![group(0, false)];
             groups.extend((0..ITERATIONS).map(|i| group(i as usize + 1, i % 2 == 0)));
             self.bound = Some((key, groups));
@@ -277,8 +282,9 @@ impl DenoisePass {
         let mut dispatches: Vec<(&wgpu::BindGroup, usize, (u32, u32))> =
             vec![(plain, 0, (gx, gy)), (plain, 1, (gx, gy))];
         dispatches.extend(iterations.iter().map(|g| (g, 2, (gx, gy))));
-        dispatches.push((plain, 3, (tiles_x, height.div_ceil(TILE))));
-        dispatches.push((plain, 4, (out.0.div_ceil(8), out.1.div_ceil(8))));
+        dispatches.push((plain, 3, (gx, gy)));
+        dispatches.push((plain, 4, (tiles_x, height.div_ceil(TILE))));
+        dispatches.push((plain, 5, (out.0.div_ceil(8), out.1.div_ceil(8))));
         for (i, (group, pipeline, (x, y))) in dispatches.into_iter().enumerate() {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(ENTRY_POINTS[pipeline]),
