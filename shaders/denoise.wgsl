@@ -27,6 +27,7 @@ const REGRESS_RADIUS: i32 = 2;
 const REGRESS_SPATIAL_SIGMA: f32 = 1.5;
 const REGRESS_LUMINANCE_SIGMA: f32 = 1.0;
 const REGRESS_LUMINANCE_EPSILON: f32 = 1e-10;
+const REGRESS_MIN_WEIGHT: f32 = 1e-12;
 const RIDGE: f32 = 1e-3;
 const TERMS: u32 = 9u;
 
@@ -446,8 +447,14 @@ fn regress(@builtin(global_invocation_id) gid: vec3u) {
             let i = q * IMAGES;
             let ya = vec3f(images[i], images[i + 1u], images[i + 2u]);
             let yb = vec3f(images[i + 3u], images[i + 4u], images[i + 5u]);
-            normal_add(&na, &t, spatial * exp(-da * da * scale), ya);
-            normal_add(&nb, &t, spatial * exp(-db * db * scale), yb);
+            let wa = spatial * exp(-da * da * scale);
+            let wb = spatial * exp(-db * db * scale);
+            if wa > REGRESS_MIN_WEIGHT {
+                normal_add(&na, &t, wa, ya);
+            }
+            if wb > REGRESS_MIN_WEIGHT {
+                normal_add(&nb, &t, wb, yb);
+            }
         }
     }
     let ra = intercept(&na);

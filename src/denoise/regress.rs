@@ -28,6 +28,8 @@ const SPATIAL_SIGMA: f32 = 1.5;
 const LUMINANCE_SIGMA: f32 = 1.0;
 /// Keeps the luminance weight finite where the noise is zero.
 const LUMINANCE_EPSILON: f32 = 1e-10;
+/// Taps weighing less are left out (the pixel itself weighs 1).
+const MIN_WEIGHT: f32 = 1e-12;
 /// Ridge added to the diagonal of every term but the intercept, relative to the weights' sum.
 const RIDGE: f32 = 1e-3;
 /// Terms of the model: 1, albedo (3), unit normal (3), y and x offsets (in radii).
@@ -50,32 +52,49 @@ fn terms(p: &Texel, q: &Texel, dy: isize, dx: isize) -> [f32; TERMS] {
     ]
 }
 
+/// Entries of the lower triangle of a TERMS × TERMS matrix.
+const TRIANGLE: usize = TERMS * (TERMS + 1) / 2;
+
+/// The lower triangle of t tᵀ, row by row (one tap's, shared by the two halves' equations).
+#[inline(always)]
+fn products(t: &[f32; TERMS]) -> [f32; TRIANGLE] {
+    let mut tt = [0.0; TRIANGLE];
+    let mut k = 0;
+    for i in 0..TERMS {
+        for j in 0..=i {
+            tt[k] = t[i] * t[j];
+            k += 1;
+        }
+    }
+    tt
+}
+
 /// The weighted normal equations of one pixel: the lower triangle of XᵀWX, row by row, and
 /// XᵀWY per channel.
 struct Normal {
-    xx: [f32; TERMS * (TERMS + 1) / 2],
+    xx: [f32; TRIANGLE],
     xy: [[f32; 3]; TERMS],
 }
 
 impl Normal {
     fn new() -> Normal {
         Normal {
-            xx: [0.0; TERMS * (TERMS + 1) / 2],
+            xx: [0.0; TRIANGLE],
             xy: [[0.0; 3]; TERMS],
         }
     }
 
+    /// Adds a tap of terms `t` (whose products `tt` are `products(t)`), weight `w` and
+    /// radiance `y`.
     #[inline(always)]
-    fn add(&mut self, t: &[f32; TERMS], w: f32, y: [f32; 3]) {
-        let mut k = 0;
+    fn add(&mut self, t: &[f32; TERMS], tt: &[f32; TRIANGLE], w: f32, y: [f32; 3]) {
+        for k in 0..TRIANGLE {
+            self.xx[k] += w * tt[k];
+        }
+        let wy = y.map(|v| w * v);
         for i in 0..TERMS {
-            let wi = w * t[i];
-            for j in 0..=i {
-                self.xx[k] += wi * t[j];
-                k += 1;
-            }
             for c in 0..3 {
-                self.xy[i][c] += wi * y[c];
+                self.xy[i][c] += t[i] * wy[c];
             }
         }
     }
@@ -148,9 +167,13 @@ pub fn regress_pair(
     let (w, h) = (g.width as isize, g.height as isize);
     let lum_a: Vec<f32> = fa.iter().map(|&c| luminance(c)).collect();
     let lum_b: Vec<f32> = fb.iter().map(|&c| luminance(c)).collect();
-    let spatial = |dy: isize, dx: isize| {
-        (-((dy * dy + dx * dx) as f32) / (2.0 * SPATIAL_SIGMA * SPATIAL_SIGMA)).exp()
-    };
+    const SIDE: usize = 2 * RADIUS as usize + 1;
+    let spatial: [[f32; SIDE]; SIDE] = std::array::from_fn(|j| {
+        std::array::from_fn(|i| {
+            let (dy, dx) = (j as f32 - RADIUS as f32, i as f32 - RADIUS as f32);
+            (-(dy * dy + dx * dx) / (2.0 * SPATIAL_SIGMA * SPATIAL_SIGMA)).exp()
+        })
+    });
     let pixels: Vec<([f32; 3], [f32; 3])> = (0..(w * h) as usize)
         .into_par_iter()
         .map(|p| {
@@ -168,14 +191,22 @@ pub fn regress_pair(
                     }
                     let q = (qy * w + qx) as usize;
                     let terms = terms(&t[p], &t[q], dy, dx);
-                    let s = spatial(dy, dx);
+                    let tt = products(&terms);
+                    let s = spatial[(dy + RADIUS) as usize][(dx + RADIUS) as usize];
                     let scale = 1.0
                         / (LUMINANCE_SIGMA * LUMINANCE_SIGMA * (variance[p] + variance[q])
                             + LUMINANCE_EPSILON);
                     let da = lum_a[p] - lum_a[q];
                     let db = lum_b[p] - lum_b[q];
-                    na.add(&terms, s * exp_neg(-da * da * scale), a[q]);
-                    nb.add(&terms, s * exp_neg(-db * db * scale), b[q]);
+                    let (wa, wb) = (s * exp_neg(-da * da * scale), s * exp_neg(-db * db * scale));
+                    // A weight this small changes nothing, and its products would be
+                    // subnormal floats (a hundred times slower on x86).
+                    if wa > MIN_WEIGHT {
+                        na.add(&terms, &tt, wa, a[q]);
+                    }
+                    if wb > MIN_WEIGHT {
+                        nb.add(&terms, &tt, wb, b[q]);
+                    }
                 }
             }
             (
