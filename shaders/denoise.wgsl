@@ -22,14 +22,13 @@ const LAYER: u32 = 10u;
 const DEMOD: u32 = 12u;
 const IMAGES: u32 = 9u;
 // The regression (src/denoise/regress.rs): window radius, spatial sigma, luminance sigma and
-// epsilon, ridge, and terms (1, albedo, normal, y, x).
+// epsilon, the least weight of a tap, and the ridge.
 const REGRESS_RADIUS: i32 = 2;
 const REGRESS_SPATIAL_SIGMA: f32 = 1.5;
 const REGRESS_LUMINANCE_SIGMA: f32 = 1.0;
 const REGRESS_LUMINANCE_EPSILON: f32 = 1e-10;
 const REGRESS_MIN_WEIGHT: f32 = 1e-12;
 const RIDGE: f32 = 1e-3;
-const TERMS: u32 = 9u;
 
 // `mode`: the à-trous iteration's step in pixels.
 @group(0) @binding(0) var<uniform> params: ResolveUniforms;
@@ -141,18 +140,20 @@ fn demod_half(p: u32, h: u32) -> vec3f {
     return vec3f(demod[o], demod[o + 1u], demod[o + 2u]);
 }
 
-// `c`, the colour at (x, y) whose luminance is in `demod` at `slot`, with a firefly clamped
-// to its 24 neighbours' mean + 3 s.d. of that luminance.
-fn clamp_firefly(x: i32, y: i32, slot: u32, c: vec3f) -> vec3f {
+// The limits above which a firefly is clamped at (x, y), in one pass over the 24 neighbours:
+// for the luminances in `demod` at slots 7, 8 (the demodulated halves), 10 and 11 (the
+// radiance's), each its neighbours' mean + 3 s.d.
+fn firefly_limits(x: i32, y: i32) -> vec4f {
     let w = i32(params.width);
     let hh = i32(params.height);
     var n = 0.0;
-    var s = 0.0;
-    var s2 = 0.0;
+    var s = vec4f(0.0);
+    var s2 = vec4f(0.0);
     for (var qy = max(y - OUTLIER_RADIUS, 0); qy <= min(y + OUTLIER_RADIUS, hh - 1); qy++) {
         for (var qx = max(x - OUTLIER_RADIUS, 0); qx <= min(x + OUTLIER_RADIUS, w - 1); qx++) {
             if qx != x || qy != y {
-                let l = demod[u32(qy * w + qx) * DEMOD + slot];
+                let o = u32(qy * w + qx) * DEMOD;
+                let l = vec4f(demod[o + 7u], demod[o + 8u], demod[o + 10u], demod[o + 11u]);
                 n += 1.0;
                 s += l;
                 s2 += l * l;
@@ -160,18 +161,16 @@ fn clamp_firefly(x: i32, y: i32, slot: u32, c: vec3f) -> vec3f {
         }
     }
     let mean = s / max(n, 1.0);
-    let sd = sqrt(max(s2 / max(n, 1.0) - mean * mean, 0.0));
-    let limit = mean + OUTLIER_SIGMAS * sd;
-    let l = demod[u32(y * w + x) * DEMOD + slot];
+    let sd = sqrt(max(s2 / max(n, 1.0) - mean * mean, vec4f(0.0)));
+    return mean + OUTLIER_SIGMAS * sd;
+}
+
+// `c`, whose luminance is `l`, with a firefly clamped to `limit`.
+fn clamp_firefly(c: vec3f, l: f32, limit: f32) -> vec3f {
     if l > limit && l > 0.0 {
         return c * (limit / l);
     }
     return c;
-}
-
-// A half's demodulated colour with a firefly clamped.
-fn clamped(x: i32, y: i32, h: u32) -> vec3f {
-    return clamp_firefly(x, y, 7u + h, demod_half(u32(y * i32(params.width) + x), h));
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -197,10 +196,12 @@ fn settle(@builtin(global_invocation_id) gid: vec3u) {
     v /= n;
     let p = gid.y * params.width + gid.x;
     texels[2u * p + 1u].w = vr / n;
+    let limits = firefly_limits(x, y);
+    let od = p * DEMOD;
     // Each half's radiance, fireflies clamped, for the regression.
     let m = modulation(p);
-    let ra = clamp_firefly(x, y, 10u, demod_half(p, 0u) * m);
-    let rb = clamp_firefly(x, y, 11u, demod_half(p, 1u) * m);
+    let ra = clamp_firefly(demod_half(p, 0u) * m, demod[od + 10u], limits.z);
+    let rb = clamp_firefly(demod_half(p, 1u) * m, demod[od + 11u], limits.w);
     let i = p * IMAGES;
     images[i] = ra.x;
     images[i + 1u] = ra.y;
@@ -208,8 +209,8 @@ fn settle(@builtin(global_invocation_id) gid: vec3u) {
     images[i + 3u] = rb.x;
     images[i + 4u] = rb.y;
     images[i + 5u] = rb.z;
-    let a = clamped(x, y, 0u);
-    let b = clamped(x, y, 1u);
+    let a = clamp_firefly(demod_half(p, 0u), demod[od + 7u], limits.x);
+    let b = clamp_firefly(demod_half(p, 1u), demod[od + 8u], limits.y);
     let o = p * LAYER;
     dst[o] = a.x;
     dst[o + 1u] = a.y;
@@ -316,102 +317,57 @@ fn atrous(@builtin(global_invocation_id) gid: vec3u) {
     store_half(p, 1u, cb, wb, vb);
 }
 
-// One half's weighted normal equations (the lower triangle of XᵀWX row by row, and XᵀWY):
-// src/denoise/regress.rs's `Normal`.
-struct Normal {
-    xx: array<f32, 45>,
-    xy: array<vec3f, 9>,
+// u vᵀ.
+fn outer(u: vec3f, v: vec3f) -> mat3x3f {
+    return mat3x3f(u * v.x, u * v.y, u * v.z);
 }
 
-fn normal_add(n: ptr<function, Normal>, t: ptr<function, array<f32, 9>>, w: f32, y: vec3f) {
-    var k = 0u;
-    for (var i = 0u; i < TERMS; i++) {
-        let wi = w * (*t)[i];
-        for (var j = 0u; j <= i; j++) {
-            (*n).xx[k] += wi * (*t)[j];
-            k++;
-        }
-        (*n).xy[i] += wi * y;
-    }
+// The inverse of a 3×3 matrix by its cofactors (as glam's `Mat3::inverse`), and in `ok`
+// whether its determinant is positive and finite.
+struct Inverse {
+    m: mat3x3f,
+    ok: bool,
 }
 
-// The intercept of the ridge-regularized solution by Cholesky (w = 1), or w = 0 where the
-// factorization fails.
-fn intercept(n: ptr<function, Normal>) -> vec4f {
-    let ridge = RIDGE * (*n).xx[0];
-    var l: array<array<f32, 9>, 9>;
-    var k = 0u;
-    for (var i = 0u; i < TERMS; i++) {
-        for (var j = 0u; j <= i; j++) {
-            l[i][j] = (*n).xx[k] + select(0.0, ridge, i == j && i > 0u);
-            k++;
-        }
-    }
-    for (var j = 0u; j < TERMS; j++) {
-        var d = l[j][j];
-        for (var m = 0u; m < j; m++) {
-            d -= l[j][m] * l[j][m];
-        }
-        if !(d > 0.0) {
-            return vec4f(0.0);
-        }
-        d = sqrt(d);
-        l[j][j] = d;
-        for (var i = j + 1u; i < TERMS; i++) {
-            var s = l[i][j];
-            for (var m = 0u; m < j; m++) {
-                s -= l[i][m] * l[j][m];
-            }
-            l[i][j] = s / d;
-        }
-    }
-    var z: array<vec3f, 9>;
-    for (var i = 0u; i < TERMS; i++) {
-        var s = (*n).xy[i];
-        for (var m = 0u; m < i; m++) {
-            s -= l[i][m] * z[m];
-        }
-        z[i] = s / l[i][i];
-    }
-    var b: array<vec3f, 9>;
-    for (var ii = 0u; ii < TERMS; ii++) {
-        let i = TERMS - 1u - ii;
-        var s = z[i];
-        for (var m = i + 1u; m < TERMS; m++) {
-            s -= l[m][i] * b[m];
-        }
-        b[i] = s / l[i][i];
-    }
-    let r = b[0];
-    // Not finite (NaN or ±inf): the à-trous output stays.
-    if !(abs(r.x) < 3.0e38 && abs(r.y) < 3.0e38 && abs(r.z) < 3.0e38) {
-        return vec4f(0.0);
-    }
-    return vec4f(r, 1.0);
+fn inverse3(m: mat3x3f) -> Inverse {
+    let c0 = cross(m[1], m[2]);
+    let c1 = cross(m[2], m[0]);
+    let c2 = cross(m[0], m[1]);
+    let det = dot(m[2], c2);
+    let ok = det > 0.0 && det < 3.0e38;
+    return Inverse(transpose(mat3x3f(c0, c1, c2)) * (1.0 / det), ok);
 }
 
 // Each half's radiance at every pixel made the intercept of a weighted first-order regression
-// of its neighbours' on the guides and the position (src/denoise/regress.rs), the weights from
-// that half's à-trous output in `src`; written to `dst` (radiance).
+// of its neighbours' on the guides and the position (src/denoise/regress.rs: the normal
+// equations in 3×3 blocks, albedo, normal and (1, y, x), solved by block elimination), the
+// weights from that half's à-trous output in `src`; written to `dst` (radiance). One
+// invocation per pixel and half (gid.z), its equations in registers.
 @compute @workgroup_size(8, 8, 1)
 fn regress(@builtin(global_invocation_id) gid: vec3u) {
     if gid.x >= params.width || gid.y >= params.height {
         return;
     }
+    let half = gid.z;
     let x = i32(gid.x);
     let y = i32(gid.y);
     let w = i32(params.width);
     let p = gid.y * params.width + gid.x;
     let tp = texels[2u * p];
     let np = texels[2u * p + 1u];
-    let mp = modulation(p);
-    let fa = vec3f(src[p * LAYER], src[p * LAYER + 1u], src[p * LAYER + 2u]) * mp;
-    let fb = vec3f(src[p * LAYER + 5u], src[p * LAYER + 6u], src[p * LAYER + 7u]) * mp;
-    let la = lum(fa);
-    let lb = lum(fb);
-    var na: Normal;
-    var nb: Normal;
-    var t: array<f32, 9>;
+    let layer = 5u * half;
+    let f = vec3f(src[p * LAYER + layer], src[p * LAYER + layer + 1u], src[p * LAYER + layer + 2u])
+        * modulation(p);
+    let lp = lum(f);
+    var a = mat3x3f();
+    var b = mat3x3f();
+    var c = mat3x3f();
+    var d = mat3x3f();
+    var e = mat3x3f();
+    var g = mat3x3f();
+    var ya = mat3x3f();
+    var yn = mat3x3f();
+    var yp = mat3x3f();
     let r = f32(REGRESS_RADIUS);
     for (var dy = -REGRESS_RADIUS; dy <= REGRESS_RADIUS; dy++) {
         let qy = y + dy;
@@ -424,50 +380,59 @@ fn regress(@builtin(global_invocation_id) gid: vec3u) {
                 continue;
             }
             let q = u32(qy * w + qx);
-            let tq = texels[2u * q];
             let nq = texels[2u * q + 1u];
-            t[0] = 1.0;
-            t[1] = tq.x - tp.x;
-            t[2] = tq.y - tp.y;
-            t[3] = tq.z - tp.z;
-            t[4] = nq.x - np.x;
-            t[5] = nq.y - np.y;
-            t[6] = nq.z - np.z;
-            t[7] = f32(dy) / r;
-            t[8] = f32(dx) / r;
+            let lq = lum(vec3f(src[q * LAYER + layer], src[q * LAYER + layer + 1u],
+                src[q * LAYER + layer + 2u]) * modulation(q));
             let spatial = exp(-f32(dy * dy + dx * dx)
                 / (2.0 * REGRESS_SPATIAL_SIGMA * REGRESS_SPATIAL_SIGMA));
             let scale = 1.0 / (REGRESS_LUMINANCE_SIGMA * REGRESS_LUMINANCE_SIGMA * (np.w + nq.w)
                 + REGRESS_LUMINANCE_EPSILON);
-            let mq = modulation(q);
-            let qa = vec3f(src[q * LAYER], src[q * LAYER + 1u], src[q * LAYER + 2u]) * mq;
-            let qb = vec3f(src[q * LAYER + 5u], src[q * LAYER + 6u], src[q * LAYER + 7u]) * mq;
-            let da = la - lum(qa);
-            let db = lb - lum(qb);
-            let i = q * IMAGES;
-            let ya = vec3f(images[i], images[i + 1u], images[i + 2u]);
-            let yb = vec3f(images[i + 3u], images[i + 4u], images[i + 5u]);
-            let wa = spatial * exp(-da * da * scale);
-            let wb = spatial * exp(-db * db * scale);
-            if wa > REGRESS_MIN_WEIGHT {
-                normal_add(&na, &t, wa, ya);
+            let dl = lp - lq;
+            let wt = spatial * exp(-dl * dl * scale);
+            if wt <= REGRESS_MIN_WEIGHT {
+                continue;
             }
-            if wb > REGRESS_MIN_WEIGHT {
-                normal_add(&nb, &t, wb, yb);
-            }
+            let ta = texels[2u * q].xyz - tp.xyz;
+            let tn = nq.xyz - np.xyz;
+            let tl = vec3f(1.0, f32(dy) / r, f32(dx) / r);
+            let i = q * IMAGES + 3u * half;
+            let rad = vec3f(images[i], images[i + 1u], images[i + 2u]);
+            let wa = ta * wt;
+            let wn = tn * wt;
+            let wl = tl * wt;
+            a += outer(wa, ta);
+            b += outer(wa, tn);
+            c += outer(wa, tl);
+            d += outer(wn, tn);
+            e += outer(wn, tl);
+            g += outer(wl, tl);
+            ya += outer(wa, rad);
+            yn += outer(wn, rad);
+            yp += outer(wl, rad);
         }
     }
-    let ra = intercept(&na);
-    let rb = intercept(&nb);
-    let a = select(fa, ra.xyz, ra.w > 0.5);
-    let b = select(fb, rb.xyz, rb.w > 0.5);
-    let o = p * LAYER;
-    dst[o] = a.x;
-    dst[o + 1u] = a.y;
-    dst[o + 2u] = a.z;
-    dst[o + 5u] = b.x;
-    dst[o + 6u] = b.y;
-    dst[o + 7u] = b.z;
+    // Block elimination of the albedo's terms, then the normal's (regress.rs's `intercept`).
+    let ridge = RIDGE * g[0][0];
+    let ai = inverse3(a + mat3x3f(ridge, 0.0, 0.0, 0.0, ridge, 0.0, 0.0, 0.0, ridge));
+    let bt_ai = transpose(b) * ai.m;
+    let ct_ai = transpose(c) * ai.m;
+    let d2 = d + mat3x3f(ridge, 0.0, 0.0, 0.0, ridge, 0.0, 0.0, 0.0, ridge) - bt_ai * b;
+    let e2 = e - bt_ai * c;
+    let g2 = g + mat3x3f(0.0, 0.0, 0.0, 0.0, ridge, 0.0, 0.0, 0.0, ridge) - ct_ai * c;
+    let yn2 = yn - bt_ai * ya;
+    let yp2 = yp - ct_ai * ya;
+    let di = inverse3(d2);
+    let et_di = transpose(e2) * di.m;
+    let gi = inverse3(g2 - et_di * e2);
+    let sol = gi.m * (yp2 - et_di * yn2);
+    let v = vec3f(sol[0].x, sol[1].x, sol[2].x);
+    let finite = all(abs(v) < vec3f(3.0e38));
+    // Where a block is singular or the result not finite, the à-trous output stays.
+    let out = select(f, v, ai.ok && di.ok && gi.ok && finite);
+    let o = p * LAYER + layer;
+    dst[o] = out.x;
+    dst[o + 1u] = out.y;
+    dst[o + 2u] = out.z;
 }
 
 var<workgroup> partial: array<array<f32, 10>, 256>;

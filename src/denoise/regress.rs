@@ -13,11 +13,8 @@
 //! the true relative RMSE of ½(D(A) + D(B)) fell from 3.7, 3.5, 5.3 % to 2.0–2.5, 2.9, 3.7 %
 //! at 64 spp, and from 2.5, 2.1, 2.9 % to 2.0, 1.6, 1.9 % at 256 spp (BENCHMARKS.md).
 
-// The normal equations and the Cholesky factorization are written with the textbook's
-// indices, as shaders/denoise.wgsl writes them.
-#![allow(clippy::needless_range_loop)]
-
 use super::atrous::{Guide, Texel, exp_neg, luminance, texels};
+use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 /// Neighbours each way of the regression's window (5×5).
@@ -32,124 +29,96 @@ const LUMINANCE_EPSILON: f32 = 1e-10;
 const MIN_WEIGHT: f32 = 1e-12;
 /// Ridge added to the diagonal of every term but the intercept, relative to the weights' sum.
 const RIDGE: f32 = 1e-3;
-/// Terms of the model: 1, albedo (3), unit normal (3), y and x offsets (in radii).
-pub const TERMS: usize = 9;
+/// The model's terms come in three blocks of three (3×3 matrices, as the GPU holds them):
+/// the albedo's difference from the pixel's, the unit normal's, and (1, y, x), the offsets in
+/// radii; the intercept, the prediction at the pixel, is the last block's first.
+struct Terms {
+    albedo: Vec3,
+    normal: Vec3,
+    place: Vec3,
+}
 
-/// A tap's terms, relative to the pixel's (so the intercept is the prediction there).
+/// A tap's terms, relative to the pixel's.
 #[inline(always)]
-fn terms(p: &Texel, q: &Texel, dy: isize, dx: isize) -> [f32; TERMS] {
+fn terms(p: &Texel, q: &Texel, dy: isize, dx: isize) -> Terms {
     let r = RADIUS as f32;
-    [
-        1.0,
-        q.albedo[0] - p.albedo[0],
-        q.albedo[1] - p.albedo[1],
-        q.albedo[2] - p.albedo[2],
-        q.normal[0] - p.normal[0],
-        q.normal[1] - p.normal[1],
-        q.normal[2] - p.normal[2],
-        dy as f32 / r,
-        dx as f32 / r,
-    ]
-}
-
-/// Entries of the lower triangle of a TERMS × TERMS matrix.
-const TRIANGLE: usize = TERMS * (TERMS + 1) / 2;
-
-/// The lower triangle of t tᵀ, row by row (one tap's, shared by the two halves' equations).
-#[inline(always)]
-fn products(t: &[f32; TERMS]) -> [f32; TRIANGLE] {
-    let mut tt = [0.0; TRIANGLE];
-    let mut k = 0;
-    for i in 0..TERMS {
-        for j in 0..=i {
-            tt[k] = t[i] * t[j];
-            k += 1;
-        }
+    Terms {
+        albedo: Vec3::from(q.albedo) - Vec3::from(p.albedo),
+        normal: Vec3::from(q.normal) - Vec3::from(p.normal),
+        place: Vec3::new(1.0, dy as f32 / r, dx as f32 / r),
     }
-    tt
 }
 
-/// The weighted normal equations of one pixel: the lower triangle of XᵀWX, row by row, and
-/// XᵀWY per channel.
+/// u vᵀ.
+#[inline(always)]
+fn outer(u: Vec3, v: Vec3) -> Mat3 {
+    Mat3::from_cols(u * v.x, u * v.y, u * v.z)
+}
+
+/// The weighted normal equations of one pixel in blocks: XᵀWX = [A B C; Bᵀ D E; Cᵀ Eᵀ F]
+/// (albedo, normal, place) and XᵀWY (a column per channel).
 struct Normal {
-    xx: [f32; TRIANGLE],
-    xy: [[f32; 3]; TERMS],
+    a: Mat3,
+    b: Mat3,
+    c: Mat3,
+    d: Mat3,
+    e: Mat3,
+    f: Mat3,
+    y_albedo: Mat3,
+    y_normal: Mat3,
+    y_place: Mat3,
 }
 
 impl Normal {
+    /// No taps yet (glam's `Mat3::default()` is the identity, not zero).
     fn new() -> Normal {
         Normal {
-            xx: [0.0; TRIANGLE],
-            xy: [[0.0; 3]; TERMS],
+            a: Mat3::ZERO,
+            b: Mat3::ZERO,
+            c: Mat3::ZERO,
+            d: Mat3::ZERO,
+            e: Mat3::ZERO,
+            f: Mat3::ZERO,
+            y_albedo: Mat3::ZERO,
+            y_normal: Mat3::ZERO,
+            y_place: Mat3::ZERO,
         }
     }
 
-    /// Adds a tap of terms `t` (whose products `tt` are `products(t)`), weight `w` and
-    /// radiance `y`.
+    /// Adds a tap of terms `t`, weight `w` and radiance `y`.
     #[inline(always)]
-    fn add(&mut self, t: &[f32; TERMS], tt: &[f32; TRIANGLE], w: f32, y: [f32; 3]) {
-        for k in 0..TRIANGLE {
-            self.xx[k] += w * tt[k];
-        }
-        let wy = y.map(|v| w * v);
-        for i in 0..TERMS {
-            for c in 0..3 {
-                self.xy[i][c] += t[i] * wy[c];
-            }
-        }
+    fn add(&mut self, t: &Terms, w: f32, y: Vec3) {
+        let (wa, wn, wp) = (t.albedo * w, t.normal * w, t.place * w);
+        self.a += outer(wa, t.albedo);
+        self.b += outer(wa, t.normal);
+        self.c += outer(wa, t.place);
+        self.d += outer(wn, t.normal);
+        self.e += outer(wn, t.place);
+        self.f += outer(wp, t.place);
+        self.y_albedo += outer(wa, y);
+        self.y_normal += outer(wn, y);
+        self.y_place += outer(wp, y);
     }
 
-    /// The intercept of the ridge-regularized solution (Cholesky, in f32 as the GPU does),
-    /// or `None` where the factorization fails.
+    /// The intercept of the ridge-regularized solution, by block elimination of the albedo's
+    /// then the normal's terms (Schur complements; f32, as the GPU does), or `None` where a
+    /// block is singular.
     fn intercept(&self) -> Option<[f32; 3]> {
-        let ridge = RIDGE * self.xx[0];
-        let mut l = [[0.0f32; TERMS]; TERMS];
-        let mut k = 0;
-        for i in 0..TERMS {
-            for j in 0..=i {
-                l[i][j] = self.xx[k] + if i == j && i > 0 { ridge } else { 0.0 };
-                k += 1;
-            }
-        }
-        for j in 0..TERMS {
-            let mut d = l[j][j];
-            for m in 0..j {
-                d -= l[j][m] * l[j][m];
-            }
-            if d <= 0.0 || !d.is_finite() {
-                return None;
-            }
-            let d = d.sqrt();
-            l[j][j] = d;
-            for i in j + 1..TERMS {
-                let mut s = l[i][j];
-                for m in 0..j {
-                    s -= l[i][m] * l[j][m];
-                }
-                l[i][j] = s / d;
-            }
-        }
-        let mut out = [0.0f32; 3];
-        for (c, o) in out.iter_mut().enumerate() {
-            // L z = b, then Lᵀ β = z; only β₀ is needed, but it is the last found.
-            let mut z = [0.0f32; TERMS];
-            for i in 0..TERMS {
-                let mut s = self.xy[i][c];
-                for m in 0..i {
-                    s -= l[i][m] * z[m];
-                }
-                z[i] = s / l[i][i];
-            }
-            let mut b = [0.0f32; TERMS];
-            for i in (0..TERMS).rev() {
-                let mut s = z[i];
-                for m in i + 1..TERMS {
-                    s -= l[m][i] * b[m];
-                }
-                b[i] = s / l[i][i];
-            }
-            *o = b[0];
-        }
+        let ridge = RIDGE * self.f.x_axis.x;
+        let inverse = |m: Mat3| {
+            let det = m.determinant();
+            (det > 0.0 && det.is_finite()).then(|| m.inverse())
+        };
+        let ai = inverse(self.a + Mat3::from_diagonal(Vec3::splat(ridge)))?;
+        let (bt_ai, ct_ai) = (self.b.transpose() * ai, self.c.transpose() * ai);
+        let d = self.d + Mat3::from_diagonal(Vec3::splat(ridge)) - bt_ai * self.b;
+        let e = self.e - bt_ai * self.c;
+        let f = self.f + Mat3::from_diagonal(Vec3::new(0.0, ridge, ridge)) - ct_ai * self.c;
+        let y_normal = self.y_normal - bt_ai * self.y_albedo;
+        let y_place = self.y_place - ct_ai * self.y_albedo;
+        let et_di = e.transpose() * inverse(d)?;
+        let x = inverse(f - et_di * e)? * (y_place - et_di * y_normal);
+        let out = [x.x_axis.x, x.y_axis.x, x.z_axis.x];
         out.iter().all(|v| v.is_finite()).then_some(out)
     }
 }
@@ -191,7 +160,6 @@ pub fn regress_pair(
                     }
                     let q = (qy * w + qx) as usize;
                     let terms = terms(&t[p], &t[q], dy, dx);
-                    let tt = products(&terms);
                     let s = spatial[(dy + RADIUS) as usize][(dx + RADIUS) as usize];
                     let scale = 1.0
                         / (LUMINANCE_SIGMA * LUMINANCE_SIGMA * (variance[p] + variance[q])
@@ -202,10 +170,10 @@ pub fn regress_pair(
                     // A weight this small changes nothing, and its products would be
                     // subnormal floats (a hundred times slower on x86).
                     if wa > MIN_WEIGHT {
-                        na.add(&terms, &tt, wa, a[q]);
+                        na.add(&terms, wa, Vec3::from(a[q]));
                     }
                     if wb > MIN_WEIGHT {
-                        nb.add(&terms, &tt, wb, b[q]);
+                        nb.add(&terms, wb, Vec3::from(b[q]));
                     }
                 }
             }
@@ -216,4 +184,75 @@ pub fn regress_pair(
         })
         .collect();
     pixels.into_iter().unzip()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn block_elimination_solves_the_whole_system() {
+        // 25 taps of random terms, weights and radiance: the intercept the blocks give is a
+        // dense solve's of the same ridge-regularized 9×9 system (f64 Gaussian elimination).
+        let mut n = Normal::new();
+        let mut seed = 7u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((seed >> 33) as f32 / (1u64 << 31) as f32) - 0.5
+        };
+        let mut m = [[0.0f64; 12]; 9];
+        for _ in 0..25 {
+            let t = Terms {
+                albedo: Vec3::new(rnd(), rnd(), rnd()),
+                normal: Vec3::new(rnd(), rnd(), rnd()),
+                place: Vec3::new(1.0, rnd(), rnd()),
+            };
+            let (w, y) = (rnd() + 0.6, Vec3::new(rnd(), rnd(), rnd()));
+            n.add(&t, w, y);
+            // Terms (1, y, x, albedo, normal), then the three channels.
+            let x: Vec<f64> = [t.place.to_array(), t.albedo.to_array(), t.normal.to_array()]
+                .concat()
+                .iter()
+                .map(|&v| v as f64)
+                .collect();
+            for i in 0..9 {
+                for j in 0..9 {
+                    m[i][j] += w as f64 * x[i] * x[j];
+                }
+                for c in 0..3 {
+                    m[i][9 + c] += w as f64 * x[i] * y[c] as f64;
+                }
+            }
+        }
+        let got = n.intercept().expect("solvable");
+        let ridge = RIDGE as f64 * m[0][0];
+        for (i, row) in m.iter_mut().enumerate().skip(1) {
+            row[i] += ridge;
+        }
+        for k in 0..9 {
+            let pivot = m[k];
+            for row in m.iter_mut().skip(k + 1) {
+                let f = row[k] / pivot[k];
+                for (v, p) in row.iter_mut().zip(pivot).skip(k) {
+                    *v -= f * p;
+                }
+            }
+        }
+        let mut x = [[0.0f64; 3]; 9];
+        for i in (0..9).rev() {
+            for c in 0..3 {
+                let s: f64 = (i + 1..9).map(|j| m[i][j] * x[j][c]).sum();
+                x[i][c] = (m[i][9 + c] - s) / m[i][i];
+            }
+        }
+        for c in 0..3 {
+            assert!(
+                (got[c] as f64 - x[0][c]).abs() < 1e-4,
+                "{got:?} against {:?}",
+                x[0]
+            );
+        }
+    }
 }

@@ -279,13 +279,14 @@ impl DenoisePass {
             label: Some("denoise.submission"),
         });
         let (gx, gy) = (width.div_ceil(8), height.div_ceil(8));
-        let mut dispatches: Vec<(&wgpu::BindGroup, usize, (u32, u32))> =
-            vec![(plain, 0, (gx, gy)), (plain, 1, (gx, gy))];
-        dispatches.extend(iterations.iter().map(|g| (g, 2, (gx, gy))));
-        dispatches.push((plain, 3, (gx, gy)));
-        dispatches.push((plain, 4, (tiles_x, height.div_ceil(TILE))));
-        dispatches.push((plain, 5, (out.0.div_ceil(8), out.1.div_ceil(8))));
-        for (i, (group, pipeline, (x, y))) in dispatches.into_iter().enumerate() {
+        // Workgroups (x, y, z); the regression's z is the half.
+        let mut dispatches: Vec<(&wgpu::BindGroup, usize, (u32, u32, u32))> =
+            vec![(plain, 0, (gx, gy, 1)), (plain, 1, (gx, gy, 1))];
+        dispatches.extend(iterations.iter().map(|g| (g, 2, (gx, gy, 1))));
+        dispatches.push((plain, 3, (gx, gy, 2)));
+        dispatches.push((plain, 4, (tiles_x, height.div_ceil(TILE), 1)));
+        dispatches.push((plain, 5, (out.0.div_ceil(8), out.1.div_ceil(8), 1)));
+        for (i, (group, pipeline, (x, y, z))) in dispatches.into_iter().enumerate() {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(ENTRY_POINTS[pipeline]),
                 timestamp_writes: self
@@ -299,7 +300,7 @@ impl DenoisePass {
             });
             pass.set_bind_group(0, group, &[]);
             pass.set_pipeline(&self.pipelines[pipeline]);
-            pass.dispatch_workgroups(x, y, 1);
+            pass.dispatch_workgroups(x, y, z);
         }
         if let Some(p) = &self.profile {
             enc.resolve_query_set(&p.set, 0..2 * DISPATCHES, &p.resolve, 0);
