@@ -103,7 +103,9 @@ fn strip(src: &str) -> String {
     remove_test_items(&out)
 }
 
-/// Removes each item that follows `#[cfg(test)]`: to the end of its `{…}` block or its `;`.
+/// Removes each item that follows `#[cfg(test)]`: to the end of its `{…}` block or its `;`
+/// (a field or a struct literal's member: to its `,`, or to the `}` that closes what holds
+/// it).
 fn remove_test_items(code: &str) -> String {
     let mut out = String::new();
     let mut rest = code;
@@ -113,12 +115,33 @@ fn remove_test_items(code: &str) -> String {
         .min()
     {
         out.push_str(&rest[..at]);
-        let after = &rest[at..];
+        // The item starts after the attribute's closing `]` (its own commas are not the end).
+        let mut brackets = 0usize;
+        let close = rest[at..]
+            .char_indices()
+            .find(|&(_, c)| {
+                match c {
+                    '[' => brackets += 1,
+                    ']' => brackets -= 1,
+                    _ => {}
+                }
+                c == ']' && brackets == 0
+            })
+            .map_or(rest.len() - at, |(k, _)| k + 1);
+        let after = &rest[at + close..];
         let mut depth = 0usize;
+        // Parentheses and brackets open (a parameter list's commas are not the end).
+        let mut parens = 0usize;
         let mut end = after.len();
         for (k, c) in after.char_indices() {
             match c {
+                '(' | '[' => parens += 1,
+                ')' | ']' => parens = parens.saturating_sub(1),
                 '{' => depth += 1,
+                '}' if depth == 0 => {
+                    end = k;
+                    break;
+                }
                 '}' => {
                     depth -= 1;
                     if depth == 0 {
@@ -127,6 +150,10 @@ fn remove_test_items(code: &str) -> String {
                     }
                 }
                 ';' if depth == 0 => {
+                    end = k + 1;
+                    break;
+                }
+                ',' if depth == 0 && parens == 0 => {
                     end = k + 1;
                     break;
                 }
