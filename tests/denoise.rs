@@ -76,6 +76,15 @@ impl Synthetic {
                 normal.push(n);
             }
         }
+        Synthetic::new((w, h), truth, albedo, normal)
+    }
+
+    fn new(
+        (w, h): (u32, u32),
+        truth: Vec<[f32; 3]>,
+        albedo: Vec<[f32; 3]>,
+        normal: Vec<[f32; 3]>,
+    ) -> Synthetic {
         Synthetic {
             w,
             h,
@@ -236,17 +245,7 @@ fn the_regression_keeps_pixels_straddling_two_surfaces() {
     }
     assert!(crossed.len() > 30, "{} pixels crossed", crossed.len());
     let normal = vec![[0.0, 0.0, 1.0]; (w * h) as usize];
-    let s = Synthetic {
-        w,
-        h,
-        truth,
-        guides: Guides {
-            width: w,
-            height: h,
-            albedo: albedo.clone(),
-            normal: normal.clone(),
-        },
-    };
+    let s = Synthetic::new((w, h), truth, albedo.clone(), normal.clone());
     let mut rng = Normal(11);
     let (a, b) = s.halves(&mut rng, 0.5, 32);
     let mean = |v: &[[f32; 4]]| -> Vec<[f32; 3]> {
@@ -518,17 +517,8 @@ fn a_bound_is_shown_where_the_estimate_is_within_its_noise_and_it_covers_the_tru
     use termtrace::common::resolved::Estimate;
     let (w, h) = (64u32, 48u32);
     let truth = vec![[0.4f32, 0.4, 0.4]; (w * h) as usize];
-    let s = Synthetic {
-        w,
-        h,
-        truth,
-        guides: Guides {
-            width: w,
-            height: h,
-            albedo: vec![[0.5; 3]; (w * h) as usize],
-            normal: vec![[0.0, 0.0, 1.0]; (w * h) as usize],
-        },
-    };
+    let n = (w * h) as usize;
+    let s = Synthetic::new((w, h), truth, vec![[0.5; 3]; n], vec![[0.0, 0.0, 1.0]; n]);
     let mut rng = Normal(4242);
     let (mut bounds, mut covered) = (0, 0);
     for _ in 0..40 {
