@@ -9,9 +9,10 @@
 //! (never from the other half, so the estimator of `super` stays unbiased), and the
 //! radiance regressed is the half's own, its fireflies clamped (`atrous::clamp_outliers`).
 //!
-//! Chosen by measurement (120×76, 32 + 32 and 128 + 128 samples, cornell, showcase, weekend):
-//! the true relative RMSE of ½(D(A) + D(B)) fell from 3.7, 3.5, 5.3 % to 2.0–2.5, 2.9, 3.7 %
-//! at 64 spp, and from 2.5, 2.1, 2.9 % to 2.0, 1.6, 1.9 % at 256 spp (BENCHMARKS.md).
+//! Chosen by measurement against the other weights and filters tried (BENCHMARKS.md,
+//! "Denoising, second filter"): at 64 spp at 120×76 the shown image's true relative RMSE fell
+//! from 3.50, 3.31, 3.96 % to 2.75, 2.93, 3.68 % (cornell, showcase, weekend), at 256 spp from
+//! 2.56, 1.84, 1.88 % to 2.06, 1.68, 1.84 %.
 
 use super::atrous::{Guide, Texel, exp_neg, luminance, texels};
 use glam::{Mat3, Vec3};
