@@ -338,30 +338,61 @@ fn inverse3(m: mat3x3f) -> Inverse {
     return Inverse(transpose(mat3x3f(c0, c1, c2)) * (1.0 / det), ok);
 }
 
+// The regression's neighbourhood of one workgroup: its 8×8 pixels and REGRESS_RADIUS around,
+// for one half. Per pixel: (albedo, the à-trous output's luminance), (unit normal, radiance
+// variance), (radiance fireflies clamped, 1 inside the image or 0).
+const APRON: u32 = 12u;
+var<workgroup> neighbourhood: array<array<vec4f, 3>, 144>;
+
 // Each half's radiance at every pixel made the intercept of a weighted first-order regression
 // of its neighbours' on the guides and the position (src/denoise/regress.rs: the normal
 // equations in 3×3 blocks, albedo, normal and (1, y, x), solved by block elimination), the
 // weights from that half's à-trous output in `src`; written to `dst` (radiance). One
-// invocation per pixel and half (gid.z), its equations in registers.
+// invocation per pixel and half (gid.z), its equations in registers; the workgroup first
+// loads its neighbourhood into workgroup memory, each pixel once.
 @compute @workgroup_size(8, 8, 1)
-fn regress(@builtin(global_invocation_id) gid: vec3u) {
+fn regress(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_index) lid: u32,
+           @builtin(workgroup_id) wid: vec3u) {
+    let half = gid.z;
+    let layer = 5u * half;
+    let w = i32(params.width);
+    let hh = i32(params.height);
+    // The neighbourhood's top-left pixel.
+    let x0 = i32(wid.x * 8u) - REGRESS_RADIUS;
+    let y0 = i32(wid.y * 8u) - REGRESS_RADIUS;
+    for (var k = lid; k < APRON * APRON; k += 64u) {
+        let qx = x0 + i32(k % APRON);
+        let qy = y0 + i32(k / APRON);
+        var cell = array<vec4f, 3>(vec4f(0.0), vec4f(0.0), vec4f(0.0));
+        if qx >= 0 && qx < w && qy >= 0 && qy < hh {
+            let q = u32(qy * w + qx);
+            let tq = texels[2u * q];
+            let mq = tq.xyz + ALBEDO_EPSILON;
+            let lq = lum(vec3f(src[q * LAYER + layer], src[q * LAYER + layer + 1u],
+                src[q * LAYER + layer + 2u]) * mq);
+            let i = q * IMAGES + 3u * half;
+            cell[0] = vec4f(tq.xyz, lq);
+            cell[1] = texels[2u * q + 1u];
+            cell[2] = vec4f(images[i], images[i + 1u], images[i + 2u], 1.0);
+        }
+        neighbourhood[k] = cell;
+    }
+    workgroupBarrier();
     if gid.x >= params.width || gid.y >= params.height {
         return;
     }
-    let half = gid.z;
-    let x = i32(gid.x);
-    let y = i32(gid.y);
-    let w = i32(params.width);
     let p = gid.y * params.width + gid.x;
-    let tp = texels[2u * p];
-    let np = texels[2u * p + 1u];
-    let layer = 5u * half;
+    // This pixel in the neighbourhood.
+    let c = (gid.y - wid.y * 8u + u32(REGRESS_RADIUS)) * APRON
+        + gid.x - wid.x * 8u + u32(REGRESS_RADIUS);
+    let tp = neighbourhood[c][0];
+    let np = neighbourhood[c][1];
+    let lp = tp.w;
     let f = vec3f(src[p * LAYER + layer], src[p * LAYER + layer + 1u], src[p * LAYER + layer + 2u])
         * modulation(p);
-    let lp = lum(f);
     var a = mat3x3f();
     var b = mat3x3f();
-    var c = mat3x3f();
+    var cc = mat3x3f();
     var d = mat3x3f();
     var e = mat3x3f();
     var g = mat3x3f();
@@ -370,39 +401,32 @@ fn regress(@builtin(global_invocation_id) gid: vec3u) {
     var yp = mat3x3f();
     let r = f32(REGRESS_RADIUS);
     for (var dy = -REGRESS_RADIUS; dy <= REGRESS_RADIUS; dy++) {
-        let qy = y + dy;
-        if qy < 0 || qy >= i32(params.height) {
-            continue;
-        }
         for (var dx = -REGRESS_RADIUS; dx <= REGRESS_RADIUS; dx++) {
-            let qx = x + dx;
-            if qx < 0 || qx >= w {
+            let k = u32(i32(c) + dy * i32(APRON) + dx);
+            let cell = neighbourhood[k];
+            if cell[2].w == 0.0 {
                 continue;
             }
-            let q = u32(qy * w + qx);
-            let nq = texels[2u * q + 1u];
-            let lq = lum(vec3f(src[q * LAYER + layer], src[q * LAYER + layer + 1u],
-                src[q * LAYER + layer + 2u]) * modulation(q));
+            let nq = cell[1];
             let spatial = exp(-f32(dy * dy + dx * dx)
                 / (2.0 * REGRESS_SPATIAL_SIGMA * REGRESS_SPATIAL_SIGMA));
             let scale = 1.0 / (REGRESS_LUMINANCE_SIGMA * REGRESS_LUMINANCE_SIGMA * (np.w + nq.w)
                 + REGRESS_LUMINANCE_EPSILON);
-            let dl = lp - lq;
+            let dl = lp - cell[0].w;
             let wt = spatial * exp(-dl * dl * scale);
             if wt <= REGRESS_MIN_WEIGHT {
                 continue;
             }
-            let ta = texels[2u * q].xyz - tp.xyz;
+            let ta = cell[0].xyz - tp.xyz;
             let tn = nq.xyz - np.xyz;
             let tl = vec3f(1.0, f32(dy) / r, f32(dx) / r);
-            let i = q * IMAGES + 3u * half;
-            let rad = vec3f(images[i], images[i + 1u], images[i + 2u]);
+            let rad = cell[2].xyz;
             let wa = ta * wt;
             let wn = tn * wt;
             let wl = tl * wt;
             a += outer(wa, ta);
             b += outer(wa, tn);
-            c += outer(wa, tl);
+            cc += outer(wa, tl);
             d += outer(wn, tn);
             e += outer(wn, tl);
             g += outer(wl, tl);
@@ -415,10 +439,10 @@ fn regress(@builtin(global_invocation_id) gid: vec3u) {
     let ridge = RIDGE * g[0][0];
     let ai = inverse3(a + mat3x3f(ridge, 0.0, 0.0, 0.0, ridge, 0.0, 0.0, 0.0, ridge));
     let bt_ai = transpose(b) * ai.m;
-    let ct_ai = transpose(c) * ai.m;
+    let ct_ai = transpose(cc) * ai.m;
     let d2 = d + mat3x3f(ridge, 0.0, 0.0, 0.0, ridge, 0.0, 0.0, 0.0, ridge) - bt_ai * b;
-    let e2 = e - bt_ai * c;
-    let g2 = g + mat3x3f(0.0, 0.0, 0.0, 0.0, ridge, 0.0, 0.0, 0.0, ridge) - ct_ai * c;
+    let e2 = e - bt_ai * cc;
+    let g2 = g + mat3x3f(0.0, 0.0, 0.0, 0.0, ridge, 0.0, 0.0, 0.0, ridge) - ct_ai * cc;
     let yn2 = yn - bt_ai * ya;
     let yp2 = yp - ct_ai * ya;
     let di = inverse3(d2);
