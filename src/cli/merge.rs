@@ -51,8 +51,11 @@ pub fn run(a: MergeArgs) -> anyhow::Result<ExitCode> {
     let mut parts = Vec::with_capacity(a.parts.len());
     let mut errors = Vec::new();
     let mut bytes = 0u64;
-    for p in &a.parts {
-        match shard::read(p) {
+    // Read (and inflated) on every core, in the order given.
+    use rayon::prelude::*;
+    let read: Vec<_> = a.parts.par_iter().map(|p| (p, shard::read(p))).collect();
+    for (p, r) in read {
+        match r {
             Ok(part) => {
                 bytes += std::fs::metadata(p).map(|m| m.len()).unwrap_or(0);
                 parts.push((p.clone(), part));

@@ -6,15 +6,21 @@
 //! (TOML: the scene's hash, the frame settings, the whole render's samples per pixel, the
 //! shard and the sample range it holds), then the even and the odd halves' words (u32,
 //! `ACCUM_WORDS` per pixel, little-endian), then the CRC-32 of everything before it. Written
-//! atomically; read with every field checked.
+//! atomically; read with every field checked. Version 2 (written now) stores the words'
+//! bytes as four planes (every word's lowest byte, then the next, …: the high bytes of
+//! fixed-point sums are mostly zero) compressed by deflate; version 1 (raw words) is still
+//! read.
 
 use crate::common::accum::ACCUM_WORDS;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 const MAGIC: &[u8; 8] = b"TTACCUM\n";
-/// The format version this build reads and writes.
-pub const VERSION: u32 = 1;
+/// The format version this build writes (it reads this one and version 1).
+pub const VERSION: u32 = 2;
+/// Deflate expands a stream by at most ~1032:1; a payload claiming more is refused before
+/// it is inflated (no zip bomb reaches memory).
+const MAX_INFLATION: usize = 1100;
 
 /// What a snapshot's sums belong to, and which of them it holds.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -123,23 +129,55 @@ pub fn is_part_file(path: &Path) -> bool {
 }
 
 fn words_of(h: &Header) -> usize {
-    h.width as usize * h.height as usize * ACCUM_WORDS
+    (h.width as usize)
+        .saturating_mul(h.height as usize)
+        .saturating_mul(ACCUM_WORDS)
 }
 
-/// Writes `part` to `path` atomically.
+/// Writes `part` to `path` atomically (version [`VERSION`]).
 pub fn write(path: &Path, part: &Part) -> Result<(), crate::output::OutputError> {
+    crate::output::write::write_bytes(path, &encode(part, VERSION))
+}
+
+/// The words' bytes as four planes: byte 0 of every word, then byte 1, 2 and 3.
+fn planes(words: &[&[u32]]) -> Vec<u8> {
+    let n: usize = words.iter().map(|w| w.len()).sum();
+    let mut out = vec![0u8; 4 * n];
+    for (i, &w) in words.iter().flat_map(|w| w.iter()).enumerate() {
+        for (b, byte) in w.to_le_bytes().into_iter().enumerate() {
+            out[b * n + i] = byte;
+        }
+    }
+    out
+}
+
+/// A snapshot's bytes in format `version` (1: raw words; 2: byte planes, deflated).
+fn encode(part: &Part, version: u32) -> Vec<u8> {
+    use std::io::Write;
     let header = toml::to_string(&part.header).expect("a header serializes");
-    let mut bytes = Vec::with_capacity(16 + header.len() + 8 * part.even.len() + 4);
+    let payload = match version {
+        1 => part
+            .even
+            .iter()
+            .chain(&part.odd)
+            .flat_map(|w| w.to_le_bytes())
+            .collect(),
+        _ => {
+            let mut z = flate2::write::DeflateEncoder::new(Vec::new(), flate2::Compression::fast());
+            z.write_all(&planes(&[&part.even, &part.odd]))
+                .expect("deflate into memory");
+            z.finish().expect("deflate into memory")
+        }
+    };
+    let mut bytes = Vec::with_capacity(16 + header.len() + payload.len() + 4);
     bytes.extend_from_slice(MAGIC);
-    bytes.extend_from_slice(&VERSION.to_le_bytes());
+    bytes.extend_from_slice(&version.to_le_bytes());
     bytes.extend_from_slice(&(header.len() as u32).to_le_bytes());
     bytes.extend_from_slice(header.as_bytes());
-    for w in part.even.iter().chain(&part.odd) {
-        bytes.extend_from_slice(&w.to_le_bytes());
-    }
+    bytes.extend_from_slice(&payload);
     let crc = crc32fast::hash(&bytes);
     bytes.extend_from_slice(&crc.to_le_bytes());
-    crate::output::write::write_bytes(path, &bytes)
+    bytes
 }
 
 /// Reads a snapshot, refusing (with the file's name) anything that is not one, a version this
@@ -158,9 +196,10 @@ pub fn parse(bytes: &[u8]) -> Result<Part, String> {
     }
     let u32_at = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"));
     let version = u32_at(8);
-    if version != VERSION {
+    if version != 1 && version != VERSION {
         return Err(format!(
-            "a snapshot of format version {version}; this termtrace reads version {VERSION}"
+            "a snapshot of format version {version}; this termtrace reads versions 1 and \
+             {VERSION}"
         ));
     }
     let (body, tail) = bytes.split_at(bytes.len() - 4);
@@ -175,20 +214,53 @@ pub fn parse(bytes: &[u8]) -> Result<Part, String> {
         .ok_or("corrupted: its header is cut short or not text")?;
     let header: Header = toml::from_str(text).map_err(|e| format!("its header: {e}"))?;
     let n = words_of(&header);
+    // Bytes of both halves' words.
+    let need = n.saturating_mul(8);
     let payload = &body[16 + len..];
-    if payload.len() != 8 * n {
-        return Err(format!(
-            "holds {} bytes of sums where a {}×{} image has {}",
-            payload.len(),
-            header.width,
-            header.height,
-            8 * n
-        ));
-    }
-    let words: Vec<u32> = payload
-        .chunks_exact(4)
-        .map(|c| u32::from_le_bytes(c.try_into().expect("4 bytes")))
-        .collect();
+    let sizes = |bytes: usize| {
+        format!(
+            "holds {bytes} bytes of sums where a {}×{} image has {need}",
+            header.width, header.height
+        )
+    };
+    let words: Vec<u32> = if version == 1 {
+        if payload.len() != need {
+            return Err(sizes(payload.len()));
+        }
+        payload
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes(c.try_into().expect("4 bytes")))
+            .collect()
+    } else {
+        use std::io::Read;
+        if need > MAX_INFLATION.saturating_mul(payload.len().max(1)) {
+            return Err(format!(
+                "corrupted: {} compressed bytes cannot hold the {need} of a {}×{} image's sums",
+                payload.len(),
+                header.width,
+                header.height
+            ));
+        }
+        let mut planes = Vec::new();
+        flate2::read::DeflateDecoder::new(payload)
+            .take(need as u64 + 1)
+            .read_to_end(&mut planes)
+            .map_err(|e| format!("corrupted: its sums do not inflate: {e}"))?;
+        if planes.len() != need {
+            return Err(sizes(planes.len()));
+        }
+        let count = 2 * n;
+        (0..count)
+            .map(|i| {
+                u32::from_le_bytes([
+                    planes[i],
+                    planes[count + i],
+                    planes[2 * count + i],
+                    planes[3 * count + i],
+                ])
+            })
+            .collect()
+    };
     let odd = words[n..].to_vec();
     let mut even = words;
     even.truncate(n);
@@ -312,4 +384,64 @@ fn difference(a: &Header, b: &Header) -> String {
         .map(|(x, y)| format!("{y} where it has {x}"))
         .collect();
     diffs.join("; ")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn both_versions_read_back_the_same_words() {
+        // Sums of a few pixels (high words mostly zero, as fixed-point sums are): written as
+        // version 1 (raw) and 2 (byte planes, deflated), both read back word for word, and
+        // the compressed one is smaller. A version-2 payload that claims more than deflate
+        // can expand to is refused before it is inflated.
+        let header = Header {
+            termtrace: "test".into(),
+            scene: "test".into(),
+            scene_hash: "0".into(),
+            width: 7,
+            height: 3,
+            max_bounces: 4,
+            seed: 1,
+            nee: true,
+            spp: 8,
+            shard: 0,
+            shards: 1,
+            first_sample: 0,
+            end_sample: 8,
+            invalid: 0,
+        };
+        let n = words_of(&header);
+        let word = |i: usize| {
+            if i % 10 < 3 {
+                (i as u32).wrapping_mul(2_654_435_761)
+            } else {
+                (i % 5) as u32
+            }
+        };
+        let part = Part {
+            header,
+            even: (0..n).map(word).collect(),
+            odd: (n..2 * n).map(word).collect(),
+        };
+        let (v1, v2) = (encode(&part, 1), encode(&part, 2));
+        assert!(
+            v2.len() < v1.len(),
+            "{} against {} bytes",
+            v2.len(),
+            v1.len()
+        );
+        for bytes in [&v1, &v2] {
+            let back = parse(bytes).unwrap();
+            assert_eq!(
+                (back.header, back.even, back.odd),
+                (part.header.clone(), part.even.clone(), part.odd.clone())
+            );
+        }
+        let mut huge = part.clone();
+        huge.header.width = 1 << 30;
+        let e = parse(&encode(&huge, 2)).unwrap_err();
+        assert!(e.contains("cannot hold"), "{e}");
+    }
 }
