@@ -444,4 +444,47 @@ mod tests {
         let e = parse(&encode(&huge, 2)).unwrap_err();
         assert!(e.contains("cannot hold"), "{e}");
     }
+
+    #[test]
+    fn a_damaged_part_is_refused_never_a_panic() {
+        // Every byte of a small version-2 part flipped, with the checksum made right again
+        // (so the header's and the deflate stream's checks are what meets it), and every
+        // truncation: each parses or is refused with a message.
+        let header = Header {
+            termtrace: "test".into(),
+            scene: "test".into(),
+            scene_hash: "0".into(),
+            width: 3,
+            height: 2,
+            max_bounces: 4,
+            seed: 1,
+            nee: true,
+            spp: 8,
+            shard: 0,
+            shards: 1,
+            first_sample: 0,
+            end_sample: 8,
+            invalid: 0,
+        };
+        let n = words_of(&header);
+        let part = Part {
+            header,
+            even: (0..n as u32).collect(),
+            odd: (0..n as u32).map(|i| i * 7).collect(),
+        };
+        let good = encode(&part, 2);
+        for at in 8..good.len() - 4 {
+            for bit in [0x01u8, 0x80] {
+                let mut bytes = good.clone();
+                bytes[at] ^= bit;
+                let body = bytes.len() - 4;
+                let crc = crc32fast::hash(&bytes[..body]);
+                bytes[body..].copy_from_slice(&crc.to_le_bytes());
+                let _ = parse(&bytes);
+            }
+        }
+        for len in 0..good.len() {
+            assert!(parse(&good[..len]).is_err(), "cut at {len}");
+        }
+    }
 }
