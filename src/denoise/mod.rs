@@ -317,6 +317,17 @@ fn mean(s: [f32; 4]) -> [f32; 3] {
     }
 }
 
+/// The variance of one half's luminance, from halves `x` and `y` of a `w × h` image:
+/// E[(X − Y)²] = v_X + v_Y, halved, and averaged over a 7×7 box.
+fn half_variance(x: &[[f32; 3]], y: &[[f32; 3]], w: usize, h: usize) -> Vec<f32> {
+    let per_pixel: Vec<f32> = x
+        .iter()
+        .zip(y)
+        .map(|(x, y)| 0.5 * (luminance(*x) - luminance(*y)).powi(2))
+        .collect();
+    box_blur(&per_pixel, w, h, VARIANCE_RADIUS)
+}
+
 /// Denoises the image whose even and odd halves' sums are `even` and `odd` (`[r, g, b,
 /// samples]` per pixel, as `common::AccumData` holds them), guided by `guides` (same size).
 pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised {
@@ -349,14 +360,7 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
             .collect()
     };
     let (da, db) = (demod(&a), demod(&b));
-    // The variance of one half's demodulated luminance: E[(A − B)²] = v_A + v_B, halved, and
-    // averaged over a 7×7 box.
-    let per_pixel: Vec<f32> = da
-        .iter()
-        .zip(&db)
-        .map(|(x, y)| 0.5 * (luminance(*x) - luminance(*y)).powi(2))
-        .collect();
-    let variance = box_blur(&per_pixel, w, h, VARIANCE_RADIUS);
+    let variance = half_variance(&da, &db, w, h);
     let g = Guide {
         width: w,
         height: h,
@@ -372,12 +376,7 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
     let (fa, fb) = filter_pair(&g, &da, &db, &variance);
     let (fa, fb) = (remod(fa), remod(fb));
     // The regression's luminance weights read the variance of one half's radiance.
-    let per_pixel: Vec<f32> = a
-        .iter()
-        .zip(&b)
-        .map(|(x, y)| 0.5 * (luminance(*x) - luminance(*y)).powi(2))
-        .collect();
-    let radiance_variance = box_blur(&per_pixel, w, h, VARIANCE_RADIUS);
+    let radiance_variance = half_variance(&a, &b, w, h);
     let (ca, cb) = (clamp_outliers(w, h, &a), clamp_outliers(w, h, &b));
     let (ra, rb) = regress::regress_pair(&g, (&ca, &cb), (&fa, &fb), &radiance_variance);
     let tiles_x = w.div_ceil(TILE);

@@ -201,7 +201,8 @@ impl Team {
     /// then every device finishes its submissions in flight and stops. One device traces on
     /// this thread, several on one thread each. A device that fails on its thread gives its
     /// samples back and the others trace them; only when every device has failed does the
-    /// failure go on (as the panic it was).
+    /// run panic, with every device's reason (one device alone traces on this thread, and
+    /// its failure is the panic it was).
     pub fn run(
         &self,
         every: Duration,
@@ -308,14 +309,13 @@ impl Team {
             ..AccumData::from_halves(decode(&even), decode(&odd))
         };
         // A second readback of every device, for a benchmark's counters alone.
-        for r in self.members.iter().filter_map(Member::renderer) {
-            if !self.counted {
-                break;
+        if self.counted {
+            for r in self.members.iter().filter_map(Member::renderer) {
+                let d = r.snapshot().data;
+                data.segments += d.segments;
+                data.node_visits += d.node_visits;
+                data.primitive_tests += d.primitive_tests;
             }
-            let d = r.snapshot().data;
-            data.segments += d.segments;
-            data.node_visits += d.node_visits;
-            data.primitive_tests += d.primitive_tests;
         }
         Snapshot {
             width: self.settings.width,

@@ -390,18 +390,14 @@ fn difference(a: &Header, b: &Header) -> String {
 mod tests {
     use super::*;
 
-    #[test]
-    fn both_versions_read_back_the_same_words() {
-        // Sums of a few pixels (high words mostly zero, as fixed-point sums are): written as
-        // version 1 (raw) and 2 (byte planes, deflated), both read back word for word, and
-        // the compressed one is smaller. A version-2 payload that claims more than deflate
-        // can expand to is refused before it is inflated.
-        let header = Header {
+    /// A whole render's header at `width × height`, 8 spp.
+    fn header(width: u32, height: u32) -> Header {
+        Header {
             termtrace: "test".into(),
             scene: "test".into(),
             scene_hash: "0".into(),
-            width: 7,
-            height: 3,
+            width,
+            height,
             max_bounces: 4,
             seed: 1,
             nee: true,
@@ -411,7 +407,16 @@ mod tests {
             first_sample: 0,
             end_sample: 8,
             invalid: 0,
-        };
+        }
+    }
+
+    #[test]
+    fn both_versions_read_back_the_same_words() {
+        // Sums of a few pixels (high words mostly zero, as fixed-point sums are): written as
+        // version 1 (raw) and 2 (byte planes, deflated), both read back word for word, and
+        // the compressed one is smaller. A version-2 payload that claims more than deflate
+        // can expand to is refused before it is inflated.
+        let header = header(7, 3);
         let n = words_of(&header);
         let word = |i: usize| {
             if i % 10 < 3 {
@@ -450,22 +455,7 @@ mod tests {
         // Every byte of a small version-2 part flipped, with the checksum made right again
         // (so the header's and the deflate stream's checks are what meets it), and every
         // truncation: each parses or is refused with a message.
-        let header = Header {
-            termtrace: "test".into(),
-            scene: "test".into(),
-            scene_hash: "0".into(),
-            width: 3,
-            height: 2,
-            max_bounces: 4,
-            seed: 1,
-            nee: true,
-            spp: 8,
-            shard: 0,
-            shards: 1,
-            first_sample: 0,
-            end_sample: 8,
-            invalid: 0,
-        };
+        let header = header(3, 2);
         let n = words_of(&header);
         let part = Part {
             header,

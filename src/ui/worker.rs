@@ -747,13 +747,23 @@ mod tests {
     /// frame's image and spp.
     fn final_frame(backends: Vec<Backend>, max_spp: u32, edits: &[Scene]) -> (LinearImage, Stats) {
         let off = crate::denoise::Mode::Off;
-        let (image, stats, _) = frames(backends, (64, 48), max_spp, edits, off, None);
-        (image, stats)
+        let run = frames(backends, (64, 48), max_spp, edits, off, None);
+        assert!(run.lost.is_empty(), "{:?}", run.lost);
+        (run.image, run.stats)
     }
 
-    /// As `final_frame`, in denoiser `mode`, with whether any frame with samples of the
-    /// other devices in it was denoised (with `fail`: what the UI was told of the devices
-    /// lost instead).
+    /// What a preview run ended on, and what it showed and said on the way.
+    struct Run {
+        image: LinearImage,
+        stats: Stats,
+        /// Some frame with samples of the other devices in it was denoised.
+        denoised_helped: bool,
+        /// What the UI was told of devices lost.
+        lost: Vec<String>,
+    }
+
+    /// As `final_frame`, in denoiser `mode`, with device `fail.0` failing after `fail.1`
+    /// claims of every state.
     fn frames(
         backends: Vec<Backend>,
         size: (u32, u32),
@@ -761,7 +771,7 @@ mod tests {
         edits: &[Scene],
         denoise: crate::denoise::Mode,
         fail: Option<(usize, u32)>,
-    ) -> (LinearImage, Stats, Vec<String>) {
+    ) -> Run {
         let scene = Scene::load("cornell").unwrap();
         let settings = FrameSettings::new(size.0, size.1, scene.render.max_bounces, 1);
         let (events, rx) = std::sync::mpsc::channel();
@@ -810,11 +820,12 @@ mod tests {
         };
         tx.send(Request::Quit).unwrap();
         handle.join().unwrap();
-        if fail.is_none() {
-            assert!(lost.is_empty(), "{lost:?}");
-            lost.push(if denoised_helped { "denoised" } else { "" }.into());
+        Run {
+            image: last.image,
+            stats: last.stats,
+            denoised_helped,
+            lost,
         }
-        (last.image, last.stats, lost)
     }
 
     #[test]
@@ -848,7 +859,7 @@ mod tests {
             "the software adapter (lavapipe): apt-get install mesa-vulkan-drivers libvulkan1",
         );
         for mode in [crate::denoise::Mode::Off, crate::denoise::Mode::On] {
-            let (image, stats, said) = frames(
+            let run = frames(
                 vec![gpu.clone(), Backend::Cpu],
                 (24, 16),
                 24,
@@ -856,14 +867,15 @@ mod tests {
                 mode,
                 None,
             );
-            let denoised = said == ["denoised"];
+            let (image, stats) = (run.image, run.stats);
+            assert!(run.lost.is_empty(), "{:?}", run.lost);
             assert_eq!(stats.spp, 24);
             assert!(
                 (1..24).contains(&stats.helped),
                 "{} spp helped",
                 stats.helped
             );
-            assert_eq!(denoised, mode == crate::denoise::Mode::On);
+            assert_eq!(run.denoised_helped, mode == crate::denoise::Mode::On);
             assert!(image.pixels.iter().flatten().all(|v| v.is_finite()));
         }
     }
@@ -874,8 +886,9 @@ mod tests {
         // one waiting on a lost GPU does), with an edit after the first frame: the UI is
         // told, the first device traces what the second had claimed, and the preview still
         // ends on one device's image, bit for bit. Then the software adapter making the
-        // frames with the CPU tracer failing beside it: the resolve pass drops the sums it
-        // had added, and the image is the software adapter's alone.
+        // frames with the CPU tracer failing beside it: the image is the software adapter's
+        // alone. (Whether the resolve pass had the failed helper's sums uploaded by then
+        // depends on timing; this does not reliably catch a failure to drop them.)
         let mut edited = Scene::load("cornell").unwrap();
         edited.camera.vfov += 5.0;
         // 512 spp, so that the second device asks for its second claim before the first has
@@ -884,7 +897,9 @@ mod tests {
         let off = crate::denoise::Mode::Off;
         let two = vec![Backend::Cpu, Backend::Cpu];
         let edits = [edited.clone()];
-        let (image, stats, lost) = frames(two, (64, 48), 512, &edits, off, Some((1, 1)));
+        let Run {
+            image, stats, lost, ..
+        } = frames(two, (64, 48), 512, &edits, off, Some((1, 1)));
         assert_eq!(
             (stats.spp, stats.helped),
             (512, 0),
@@ -897,8 +912,10 @@ mod tests {
         let gpu = Backend::open(Some("vulkan")).expect(
             "the software adapter (lavapipe): apt-get install mesa-vulkan-drivers libvulkan1",
         );
-        let (alone, _, _) = frames(vec![gpu.clone()], (24, 16), 24, &[], off, None);
-        let (image, stats, lost) = frames(
+        let alone = frames(vec![gpu.clone()], (24, 16), 24, &[], off, None).image;
+        let Run {
+            image, stats, lost, ..
+        } = frames(
             vec![gpu, Backend::Cpu],
             (24, 16),
             24,
