@@ -29,9 +29,24 @@ struct ClaimState {
     failed: Vec<bool>,
     /// Samples a failed device had claimed, claimed again first, in order.
     returned: Vec<Range<u32>>,
-    /// A test's device failure: device, and the claims it makes before it fails.
+    /// A test's device failure: device, and when it fails.
     #[cfg(test)]
-    fail: Option<(usize, u32)>,
+    fail: Option<(usize, Fail)>,
+    /// Whether a GPU's resolve pass has been given the other devices' sums (`note_upload`).
+    #[cfg(test)]
+    uploaded: bool,
+}
+
+/// When a test's device fails (`Claims::fail_when`; the preview's worker passes one along
+/// in its tests).
+#[cfg_attr(not(test), allow(dead_code))]
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Fail {
+    /// When it asks for its claim after so many claims.
+    After(u32),
+    /// At its first claim after the preview's render thread has uploaded the other devices'
+    /// sums to its GPU's resolve pass (`note_upload`): those sums are then stale on the GPU.
+    AfterUpload,
 }
 
 impl ClaimState {
@@ -55,6 +70,8 @@ impl Claims {
                 returned: Vec::new(),
                 #[cfg(test)]
                 fail: None,
+                #[cfg(test)]
+                uploaded: false,
             }),
         }
     }
@@ -139,15 +156,33 @@ impl Claims {
     /// when it asks for its claim after `after` claims.
     #[cfg(test)]
     pub(crate) fn fail_after(&self, device: usize, after: u32) {
-        self.state.lock().expect("claims poisoned").fail = Some((device, after));
+        self.fail_when(device, Fail::After(after));
     }
 
-    /// Whether `device` is to fail now (`fail_after`).
+    /// A test's device failure: `device` fails at `when`.
+    #[cfg(test)]
+    pub(crate) fn fail_when(&self, device: usize, when: Fail) {
+        self.state.lock().expect("claims poisoned").fail = Some((device, when));
+    }
+
+    /// The preview's render thread has uploaded the other devices' sums to its GPU
+    /// (`Fail::AfterUpload`).
+    #[cfg(test)]
+    pub(crate) fn note_upload(&self) {
+        self.state.lock().expect("claims poisoned").uploaded = true;
+    }
+
+    /// Whether `device` is to fail now (`fail_when`).
     #[cfg(test)]
     pub(crate) fn failing(&self, device: usize) -> bool {
         let s = self.state.lock().expect("claims poisoned");
-        s.fail
-            .is_some_and(|(d, after)| d == device && s.claimed[d].len() as u32 >= after)
+        s.fail.is_some_and(|(d, when)| {
+            d == device
+                && match when {
+                    Fail::After(after) => s.claimed[d].len() as u32 >= after,
+                    Fail::AfterUpload => s.uploaded,
+                }
+        })
     }
 
     /// Makes the samples up to `end` claimable too (a render continued to more samples).

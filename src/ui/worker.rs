@@ -23,7 +23,7 @@ use crate::common::accum::decode;
 use crate::gpu::denoise::DenoisePass;
 use crate::gpu::resolve::{ResolvePass, SLOTS};
 use crate::output::{Transfer, write_png};
-use crate::render::claims::Claims;
+use crate::render::claims::{Claims, Fail};
 use crate::render::shard::{Sums, add_sums};
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::Scene;
@@ -142,9 +142,9 @@ struct Worker {
     /// Counts every restart of the accumulation: frames of an older epoch are dropped.
     epoch: u64,
     save: Option<SaveJob>,
-    /// A test's device failure: this device of every claims fails after so many claims.
+    /// A test's device failure: this device of every claims fails then.
     #[cfg(test)]
-    fail: Option<(usize, u32)>,
+    fail: Option<(usize, Fail)>,
 }
 
 /// Starts the render thread on the first of `backends` (and a helper on each other); it
@@ -157,13 +157,13 @@ pub fn spawn(
     spawn_failing(backends, opts, events, None)
 }
 
-/// `spawn`, with device `fail.0` failing after `fail.1` claims of every state (a test's
-/// device loss; `None` outside tests).
+/// `spawn`, with device `fail.0` failing at `fail.1` in every state (a test's device loss;
+/// `None` outside tests).
 fn spawn_failing(
     mut backends: Vec<Backend>,
     opts: WorkerOptions,
     events: Sender<Event>,
-    #[allow(unused_variables)] fail: Option<(usize, u32)>,
+    #[allow(unused_variables)] fail: Option<(usize, Fail)>,
 ) -> (Sender<Request>, JoinHandle<()>) {
     let (tx, rx) = std::sync::mpsc::channel();
     let handle = std::thread::Builder::new()
@@ -387,8 +387,8 @@ impl Worker {
             if let Some(h) = &self.helpers {
                 let claims = Arc::new(Claims::new(0..self.opts.max_spp, 1 + h.len()));
                 #[cfg(test)]
-                if let Some((device, after)) = self.fail {
-                    claims.fail_after(device, after);
+                if let Some((device, when)) = self.fail {
+                    claims.fail_when(device, when);
                 }
                 p.renderer.share(claims.clone(), 0);
                 self.claims = Some(claims);
@@ -516,6 +516,10 @@ impl Worker {
                     };
                     resolve.set_extra(ctx, &sums.0, &sums.1);
                     p.uploaded = parts.clone();
+                    #[cfg(test)]
+                    if let Some(c) = &self.claims {
+                        c.note_upload();
+                    }
                 }
                 tag.extra_invalid = parts.iter().map(|s| s.2).sum();
                 None
@@ -762,15 +766,15 @@ mod tests {
         lost: Vec<String>,
     }
 
-    /// As `final_frame`, in denoiser `mode`, with device `fail.0` failing after `fail.1`
-    /// claims of every state.
+    /// As `final_frame`, in denoiser `mode`, with device `fail.0` failing at `fail.1` in
+    /// every state.
     fn frames(
         backends: Vec<Backend>,
         size: (u32, u32),
         max_spp: u32,
         edits: &[Scene],
         denoise: crate::denoise::Mode,
-        fail: Option<(usize, u32)>,
+        fail: Option<(usize, Fail)>,
     ) -> Run {
         let scene = Scene::load("cornell").unwrap();
         let settings = FrameSettings::new(size.0, size.1, scene.render.max_bounces, 1);
@@ -885,10 +889,7 @@ mod tests {
         // Two CPU tracers, the second failing at its second claim (its renderer panics, as
         // one waiting on a lost GPU does), with an edit after the first frame: the UI is
         // told, the first device traces what the second had claimed, and the preview still
-        // ends on one device's image, bit for bit. Then the software adapter making the
-        // frames with the CPU tracer failing beside it: the image is the software adapter's
-        // alone. (Whether the resolve pass had the failed helper's sums uploaded by then
-        // depends on timing; this does not reliably catch a failure to drop them.)
+        // ends on one device's image, bit for bit.
         let mut edited = Scene::load("cornell").unwrap();
         edited.camera.vfov += 5.0;
         // 512 spp, so that the second device asks for its second claim before the first has
@@ -897,9 +898,10 @@ mod tests {
         let off = crate::denoise::Mode::Off;
         let two = vec![Backend::Cpu, Backend::Cpu];
         let edits = [edited.clone()];
+        let fail = Some((1, Fail::After(1)));
         let Run {
             image, stats, lost, ..
-        } = frames(two, (64, 48), 512, &edits, off, Some((1, 1)));
+        } = frames(two, (64, 48), 512, &edits, off, fail);
         assert_eq!(
             (stats.spp, stats.helped),
             (512, 0),
@@ -908,23 +910,35 @@ mod tests {
         assert_eq!(lost.len(), 1, "{lost:?}");
         assert!(lost[0].contains("injected"), "{}", lost[0]);
         assert_eq!(image.pixels, one.pixels);
+    }
 
+    #[test]
+    fn a_helper_lost_after_its_sums_reached_the_gpu_is_left_out() {
+        // The software adapter makes the frames, the CPU tracer helps and fails at its first
+        // claim after the render thread uploaded its sums to the resolve pass: those sums
+        // must be dropped there (`clear_extra`), or every later frame would add them to
+        // samples the adapter traced again. The image is the adapter's alone, bit for bit.
+        // 24×16 pixels at 384 spp: the helper is still claiming when its sums are first
+        // uploaded (a frame interval after it starts).
         let gpu = Backend::open(Some("vulkan")).expect(
             "the software adapter (lavapipe): apt-get install mesa-vulkan-drivers libvulkan1",
         );
-        let alone = frames(vec![gpu.clone()], (24, 16), 24, &[], off, None).image;
+        let off = crate::denoise::Mode::Off;
+        let (size, spp) = ((24, 16), 384);
+        let alone = frames(vec![gpu.clone()], size, spp, &[], off, None).image;
+        let fail = Some((1, Fail::AfterUpload));
         let Run {
             image, stats, lost, ..
-        } = frames(
-            vec![gpu, Backend::Cpu],
-            (24, 16),
-            24,
-            &[],
-            off,
-            Some((1, 2)),
-        );
-        assert_eq!((stats.spp, stats.helped), (24, 0));
+        } = frames(vec![gpu, Backend::Cpu], size, spp, &[], off, fail);
+        assert_eq!((stats.spp, stats.helped), (spp, 0));
         assert_eq!(lost.len(), 1, "{lost:?}");
-        assert_eq!(image.pixels, alone.pixels);
+        let differ = (image.pixels.iter().zip(&alone.pixels)).filter(|(a, b)| a != b);
+        let differ = differ.count();
+        assert_eq!(
+            differ,
+            0,
+            "{differ} of {} pixels differ",
+            alone.pixels.len()
+        );
     }
 }
