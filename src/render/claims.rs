@@ -172,6 +172,22 @@ impl Claims {
         self.state.lock().expect("claims poisoned").uploaded = true;
     }
 
+    /// Holds a helper that is to fail after the upload (`Fail::AfterUpload`) until the render
+    /// thread has uploaded its published sums, so that it is still claiming then (up to a
+    /// minute, then it goes on and the test sees no failure).
+    #[cfg(test)]
+    pub(crate) fn await_upload(&self, device: usize) {
+        let until = std::time::Instant::now() + std::time::Duration::from_secs(60);
+        while std::time::Instant::now() < until {
+            let s = self.state.lock().expect("claims poisoned");
+            if s.uploaded || !matches!(s.fail, Some((d, Fail::AfterUpload)) if d == device) {
+                return;
+            }
+            drop(s);
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+    }
+
     /// Whether `device` is to fail now (`fail_when`).
     #[cfg(test)]
     pub(crate) fn failing(&self, device: usize) -> bool {

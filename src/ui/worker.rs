@@ -12,7 +12,8 @@
 //! the others, and once another device has published its sums, every frame shows them all:
 //! on a GPU its resolve pass adds the others' sums (uploaded when they change), elsewhere and
 //! for denoised frames the host adds them (the first frame after an edit is this device's
-//! alone).
+//! alone). If this device fails (a panic on this thread, `render::failure`), the preview
+//! starts over on the others, the next one making the frames.
 
 use super::app::Stats;
 use super::event::{Event, Frame};
@@ -24,6 +25,7 @@ use crate::gpu::denoise::DenoisePass;
 use crate::gpu::resolve::{ResolvePass, SLOTS};
 use crate::output::{Transfer, write_png};
 use crate::render::claims::{Claims, Fail};
+use crate::render::failure::contained;
 use crate::render::shard::{Sums, add_sums};
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::Scene;
@@ -163,43 +165,89 @@ fn spawn_failing(
     mut backends: Vec<Backend>,
     opts: WorkerOptions,
     events: Sender<Event>,
-    #[allow(unused_variables)] fail: Option<(usize, Fail)>,
+    #[allow(unused_variables, unused_mut)] mut fail: Option<(usize, Fail)>,
 ) -> (Sender<Request>, JoinHandle<()>) {
     let (tx, rx) = std::sync::mpsc::channel();
     let handle = std::thread::Builder::new()
         .name("render".into())
         .spawn(move || {
             assert!(!backends.is_empty(), "the preview needs a device");
-            let backend = backends.remove(0);
-            let mut w = Worker {
-                resolve: backend.gpu().map(|ctx| ResolvePass::new(&ctx.device)),
-                denoiser: None,
-                host_frame: None,
-                backend,
-                opts,
-                events,
-                preview: None,
-                scene: None,
-                helpers: None,
-                claims: None,
-                pending: [None; SLOTS],
-                generation: 0,
-                epoch: 0,
-                save: None,
+            let mut go_on = None;
+            loop {
+                let mut w = Worker::new(backends.clone(), opts, events.clone(), fail);
+                if let Some((scene, settings, factor, generation)) = go_on.take() {
+                    w.set_scene(scene, settings, factor, generation);
+                }
+                if backends.len() == 1 {
+                    return w.run(&rx);
+                }
+                // On several devices the first one's failure is contained: the preview starts
+                // over on the others, from the state it was tracing.
+                let why = match contained(|| w.run(&rx)) {
+                    Ok(()) => return,
+                    Err(why) => why,
+                };
+                let lost = backends.remove(0).describe();
+                tracing::warn!("{lost} failed ({why}); the preview starts over on the others");
+                let _ = events.send(Event::DeviceLost(format!(
+                    "{lost} failed ({why}); the preview starts over on the other devices"
+                )));
+                if w.save.take().is_some() {
+                    let _ = events.send(Event::Saved(Err(format!(
+                        "the save in progress was lost with {lost}; save again"
+                    ))));
+                }
+                go_on = w
+                    .scene
+                    .clone()
+                    .zip(w.preview.as_ref())
+                    .map(|(scene, p)| (scene, p.renderer.settings(), p.factor, w.generation));
+                // Its helpers end with it; the next worker starts them again.
+                drop(w);
                 #[cfg(test)]
-                fail,
-            };
-            if !backends.is_empty() {
-                let every = w.frame_interval();
-                w.helpers = Some(Helpers::spawn(backends, w.options(), every));
+                {
+                    fail = None;
+                }
             }
-            w.run(rx);
         })
         .expect("spawn the render thread");
     (tx, handle)
 }
 
 impl Worker {
+    /// A worker on the first of `backends`, with a helper on each other.
+    fn new(
+        mut backends: Vec<Backend>,
+        opts: WorkerOptions,
+        events: Sender<Event>,
+        #[allow(unused_variables)] fail: Option<(usize, Fail)>,
+    ) -> Worker {
+        let backend = backends.remove(0);
+        let mut w = Worker {
+            resolve: backend.gpu().map(|ctx| ResolvePass::new(&ctx.device)),
+            denoiser: None,
+            host_frame: None,
+            backend,
+            opts,
+            events,
+            preview: None,
+            scene: None,
+            helpers: None,
+            claims: None,
+            pending: [None; SLOTS],
+            generation: 0,
+            epoch: 0,
+            save: None,
+            #[cfg(test)]
+            fail,
+        };
+        if !backends.is_empty() {
+            let every = w.frame_interval();
+            w.helpers = Some(Helpers::spawn(backends, w.options(), every));
+        }
+        w
+    }
+
     /// Time between frame requests: half the UI's frame time, so that a fresh frame is
     /// waiting at each of its draws (a frame is small: reading it back costs little).
     fn frame_interval(&self) -> Duration {
@@ -223,17 +271,19 @@ impl Worker {
             .map_or((0, 0), |h| h.progress(self.epoch))
     }
 
-    /// Whether the preview's accumulation is short of `max_spp` (on every device together).
-    fn preview_busy(&self) -> bool {
-        let (helped, _) = self.helper_progress();
+    /// Whether the preview's accumulation is short of `max_spp` (on every device together),
+    /// with `helped` samples of the other devices (`helper_progress`, read once for each
+    /// decision: a helper may publish between two reads, and a frame tagged as not the last
+    /// that showed every sample left the preview waiting for a last frame forever).
+    fn preview_busy(&self, helped: u32) -> bool {
         self.preview
             .as_ref()
             .is_some_and(|p| p.renderer.samples().saturating_add(helped) < self.opts.max_spp)
     }
 
     /// Whether this thread's device has samples to trace.
-    fn preview_tracing(&self) -> bool {
-        self.preview_busy() && self.preview.as_ref().is_some_and(|p| !p.exhausted)
+    fn preview_tracing(&self, helped: u32) -> bool {
+        self.preview_busy(helped) && self.preview.as_ref().is_some_and(|p| !p.exhausted)
     }
 
     fn frames_pending(&self) -> bool {
@@ -242,8 +292,7 @@ impl Worker {
 
     /// Whether the preview holds samples that no frame has shown yet (from its first look
     /// on; later frames may show a round in progress, as its rows land).
-    fn unshown(&self) -> bool {
-        let (helped, helper_paths) = self.helper_progress();
+    fn unshown(&self, (helped, helper_paths): (u32, u64)) -> bool {
         self.preview.as_ref().is_some_and(|p| {
             (p.renderer.has_image() || helped > 0)
                 && p.last_frame
@@ -251,16 +300,17 @@ impl Worker {
         })
     }
 
-    fn run(&mut self, rx: Receiver<Request>) {
+    fn run(&mut self, rx: &Receiver<Request>) {
         loop {
             self.check_helpers();
             // Wait when there is nothing to do; otherwise take what has arrived.
             let mut requests = Vec::new();
-            let idle = !self.preview_tracing()
+            let progress = self.helper_progress();
+            let idle = !self.preview_tracing(progress.0)
                 && !self.frames_pending()
-                && !self.unshown()
+                && !self.unshown(progress)
                 && self.save.is_none();
-            if idle && self.preview_busy() {
+            if idle && self.preview_busy(progress.0) {
                 // The other devices are still tracing: look at them again shortly.
                 match rx.recv_timeout(HELPER_POLL) {
                     Ok(r) => requests.push(r),
@@ -305,7 +355,7 @@ impl Worker {
                     Request::Quit => return self.finish_save(),
                 }
             }
-            if self.preview_tracing()
+            if self.preview_tracing(self.helper_progress().0)
                 && let Some(p) = &mut self.preview
             {
                 p.renderer.wait(QUEUED - 1);
@@ -438,9 +488,10 @@ impl Worker {
     /// round is queued, later ones at the frame rate, and a last one when tracing stops.
     fn request_frame(&mut self) {
         let interval = self.frame_interval();
-        let busy = self.preview_busy();
-        let unshown = self.unshown();
-        let (helped, helper_paths) = self.helper_progress();
+        let progress = self.helper_progress();
+        let (helped, helper_paths) = progress;
+        let busy = self.preview_busy(helped);
+        let unshown = self.unshown(progress);
         let Some(p) = &mut self.preview else { return };
         let spp = p.renderer.samples() + helped;
         let due = match p.last_frame {
@@ -612,7 +663,7 @@ impl Worker {
             return false;
         }
         // Nothing else to do: wait for the frame rather than spin.
-        let block = !self.preview_busy() && self.save.is_none();
+        let block = !self.preview_busy(self.helper_progress().0) && self.save.is_none();
         let (Some(resolve), Backend::Gpu(ctx)) = (&mut self.resolve, &self.backend) else {
             return true;
         };
@@ -909,6 +960,24 @@ mod tests {
         );
         assert_eq!(lost.len(), 1, "{lost:?}");
         assert!(lost[0].contains("injected"), "{}", lost[0]);
+        assert_eq!(image.pixels, one.pixels);
+    }
+
+    #[test]
+    fn the_first_device_lost_mid_preview_hands_the_preview_over() {
+        // Two CPU tracers, the first (the one making the frames) failing at its second claim:
+        // the UI is told once, and the preview starts over on the second device from the
+        // state it was tracing, and ends on one device's image, bit for bit.
+        let (one, _) = final_frame(vec![Backend::Cpu], 256, &[]);
+        let off = crate::denoise::Mode::Off;
+        let two = vec![Backend::Cpu, Backend::Cpu];
+        let fail = Some((0, Fail::After(1)));
+        let Run {
+            image, stats, lost, ..
+        } = frames(two, (64, 48), 256, &[], off, fail);
+        assert_eq!((stats.spp, stats.helped), (256, 0));
+        assert_eq!(lost.len(), 1, "{lost:?}");
+        assert!(lost[0].contains("starts over"), "{}", lost[0]);
         assert_eq!(image.pixels, one.pixels);
     }
 
