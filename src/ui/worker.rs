@@ -144,6 +144,9 @@ struct Worker {
     /// Counts every restart of the accumulation: frames of an older epoch are dropped.
     epoch: u64,
     save: Option<SaveJob>,
+    /// The last scene request taken (scene, settings, factor, generation): where the others
+    /// go on if this device fails, even in the middle of taking it.
+    requested: Option<(Arc<Scene>, FrameSettings, u32, u64)>,
     /// A test's device failure: this device of every claims fails then.
     #[cfg(test)]
     fail: Option<(usize, Fail)>,
@@ -197,11 +200,7 @@ fn spawn_failing(
                         "the save in progress was lost with {lost}; save again"
                     ))));
                 }
-                go_on = w
-                    .scene
-                    .clone()
-                    .zip(w.preview.as_ref())
-                    .map(|(scene, p)| (scene, p.renderer.settings(), p.factor, w.generation));
+                go_on = w.requested.take();
                 // Its helpers end with it; the next worker starts them again.
                 drop(w);
                 #[cfg(test)]
@@ -238,6 +237,7 @@ impl Worker {
             generation: 0,
             epoch: 0,
             save: None,
+            requested: None,
             #[cfg(test)]
             fail,
         };
@@ -382,6 +382,7 @@ impl Worker {
         generation: u64,
     ) {
         tracing::debug!("scene request {generation}");
+        self.requested = Some((scene.clone(), settings, factor, generation));
         match &mut self.preview {
             Some(p) => {
                 p.renderer.set_scene(&scene, settings);
@@ -965,20 +966,23 @@ mod tests {
 
     #[test]
     fn the_first_device_lost_mid_preview_hands_the_preview_over() {
-        // Two CPU tracers, the first (the one making the frames) failing at its second claim:
-        // the UI is told once, and the preview starts over on the second device from the
-        // state it was tracing, and ends on one device's image, bit for bit.
+        // Two CPU tracers, the first (the one making the frames) failing at its second claim,
+        // and at its first (before any frame, the others not started yet): the UI is told
+        // once, and the preview starts over on the second device from the state it was
+        // tracing, and ends on one device's image, bit for bit.
         let (one, _) = final_frame(vec![Backend::Cpu], 256, &[]);
         let off = crate::denoise::Mode::Off;
-        let two = vec![Backend::Cpu, Backend::Cpu];
-        let fail = Some((0, Fail::After(1)));
-        let Run {
-            image, stats, lost, ..
-        } = frames(two, (64, 48), 256, &[], off, fail);
-        assert_eq!((stats.spp, stats.helped), (256, 0));
-        assert_eq!(lost.len(), 1, "{lost:?}");
-        assert!(lost[0].contains("starts over"), "{}", lost[0]);
-        assert_eq!(image.pixels, one.pixels);
+        for after in [1, 0] {
+            let two = vec![Backend::Cpu, Backend::Cpu];
+            let fail = Some((0, Fail::After(after)));
+            let Run {
+                image, stats, lost, ..
+            } = frames(two, (64, 48), 256, &[], off, fail);
+            assert_eq!((stats.spp, stats.helped), (256, 0));
+            assert_eq!(lost.len(), 1, "{lost:?}");
+            assert!(lost[0].contains("starts over"), "{}", lost[0]);
+            assert_eq!(image.pixels, one.pixels);
+        }
     }
 
     #[test]
