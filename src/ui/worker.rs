@@ -125,8 +125,6 @@ struct Worker {
     opts: WorkerOptions,
     events: Sender<Event>,
     preview: Option<Preview>,
-    /// The scene being previewed (the helpers are given it again on a reset).
-    scene: Option<Arc<Scene>>,
     /// The other devices, and the claims this epoch's samples are shared by.
     helpers: Option<Helpers>,
     claims: Option<Arc<Claims>>,
@@ -144,8 +142,9 @@ struct Worker {
     /// Counts every restart of the accumulation: frames of an older epoch are dropped.
     epoch: u64,
     save: Option<SaveJob>,
-    /// The last scene request taken (scene, settings, factor, generation): where the others
-    /// go on if this device fails, even in the middle of taking it.
+    /// The last scene request taken (scene, settings, factor, generation): the scene the
+    /// helpers are told to trace, and where the others go on if this device fails, even in
+    /// the middle of taking it.
     requested: Option<(Arc<Scene>, FrameSettings, u32, u64)>,
     /// A test's device failure: this device of every claims fails then.
     #[cfg(test)]
@@ -230,7 +229,6 @@ impl Worker {
             opts,
             events,
             preview: None,
-            scene: None,
             helpers: None,
             claims: None,
             pending: [None; SLOTS],
@@ -404,7 +402,6 @@ impl Worker {
                 })
             }
         }
-        self.scene = Some(scene);
         self.generation = generation;
         self.restart_clock();
     }
@@ -474,9 +471,12 @@ impl Worker {
 
     /// Sets the other devices tracing the current state, once.
     fn tell_helpers(&mut self) {
-        let (Some(p), Some(h), Some(scene), Some(claims)) =
-            (&mut self.preview, &self.helpers, &self.scene, &self.claims)
-        else {
+        let (Some(p), Some(h), Some((scene, ..)), Some(claims)) = (
+            &mut self.preview,
+            &self.helpers,
+            &self.requested,
+            &self.claims,
+        ) else {
             return;
         };
         if !p.helpers_told {
