@@ -20,23 +20,14 @@ The numpy copies follow the Rust code's model and constants, not its every detai
 edges, the float type), so their figures are near the bench's (`cargo bench --bench denoise`),
 not equal to them.
 """
-import os
-import subprocess
 import sys
 import tempfile
 
 import numpy as np
-import OpenEXR
+
+from preview_exr import read, render
 
 LW = np.array([0.2126, 0.7152, 0.0722])
-
-
-def read(path):
-    with OpenEXR.File(path) as f:
-        ch = f.channels()
-        if "RGB" in ch:
-            return np.array(ch["RGB"].pixels, dtype=np.float64)
-        return np.stack([np.array(ch[c].pixels, dtype=np.float64) for c in "RGB"], -1)
 
 
 def lum(x):
@@ -145,13 +136,8 @@ def main():
     exe = sys.argv[4] if len(sys.argv) > 4 else "termtrace"
     ref = read(ref_path)
     with tempfile.TemporaryDirectory() as d:
-        for seed in (11, 12):
-            run = subprocess.run([exe, "render", scene, "--width", "120", "--height", "76", "--spp",
-                            spp, "--seed", str(seed), "--denoise", "-q",
-                            "-o", os.path.join(d, f"h{seed}.png")], capture_output=True, text=True)
-            if run.returncode != 0:
-                sys.exit(f"termtrace render failed:\n{run.stderr}")
-        a, b = read(f"{d}/h11-raw.exr"), read(f"{d}/h12-raw.exr")
+        a, b = (read(render(exe, scene, spp, seed, f"{d}/h{seed}.png") + "-raw.exr")
+                for seed in (11, 12))
         alb, nor = read(f"{d}/h11-albedo.exr"), read(f"{d}/h11-normal.exr")
     scale = 1 / (ref**2 + 0.01)
 

@@ -18,21 +18,12 @@ subtracted):
     pip install OpenEXR numpy
     python3 benches/estimate_check.py SCENE REFERENCE.exr [SPP] [PAIRS] [TERMTRACE]
 """
-import os
-import subprocess
 import sys
 import tempfile
 
 import numpy as np
-import OpenEXR
 
-
-def read(path):
-    with OpenEXR.File(path) as f:
-        ch = f.channels()
-        if "RGB" in ch:
-            return np.array(ch["RGB"].pixels, dtype=np.float64)
-        return np.stack([np.array(ch[c].pixels, dtype=np.float64) for c in "RGB"], -1)
+from preview_exr import read, render
 
 
 def box3(a):
@@ -56,15 +47,8 @@ def main():
     trues = []
     with tempfile.TemporaryDirectory() as d:
         for i in range(pairs):
-            halves = []
-            for seed in (11 + 2 * i, 12 + 2 * i):
-                out = os.path.join(d, f"h{seed}.png")
-                run = subprocess.run([exe, "render", scene, "--width", "120", "--height", "76",
-                                      "--spp", spp, "--seed", str(seed), "--denoise", "-q",
-                                      "-o", out], capture_output=True, text=True)
-                if run.returncode != 0:
-                    sys.exit(f"termtrace render failed:\n{run.stderr}")
-                halves.append(read(os.path.join(d, f"h{seed}-raw.exr")))
+            halves = [read(render(exe, scene, spp, seed, f"{d}/h{seed}.png") + "-raw.exr")
+                      for seed in (11 + 2 * i, 12 + 2 * i)]
             a, b = halves
             d2 = 0.25 * (a - b) ** 2
             true = (((a + b) / 2 - ref) ** 2 / (ref**2 + 0.01)).mean()

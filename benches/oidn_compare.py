@@ -12,22 +12,18 @@ converged reference EXR of the same size (e.g. `termtrace converge SCENE --width
     python3 benches/oidn_compare.py SCENE REFERENCE.exr [TERMTRACE]
 """
 import os
-import subprocess
 import sys
 import tempfile
 import time
 
 import numpy as np
-import OpenEXR
 import pyoidn
+
+from preview_exr import read as read_exr, render
 
 
 def read(path):
-    with OpenEXR.File(path) as f:
-        ch = f.channels()
-        if "RGB" in ch:
-            return np.ascontiguousarray(ch["RGB"].pixels, dtype=np.float32)
-        return np.ascontiguousarray(np.stack([ch[c].pixels for c in "RGB"], -1), dtype=np.float32)
+    return read_exr(path, np.float32)
 
 
 def main():
@@ -41,10 +37,7 @@ def main():
     with tempfile.TemporaryDirectory() as d:
         for spp in (16, 64, 256):
             out = os.path.join(d, f"{scene}{spp}.exr")
-            subprocess.run([termtrace, "render", scene, "--width", "120", "--height", "76",
-                            "--spp", str(spp), "--seed", "3", "-o", out, "--denoise", "-q"],
-                           check=True, capture_output=True)
-            stem = out[:-4]
+            stem = render(termtrace, scene, spp, 3, out)
             raw, albedo, normal = (read(f"{stem}-{k}.exr") for k in ("raw", "albedo", "normal"))
             t = time.time()
             oidn = pyoidn.denoise(raw, albedo, normal, hdr=True)
