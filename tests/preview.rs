@@ -247,7 +247,7 @@ fn screen_with_status_lines() {
     let mut a = app();
     a.apply(Action::SelectNext);
     a.apply(Action::SelectNext);
-    a.apply(Action::Choose(Param::Specular));
+    a.apply(Action::Choose(Param::named("specular")));
     insta::assert_snapshot!(screen(&a, 100, 8).backend());
 }
 

@@ -53,6 +53,17 @@ fn c3(v: glam::Vec3) -> String {
     format!("[{}, {}, {}]", v.x, v.y, v.z)
 }
 
+/// A material's colour and every number the parameter table declares for it.
+fn material_values(m: &crate::scene::Material) -> String {
+    let mut parts = vec![format!("color {}", c3(m.color))];
+    for (p, key) in crate::scene::params::material_keys() {
+        if let Some(v) = crate::scene::params::material_value(p, m) {
+            parts.push(format!("{key} {v}"));
+        }
+    }
+    parts.join(", ")
+}
+
 /// A few lines describing a valid scene.
 pub fn summary(s: &Scene) -> String {
     let c = &s.camera;
@@ -102,6 +113,11 @@ pub fn summary(s: &Scene) -> String {
             )
         })
         .collect();
+    let named: String = s
+        .materials
+        .iter()
+        .map(|(name, m)| format!("\n  material   {name}: {}", material_values(m)))
+        .collect();
     let env = s.environment.as_ref().map_or(String::new(), environment);
     let tex = crate::common::textures::words(s).map_or(String::new(), |w| {
         let frames = w[crate::common::textures::FRAMES] as usize;
@@ -123,7 +139,7 @@ pub fn summary(s: &Scene) -> String {
         "{}: ok\n  camera     from {} to {}, vfov {}°, aperture {}, focus distance {}\n  \
          render     {}x{}, {} spp, max_bounces {}, seed {}\n  sky        {}\n  \
          objects    {} ({} spheres, {} quads, {} boxes, {} meshes of {} triangles)\n  \
-         materials  {} Lambertian, {} glossy/metal, {} dielectric, {} emitters; {} named\n  \
+         materials  {} Lambertian, {} glossy/metal, {} dielectric, {} emitters; {} named{named}\n  \
          tracer     {}{env}{gltf}{tex}",
         s.origin,
         v3(c.look_from),

@@ -17,6 +17,7 @@ mod gltf_textures;
 pub mod mesh;
 mod model;
 pub mod obj;
+pub mod params;
 mod parse;
 mod reader;
 pub mod texture;

@@ -7,7 +7,8 @@ use glam::{DMat3, DVec3, Vec3};
 use std::path::Path;
 use std::sync::Arc;
 
-/// The pinhole or thin-lens camera of MODEL.md ("Space and camera").
+/// The pinhole or thin-lens camera of MODEL.md ("Space and camera"); its defaults come
+/// from the parameter table (`params`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
     pub look_from: DVec3,
@@ -29,19 +30,6 @@ impl Camera {
     }
 }
 
-impl Default for Camera {
-    fn default() -> Self {
-        Camera {
-            look_from: DVec3::new(0.0, 0.0, 0.0),
-            look_at: DVec3::new(0.0, 0.0, -1.0),
-            up: DVec3::Y,
-            vfov: 60.0,
-            aperture: 0.0,
-            focus_distance: None,
-        }
-    }
-}
-
 /// The `[render]` table: the settings of a final render.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RenderSettings {
@@ -51,18 +39,6 @@ pub struct RenderSettings {
     pub spp: u32,
     pub max_bounces: u32,
     pub seed: u32,
-}
-
-impl Default for RenderSettings {
-    fn default() -> Self {
-        RenderSettings {
-            width: 640,
-            height: 360,
-            spp: 256,
-            max_bounces: 10,
-            seed: 1,
-        }
-    }
 }
 
 /// Upper bounds that keep a scene file from asking for absurd work by mistake.
@@ -196,7 +172,8 @@ impl Environment {
     }
 }
 
-/// The lecture's four material parameters plus `ior` and `specular_color` (MODEL.md table).
+/// The lecture's four material parameters plus `ior` and `specular_color` (MODEL.md table);
+/// each number's range, steps and default are declared once in `params`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Material {
     /// Albedo, emission colour or glass tint; linear.
@@ -222,21 +199,6 @@ pub struct Material {
 pub const DEFAULT_COLOR: Vec3 = Vec3::new(0.8, 0.8, 0.8);
 /// Default tint of dielectrics.
 pub const DEFAULT_GLASS_COLOR: Vec3 = Vec3::ONE;
-
-impl Default for Material {
-    fn default() -> Self {
-        Material {
-            color: DEFAULT_COLOR,
-            smoothness: 0.0,
-            absorption: 0.0,
-            specular: 1.0,
-            light: 0.0,
-            ior: 1.5,
-            specular_color: None,
-            textured: None,
-        }
-    }
-}
 
 impl Material {
     pub fn is_dielectric(&self) -> bool {

@@ -2,6 +2,7 @@
 
 use super::error::SceneError;
 use super::model::*;
+use super::params::{self, Param};
 use super::reader::{Sink, Table};
 use glam::{DMat4, DVec3, Vec3};
 use std::path::Path;
@@ -38,15 +39,6 @@ const SKY_KEYS: &[&str] = &[
     "visible",
 ];
 const SUN_KEYS: &[&str] = &["direction", "color", "intensity", "size"];
-const MATERIAL_KEYS: &[&str] = &[
-    "color",
-    "smoothness",
-    "absorption",
-    "specular",
-    "light",
-    "ior",
-    "specular_color",
-];
 const SPHERE_KEYS: &[&str] = &["center", "radius"];
 const QUAD_KEYS: &[&str] = &["q", "u", "v"];
 const BOX_KEYS: &[&str] = &["center", "half_extents", "rotation"];
@@ -59,6 +51,14 @@ const GLTF_KEYS: &[&str] = &[
     "camera",
     "materials",
 ];
+/// The keys of a material: its colours and the numbers the parameter table declares.
+fn material_keys() -> Vec<&'static str> {
+    let mut keys = vec!["color"];
+    keys.extend(params::material_keys().map(|(_, k)| k));
+    keys.push("specular_color");
+    keys
+}
+
 /// Keys every object table takes besides its shape and material keys.
 const OBJECT_KEYS: &[&str] = &["name", "material"];
 
@@ -102,13 +102,13 @@ fn read_scene(root: &Table, origin: &str) -> Scene {
     let environment = sky_table.as_ref().and_then(|t| read_environment(t, origin));
 
     let materials: Vec<(String, MaterialPatch)> = root
-        .named_tables("materials", MATERIAL_KEYS)
+        .named_tables("materials", &material_keys())
         .into_iter()
         .map(|(name, t)| (name, MaterialPatch::read(&t)))
         .collect();
 
     let with = |extra: &[&'static str]| -> Vec<&'static str> {
-        [extra, MATERIAL_KEYS, OBJECT_KEYS].concat()
+        [extra, &material_keys(), OBJECT_KEYS].concat()
     };
     let mut objects = Vec::new();
     for t in root.array_of_tables("sphere", &with(SPHERE_KEYS)) {
@@ -166,9 +166,9 @@ fn read_camera(t: &Table) -> Camera {
         look_from: t.vec3("look_from").unwrap_or(d.look_from),
         look_at: t.vec3("look_at").unwrap_or(d.look_at),
         up: t.vec3("up").unwrap_or(d.up),
-        vfov: t.f64_in("vfov", 0.0, 180.0).unwrap_or(d.vfov),
-        aperture: t.f64_in("aperture", 0.0, f64::MAX).unwrap_or(d.aperture),
-        focus_distance: t.f64_above("focus_distance", 0.0),
+        vfov: t.param("camera", "vfov").unwrap_or(d.vfov),
+        aperture: t.param("camera", "aperture").unwrap_or(d.aperture),
+        focus_distance: t.param("camera", "focus_distance"),
     };
     let view = cam.look_at - cam.look_from;
     if view.length() == 0.0 {
@@ -184,13 +184,6 @@ fn read_camera(t: &Table) -> Camera {
             Some("choose an `up` that is not along look_at - look_from, e.g. [0, 1, 0]".into()),
         );
     }
-    if cam.vfov <= 0.0 || cam.vfov >= 180.0 {
-        t.error(
-            "vfov",
-            format!("vfov {} is out of range", cam.vfov),
-            Some("`vfov` must be strictly between 0 and 180 degrees".into()),
-        );
-    }
     cam
 }
 
@@ -201,8 +194,8 @@ fn read_render(t: &Table) -> RenderSettings {
         height: t.u32_in("height", 1, MAX_IMAGE_SIDE).unwrap_or(d.height),
         spp: t.u32_in("spp", 1, u32::MAX).unwrap_or(d.spp),
         max_bounces: t
-            .u32_in("max_bounces", 0, MAX_BOUNCES)
-            .unwrap_or(d.max_bounces),
+            .param("render", "max_bounces")
+            .map_or(d.max_bounces, |b| b as u32),
         seed: t.u32_in("seed", 0, u32::MAX).unwrap_or(d.seed),
     }
 }
@@ -298,11 +291,8 @@ fn read_sun(t: &Table) -> Option<Sun> {
 #[derive(Clone, Default)]
 struct MaterialPatch {
     color: Option<Vec3>,
-    smoothness: Option<f32>,
-    absorption: Option<f32>,
-    specular: Option<f32>,
-    light: Option<f32>,
-    ior: Option<f32>,
+    /// The numbers of the parameter table, by parameter.
+    numbers: Vec<(Param, f32)>,
     specular_color: Option<Vec3>,
 }
 
@@ -310,24 +300,24 @@ impl MaterialPatch {
     fn read(t: &Table) -> MaterialPatch {
         MaterialPatch {
             color: t.color("color"),
-            smoothness: t.f64_in("smoothness", -1.0, 1.0).map(|x| x as f32),
-            absorption: t.f64_in("absorption", 0.0, 1.0).map(|x| x as f32),
-            specular: t.f64_in("specular", 0.0, 1.0).map(|x| x as f32),
-            light: t.f64_in("light", 0.0, f64::MAX).map(|x| x as f32),
-            ior: t.f64_above("ior", 0.0).map(|x| x as f32),
+            numbers: params::material_keys()
+                .filter_map(|(p, key)| Some((p, t.param("material", key)? as f32)))
+                .collect(),
             specular_color: t.color("specular_color"),
         }
+    }
+
+    fn number(&self, p: Param) -> Option<f32> {
+        self.numbers.iter().find(|(q, _)| *q == p).map(|(_, v)| *v)
     }
 
     /// `self` over `base`: keys given here win.
     fn over(&self, base: &MaterialPatch) -> MaterialPatch {
         MaterialPatch {
             color: self.color.or(base.color),
-            smoothness: self.smoothness.or(base.smoothness),
-            absorption: self.absorption.or(base.absorption),
-            specular: self.specular.or(base.specular),
-            light: self.light.or(base.light),
-            ior: self.ior.or(base.ior),
+            numbers: params::material_keys()
+                .filter_map(|(p, _)| Some((p, self.number(p).or(base.number(p))?)))
+                .collect(),
             specular_color: self.specular_color.or(base.specular_color),
         }
     }
@@ -336,34 +326,26 @@ impl MaterialPatch {
     fn of(m: &Material) -> MaterialPatch {
         MaterialPatch {
             color: Some(m.color),
-            smoothness: Some(m.smoothness),
-            absorption: Some(m.absorption),
-            specular: Some(m.specular),
-            light: Some(m.light),
-            ior: Some(m.ior),
+            numbers: params::material_keys()
+                .filter_map(|(p, _)| Some((p, params::material_value(p, m)?)))
+                .collect(),
             specular_color: m.specular_color,
         }
     }
 
     /// Fills the defaults of MODEL.md; a dielectric's default colour is white.
     fn resolve(&self) -> Material {
-        let d = Material::default();
-        let smoothness = self.smoothness.unwrap_or(d.smoothness);
-        let default_color = if smoothness < 0.0 {
+        let mut m = Material::default();
+        for (p, v) in &self.numbers {
+            params::set_material_value(*p, &mut m, *v);
+        }
+        m.color = self.color.unwrap_or(if m.is_dielectric() {
             DEFAULT_GLASS_COLOR
         } else {
             DEFAULT_COLOR
-        };
-        Material {
-            color: self.color.unwrap_or(default_color),
-            smoothness,
-            absorption: self.absorption.unwrap_or(d.absorption),
-            specular: self.specular.unwrap_or(d.specular),
-            light: self.light.unwrap_or(d.light),
-            ior: self.ior.unwrap_or(d.ior),
-            specular_color: self.specular_color,
-            textured: None,
-        }
+        });
+        m.specular_color = self.specular_color;
+        m
     }
 }
 
@@ -541,7 +523,7 @@ fn read_gltf(
             return None;
         }
     };
-    let overrides = t.named_tables("materials", MATERIAL_KEYS);
+    let overrides = t.named_tables("materials", &material_keys());
     let keys: Vec<&str> = imported.materials.iter().map(|(k, _)| k.as_str()).collect();
     for (name, o) in &overrides {
         if !keys.contains(&name.as_str()) {

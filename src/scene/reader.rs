@@ -3,9 +3,9 @@
 
 use super::color;
 use super::error::Diagnostic;
+use super::params::{self, Range};
 use glam::{DVec3, Vec3};
 use std::cell::RefCell;
-use std::ops::Range;
 use toml::Spanned;
 use toml::de::{DeTable, DeValue};
 
@@ -25,7 +25,13 @@ impl<'s> Sink<'s> {
         }
     }
 
-    pub fn error(&self, span: Range<usize>, key: String, message: String, help: Option<String>) {
+    pub fn error(
+        &self,
+        span: std::ops::Range<usize>,
+        key: String,
+        message: String,
+        help: Option<String>,
+    ) {
         let d = Diagnostic::at(self.file, self.src, span, key, message, help);
         self.diags.borrow_mut().push(d);
     }
@@ -51,7 +57,7 @@ pub(crate) fn suggest<'k>(key: &str, valid: &[&'k str]) -> Option<&'k str> {
 pub(crate) struct Table<'a, 's> {
     sink: &'a Sink<'s>,
     table: &'a DeTable<'s>,
-    span: Range<usize>,
+    span: std::ops::Range<usize>,
     ctx: String,
 }
 
@@ -60,7 +66,7 @@ impl<'a, 's> Table<'a, 's> {
     pub fn new(
         sink: &'a Sink<'s>,
         table: &'a DeTable<'s>,
-        span: Range<usize>,
+        span: std::ops::Range<usize>,
         ctx: String,
         allowed: &[&str],
     ) -> Self {
@@ -101,7 +107,7 @@ impl<'a, 's> Table<'a, 's> {
     }
 
     /// Span of a key's value, or of the table when the key is absent.
-    pub fn span_of(&self, key: &str) -> Range<usize> {
+    pub fn span_of(&self, key: &str) -> std::ops::Range<usize> {
         self.get(key).map_or(self.span.clone(), |v| v.span())
     }
 
@@ -160,39 +166,41 @@ impl<'a, 's> Table<'a, 's> {
 
     /// A finite number in `[lo, hi]`.
     pub fn f64_in(&self, key: &str, lo: f64, hi: f64) -> Option<f64> {
+        self.f64_range(key, &Range::closed(lo, hi), "")
+    }
+
+    /// A finite number in `range` (`unit` follows the range in the error's help).
+    fn f64_range(&self, key: &str, range: &Range, unit: &str) -> Option<f64> {
         let v = self.get(key)?;
         let x = self.number(key, v)?;
-        if x < lo || x > hi {
-            let range = if hi == f64::MAX {
-                format!("at least {lo}")
+        if !range.contains(x) {
+            let unit = if unit.is_empty() {
+                String::new()
             } else {
-                format!("between {lo} and {hi}")
+                format!(" {unit}")
             };
             self.sink.error(
                 v.span(),
                 self.label(key),
                 format!("{x} is out of range"),
-                Some(format!("`{key}` must be {range}")),
+                Some(format!("`{key}` must be {}{unit}", range.describe())),
             );
             return None;
         }
         Some(x)
     }
 
-    /// A finite number strictly greater than `lo`.
-    pub fn f64_above(&self, key: &str, lo: f64) -> Option<f64> {
-        let v = self.get(key)?;
-        let x = self.number(key, v)?;
-        if x <= lo {
-            self.sink.error(
-                v.span(),
-                self.label(key),
-                format!("{x} is out of range"),
-                Some(format!("`{key}` must be greater than {lo}")),
-            );
-            return None;
+    /// The value of the parameter that `[table] key` sets (`params`), checked against its
+    /// declared range (a whole number where it counts).
+    pub fn param(&self, table: &str, key: &str) -> Option<f64> {
+        let s = params::for_toml(table, key).spec();
+        if s.step == params::Step::Count {
+            return self
+                .u32_in(key, s.range.lo as u32, s.range.hi as u32)
+                .map(f64::from);
         }
-        Some(x)
+        let unit = if s.unit == "degrees" { s.unit } else { "" };
+        self.f64_range(key, &s.range, unit)
     }
 
     /// An integer in `[lo, hi]`.

@@ -2,6 +2,7 @@
 //! loaded back to the same scene.
 
 use super::color::to_hex_exact;
+use super::params;
 use super::*;
 use glam::{DVec3, Vec3};
 use std::fmt::Write;
@@ -36,16 +37,13 @@ fn material_lines(out: &mut String, m: &Material, base: &Material) {
     if m.color != base_color {
         let _ = writeln!(out, "color = {}", col(m.color));
     }
-    let scalars = [
-        ("smoothness", m.smoothness, base.smoothness),
-        ("absorption", m.absorption, base.absorption),
-        ("specular", m.specular, base.specular),
-        ("light", m.light, base.light),
-        ("ior", m.ior, base.ior),
-    ];
-    for (k, v, b) in scalars {
-        if v != b {
-            let _ = writeln!(out, "{k} = {v}");
+    for (p, key) in params::material_keys() {
+        let (v, b) = (
+            params::material_value(p, m),
+            params::material_value(p, base),
+        );
+        if let (Some(v), true) = (v, v != b) {
+            let _ = writeln!(out, "{key} = {v}");
         }
     }
     if m.specular_color != base.specular_color

@@ -4,8 +4,7 @@
 use super::keys::{Action, Param};
 use crate::output::LinearImage;
 use crate::output::cells::CellMode;
-use crate::scene::color::{linear_to_srgb, srgb_to_linear};
-use crate::scene::{MAX_BOUNCES, Material, Scene, Shape};
+use crate::scene::{Material, Scene, Shape};
 use glam::{DMat3, DVec3};
 use std::time::{Duration, Instant};
 
@@ -100,7 +99,7 @@ impl App {
             original: scene.clone(),
             scene,
             selected: 0,
-            param: Param::Smoothness,
+            param: Param::named("smoothness"),
             mode: Mode::Preview,
             cells,
             nee: true,
@@ -144,22 +143,7 @@ impl App {
 
     /// The current value of a parameter, for display.
     pub fn value(&self, p: Param) -> Option<f64> {
-        let cam = &self.scene.camera;
-        let m = self.selected_material();
-        Some(match p {
-            Param::Smoothness => m?.smoothness as f64,
-            Param::Absorption => m?.absorption as f64,
-            Param::Specular => m?.specular as f64,
-            Param::Light => m?.light as f64,
-            Param::Ior => m?.ior as f64,
-            Param::Red => linear_to_srgb(m?.color.x as f64),
-            Param::Green => linear_to_srgb(m?.color.y as f64),
-            Param::Blue => linear_to_srgb(m?.color.z as f64),
-            Param::Aperture => cam.aperture,
-            Param::Focus => cam.focus(),
-            Param::Bounces => self.scene.render.max_bounces as f64,
-            Param::Fov => cam.vfov,
-        })
+        p.value(&self.scene, self.selected_material())
     }
 
     /// Applies a key's action.
@@ -204,8 +188,9 @@ impl App {
                 Effect::SceneChanged
             }
             Action::Zoom(k) => {
+                let fov = Param::named("fov").spec();
                 let cam = &mut self.scene.camera;
-                cam.vfov = (cam.vfov * k).clamp(1.0, 170.0);
+                cam.vfov = fov.range.clamp(cam.vfov * k, fov.fine);
                 Effect::SceneChanged
             }
             Action::RotateSky(deg) => match &mut self.scene.environment {
@@ -278,89 +263,26 @@ impl App {
     }
 
     fn adjust(&mut self, up: bool, coarse: bool) -> Effect {
-        let sign = if up { 1.0 } else { -1.0 };
         let p = self.param;
-        if p.is_material() {
-            let Some(obj) = self.scene.objects.get_mut(self.selected) else {
-                return Effect::None;
-            };
-            let m = &mut obj.material;
-            let step = |fine: f32, big: f32| sign * if coarse { big } else { fine };
-            let before = m.clone();
-            match p {
-                Param::Smoothness => {
-                    m.smoothness = snap(m.smoothness + step(0.01, 0.1)).clamp(-1.0, 1.0)
-                }
-                Param::Absorption => {
-                    m.absorption = snap(m.absorption + step(0.01, 0.1)).clamp(0.0, 1.0)
-                }
-                Param::Specular => m.specular = snap(m.specular + step(0.01, 0.1)).clamp(0.0, 1.0),
-                Param::Light => m.light = snap(m.light + step(0.1, 1.0)).max(0.0),
-                Param::Ior => m.ior = snap(m.ior + step(0.01, 0.1)).clamp(0.05, 10.0),
-                Param::Red | Param::Green | Param::Blue => {
-                    let c = match p {
-                        Param::Red => &mut m.color.x,
-                        Param::Green => &mut m.color.y,
-                        _ => &mut m.color.z,
-                    };
-                    let encoded = linear_to_srgb(*c as f64) as f32 + step(0.01, 0.1);
-                    *c = srgb_to_linear(snap(encoded).clamp(0.0, 1.0) as f64) as f32;
-                }
-                _ => unreachable!("camera parameters are handled below"),
-            }
-            if *m == before {
-                return Effect::None;
-            }
-            // A glTF material is edited as one: every object of the same file that uses it
-            // changes with the selected one (and `w` writes it as one override).
-            let (m, from, key) = (m.clone(), obj.gltf, obj.material_name.clone());
-            if from.is_some() {
-                for o in &mut self.scene.objects {
-                    if o.gltf == from && o.material_name == key {
-                        o.material = m.clone();
-                    }
-                }
-            }
+        if !p.is_material() {
+            p.adjust_scene(&mut self.scene, up, coarse);
             return Effect::SceneChanged;
         }
-        let cam = &mut self.scene.camera;
-        let focus = cam.focus();
-        match p {
-            Param::Aperture => {
-                let k: f64 = if coarse { 1.5 } else { 1.1 };
-                cam.aperture = if cam.aperture <= 0.0 {
-                    if up {
-                        focus * if coarse { 0.02 } else { 0.002 }
-                    } else {
-                        0.0
-                    }
-                } else if up {
-                    cam.aperture * k
-                } else if cam.aperture / k < focus * 1e-4 {
-                    0.0
-                } else {
-                    cam.aperture / k
-                };
+        let Some(obj) = self.scene.objects.get_mut(self.selected) else {
+            return Effect::None;
+        };
+        if !p.adjust_material(&mut obj.material, up, coarse) {
+            return Effect::None;
+        }
+        // A glTF material is edited as one: every object of the same file that uses it
+        // changes with the selected one (and `w` writes it as one override).
+        let (m, from, key) = (obj.material.clone(), obj.gltf, obj.material_name.clone());
+        if from.is_some() {
+            for o in &mut self.scene.objects {
+                if o.gltf == from && o.material_name == key {
+                    o.material = m.clone();
+                }
             }
-            Param::Focus => {
-                let k: f64 = if coarse { 1.2 } else { 1.02 };
-                cam.focus_distance = Some(if up { focus * k } else { focus / k });
-            }
-            Param::Bounces => {
-                let b = self.scene.render.max_bounces;
-                let nb = match (up, coarse) {
-                    (true, false) => b.saturating_add(1),
-                    (false, false) => b.saturating_sub(1),
-                    (true, true) => b.saturating_mul(2).max(1),
-                    (false, true) => b / 2,
-                };
-                self.scene.render.max_bounces = nb.min(MAX_BOUNCES);
-            }
-            Param::Fov => {
-                let d = if coarse { 10.0 } else { 1.0 };
-                cam.vfov = (cam.vfov + sign as f64 * d).clamp(1.0, 170.0);
-            }
-            _ => unreachable!("material parameters are handled above"),
         }
         Effect::SceneChanged
     }
@@ -419,11 +341,6 @@ impl App {
     }
 }
 
-/// Rounds away float noise from repeated steps (0.1 + 0.01 + … stays on the 0.001 grid).
-fn snap(x: f32) -> f32 {
-    (x * 1000.0).round() / 1000.0
-}
-
 /// A value for the status line: up to three decimals, no trailing zeros.
 pub fn fmt_value(x: f64) -> String {
     if x.abs() >= 1000.0 {
@@ -480,7 +397,7 @@ mod tests {
         let mut a = app();
         press(&mut a, KeyCode::Tab); // "matte", smoothness 0.95, specular 0
         press(&mut a, KeyCode::Char('3'));
-        assert_eq!(a.param, Param::Specular);
+        assert_eq!(a.param, Param::named("specular"));
         assert_eq!(press(&mut a, KeyCode::Char('+')), Effect::SceneChanged);
         assert_eq!(a.scene.objects[1].material.specular, 0.01);
         assert_eq!(press(&mut a, KeyCode::Char(']')), Effect::SceneChanged);
@@ -505,9 +422,9 @@ mod tests {
         assert_eq!(a.scene.objects[0].material.smoothness, -1.0);
         assert!(a.scene.objects[0].material.is_dielectric());
         press(&mut a, KeyCode::Char('6'));
-        let before = a.value(Param::Red).unwrap();
+        let before = a.value(Param::named("red")).unwrap();
         press(&mut a, KeyCode::Char(']'));
-        assert!((a.value(Param::Red).unwrap() - (before + 0.1)).abs() < 2e-3);
+        assert!((a.value(Param::named("red")).unwrap() - (before + 0.1)).abs() < 2e-3);
     }
 
     #[test]

@@ -1,71 +1,9 @@
 //! The preview's key bindings: one table drives dispatch, the `?` help overlay and the
-//! README's key list.
+//! README's key list (the parameters' keys come from `scene::params`).
 
 use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
 
-/// A parameter the `+ - [ ]` keys adjust.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Param {
-    Smoothness,
-    Absorption,
-    Specular,
-    Light,
-    Ior,
-    Red,
-    Green,
-    Blue,
-    Aperture,
-    Focus,
-    Bounces,
-    Fov,
-}
-
-impl Param {
-    pub const ALL: [Param; 12] = [
-        Param::Smoothness,
-        Param::Absorption,
-        Param::Specular,
-        Param::Light,
-        Param::Ior,
-        Param::Red,
-        Param::Green,
-        Param::Blue,
-        Param::Aperture,
-        Param::Focus,
-        Param::Bounces,
-        Param::Fov,
-    ];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Param::Smoothness => "smoothness",
-            Param::Absorption => "absorption",
-            Param::Specular => "specular",
-            Param::Light => "light",
-            Param::Ior => "ior",
-            Param::Red => "red",
-            Param::Green => "green",
-            Param::Blue => "blue",
-            Param::Aperture => "aperture",
-            Param::Focus => "focus",
-            Param::Bounces => "bounces",
-            Param::Fov => "fov",
-        }
-    }
-
-    /// Parameters of the selected object's material (the others belong to the camera).
-    pub fn is_material(self) -> bool {
-        !matches!(
-            self,
-            Param::Aperture | Param::Focus | Param::Bounces | Param::Fov
-        )
-    }
-
-    pub fn next(self) -> Param {
-        let i = Param::ALL.iter().position(|p| *p == self).unwrap_or(0);
-        Param::ALL[(i + 1) % Param::ALL.len()]
-    }
-}
+pub use crate::scene::params::Param;
 
 /// What a key does.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -114,23 +52,21 @@ pub struct Binding {
     pub help: &'static str,
 }
 
-/// The help overlay's lines, in order.
+/// The help overlay's lines, in order: [`BINDINGS`]' first, the parameters' keys from their
+/// table (`scene::params`), then the rest.
+pub fn help_lines() -> Vec<(String, String)> {
+    let line = |b: &Binding| (b.keys.to_string(), b.help.to_string());
+    let mut lines = vec![line(&BINDINGS[0])];
+    lines.extend(crate::scene::params::help_lines());
+    lines.extend(BINDINGS[1..].iter().map(line));
+    lines
+}
+
+/// The help's lines for the keys that are not a parameter's.
 pub const BINDINGS: &[Binding] = &[
     Binding {
         keys: "Tab / Shift-Tab",
         help: "select the next / previous object",
-    },
-    Binding {
-        keys: "1 2 3 4 5",
-        help: "adjust smoothness, absorption, specular, light, ior",
-    },
-    Binding {
-        keys: "6 7 8",
-        help: "adjust the colour's red, green, blue (sRGB)",
-    },
-    Binding {
-        keys: "9 0 b v",
-        help: "adjust aperture, focus distance, max bounces, field of view",
     },
     Binding {
         keys: "m",
@@ -222,11 +158,7 @@ pub fn action(key: KeyEvent) -> Option<Action> {
     Some(match key.code {
         KeyCode::Tab => SelectNext,
         KeyCode::BackTab => SelectPrev,
-        KeyCode::Char(c @ '1'..='8') => Choose(Param::ALL[c as usize - '1' as usize]),
-        KeyCode::Char('9') => Choose(Param::Aperture),
-        KeyCode::Char('0') => Choose(Param::Focus),
-        KeyCode::Char('b') => Choose(Param::Bounces),
-        KeyCode::Char('v') => Choose(Param::Fov),
+        KeyCode::Char(c) if Param::by_key(c).is_some() => Choose(Param::by_key(c)?),
         KeyCode::Char('m') => NextParam,
         KeyCode::Char('+') | KeyCode::Char('=') => Adjust {
             up: true,

@@ -1,8 +1,9 @@
 //! Drawing the preview: the image cells, two status lines, the help overlay.
 
 use super::app::{App, Mode, fmt_value};
-use super::keys::{BINDINGS, Param};
+use super::keys::{Param, help_lines};
 use crate::output::cells::{Cell, CellColor};
+use crate::scene::params::Group;
 use ratatui::buffer::Buffer;
 use ratatui::layout::Rect;
 use ratatui::style::{Color, Modifier, Style};
@@ -265,32 +266,20 @@ fn params_spans(app: &App, camera: bool, hint: bool) -> Vec<Span<'static>> {
         format!(" ▸ {}", app.selected_label()),
         Style::new().add_modifier(Modifier::BOLD),
     )];
-    let shown: &[(Param, &str)] = &[
-        (Param::Smoothness, "smooth"),
-        (Param::Absorption, "absorb"),
-        (Param::Specular, "spec"),
-        (Param::Light, "light"),
-        (Param::Ior, "ior"),
-        (Param::Red, "r"),
-        (Param::Green, "g"),
-        (Param::Blue, "b"),
-        (Param::Aperture, "aperture"),
-        (Param::Focus, "focus"),
-        (Param::Bounces, "bounces"),
-        (Param::Fov, "fov"),
-    ];
-    for (p, label) in shown {
-        if !camera && !p.is_material() && *p != app.param {
+    let mut previous = None;
+    for p in Param::all() {
+        let spec = p.spec();
+        if !camera && !p.is_material() && p != app.param {
             continue;
         }
-        let Some(v) = app.value(*p) else { continue };
-        spans.push(Span::raw(if matches!(p, Param::Green | Param::Blue) {
-            " "
-        } else {
-            "  "
-        }));
+        let Some(v) = app.value(p) else { continue };
+        // A group's colour channels stand closer together: `r 0.5 g 0.5 b 0.5`.
+        let close = spec.group == Group::Colour && previous == Some(Group::Colour);
+        spans.push(Span::raw(if close { " " } else { "  " }));
+        previous = Some(spec.group);
+        let label = spec.label;
         let text = format!("{label} {}", fmt_value(v));
-        if *p == app.param {
+        if p == app.param {
             spans.push(Span::styled(
                 text,
                 Style::new().add_modifier(Modifier::REVERSED),
@@ -310,19 +299,20 @@ fn params_spans(app: &App, camera: bool, hint: bool) -> Vec<Span<'static>> {
 
 /// The key help, centred over `area`.
 pub fn help(area: Rect, buf: &mut Buffer) {
-    let key_width = BINDINGS
+    let bindings = help_lines();
+    let key_width = bindings
         .iter()
-        .map(|b| b.keys.chars().count())
+        .map(|(keys, _)| keys.chars().count())
         .max()
         .unwrap_or(0);
-    let help_width = BINDINGS
+    let help_width = bindings
         .iter()
-        .map(|b| b.help.chars().count())
+        .map(|(_, help)| help.chars().count())
         .max()
         .unwrap_or(0);
     // A space, the keys, two spaces, the help, a space; plus the two borders.
     let width = (1 + key_width + 2 + help_width + 1 + 2) as u16;
-    let height = BINDINGS.len() as u16 + 2;
+    let height = bindings.len() as u16 + 2;
     let w = width.min(area.width);
     let h = height.min(area.height);
     let r = Rect {
@@ -332,15 +322,15 @@ pub fn help(area: Rect, buf: &mut Buffer) {
         height: h,
     };
     Clear.render(r, buf);
-    let lines: Vec<Line> = BINDINGS
+    let lines: Vec<Line> = bindings
         .iter()
-        .map(|b| {
+        .map(|(keys, help)| {
             Line::from(vec![
                 Span::styled(
-                    format!(" {:>key_width$}", b.keys),
+                    format!(" {keys:>key_width$}"),
                     Style::new().add_modifier(Modifier::BOLD),
                 ),
-                Span::raw(format!("  {}", b.help)),
+                Span::raw(format!("  {help}")),
             ])
         })
         .collect();
