@@ -9,9 +9,9 @@ use common::*;
 use std::path::Path;
 use std::process::Command;
 use std::sync::Arc;
+use termtrace::common::accum::Sums;
 use termtrace::gpu::GpuContext;
 use termtrace::render::multi::Team;
-use termtrace::render::shard::add_words;
 use termtrace::render::{Backend, RenderOptions, Renderer};
 use termtrace::scene::Scene;
 
@@ -24,7 +24,7 @@ fn second_device() -> Backend {
 }
 
 /// Samples `range` of every pixel traced by one renderer on `b`: its exact sums.
-fn alone(b: Backend, scene: &Scene, range: std::ops::Range<u32>) -> (Vec<u32>, Vec<u32>, u64) {
+fn alone(b: Backend, scene: &Scene, range: std::ops::Range<u32>) -> Sums {
     let options = RenderOptions {
         first_sample: range.start,
         ..Default::default()
@@ -57,7 +57,7 @@ fn two_devices_alike_make_one_devices_image_bit_for_bit() {
     ] {
         for range in [0..16, 5..18] {
             let one = alone(pair[0].clone(), &scene, range.clone());
-            assert!(one.0.iter().any(|w| *w != 0));
+            assert!(one.even.iter().any(|w| *w != 0));
             let t = team(&pair, &scene, range.clone());
             let shares = t.shares();
             let claimed: u64 = shares.iter().map(|s| s.samples).sum();
@@ -85,15 +85,16 @@ fn unlike_devices_add_up_to_what_each_traced_alone() {
     let scene = Scene::load("showcase").unwrap();
     let backends = [Backend::Gpu(ctx()), Backend::Cpu];
     let t = team(&backends, &scene, 0..20);
-    let (mut even, mut odd, mut invalid) = (vec![0u32; 24 * 16 * 10], vec![0u32; 24 * 16 * 10], 0);
+    let mut total = Sums {
+        even: vec![0u32; 24 * 16 * 10],
+        odd: vec![0u32; 24 * 16 * 10],
+        invalid: 0,
+    };
     let mut covered = Vec::new();
     for (b, share) in backends.iter().zip(t.shares()) {
         for range in share.ranges {
             covered.push(range.clone());
-            let (e, o, n) = alone(b.clone(), &scene, range);
-            add_words(&mut even, &e);
-            add_words(&mut odd, &o);
-            invalid += n;
+            total.add(&alone(b.clone(), &scene, range));
         }
     }
     covered.sort_by_key(|r| r.start);
@@ -104,7 +105,7 @@ fn unlike_devices_add_up_to_what_each_traced_alone() {
     }
     expect.push(20);
     assert_eq!(tiled, expect, "the claims tile 0..20 once");
-    assert_eq!(t.exact_sums(), (even, odd, invalid));
+    assert_eq!(t.exact_sums(), total);
 }
 
 fn termtrace(dir: &Path) -> Command {

@@ -5,9 +5,9 @@
 mod common;
 use common::*;
 use termtrace::common::Resolved;
+use termtrace::common::accum::Sums;
 use termtrace::gpu::resolve::ResolvePass;
 use termtrace::output::cells;
-use termtrace::render::shard::add_words;
 use termtrace::render::{Backend, RenderOptions, Renderer};
 use termtrace::scene::Scene;
 
@@ -92,13 +92,14 @@ fn the_gpu_resolve_adds_another_devices_sums_exactly() {
         },
     );
     cpu.render_spp(7);
-    let (mut even, mut odd, invalid) = gpu.exact_sums();
-    let (ce, co, ci) = cpu.exact_sums();
-    add_words(&mut even, &ce);
-    add_words(&mut odd, &co);
+    let mut total = gpu.exact_sums();
+    let cpu_sums = cpu.exact_sums();
+    total.add(&cpu_sums);
+    let Sums { even, odd, invalid } = total;
+    let (ce, co) = (cpu_sums.even, cpu_sums.odd);
     let mut pass = ResolvePass::new(&ctx.device);
     for factor in [1, 2] {
-        let host = Resolved::from_sums(&even, &odd, (s.width, s.height), factor, invalid + ci);
+        let host = Resolved::from_sums(&even, &odd, (s.width, s.height), factor, invalid);
         pass.set_extra(&ctx, &ce, &co);
         let slot = pass
             .request(
@@ -126,8 +127,8 @@ fn the_gpu_resolve_adds_another_devices_sums_exactly() {
             )
             .unwrap();
         let own = take(&ctx, &mut pass, slot);
-        let (ge, go, gi) = gpu.exact_sums();
-        let alone = Resolved::from_sums(&ge, &go, (s.width, s.height), factor, gi);
+        let g = gpu.exact_sums();
+        let alone = Resolved::from_sums(&g.even, &g.odd, (s.width, s.height), factor, g.invalid);
         let what = format!("factor {factor}, cleared");
         assert_close(&own.image.pixels, &alone.image.pixels, &what);
         assert_ne!(own.image.pixels, both.image.pixels);

@@ -24,7 +24,7 @@ fn part(b: Backend, scene: &Scene, i: u32, k: u32) -> Part {
     };
     let mut r = Renderer::new(b, scene, s, options);
     r.render_spp(end - first);
-    let (even, odd, invalid) = r.exact_sums();
+    let termtrace::common::accum::Sums { even, odd, invalid } = r.exact_sums();
     Part {
         header: Header::new(scene, &s, SPP, (i, k), invalid),
         even,

@@ -166,6 +166,15 @@ pub fn main() -> ExitCode {
         }
     }
     let is_view = matches!(cli.command, None | Some(Command::View(_)));
+    if !is_view {
+        // A command whose output is piped into `head` ends quietly when the reader has gone,
+        // as Unix tools do, instead of panicking on a broken pipe.
+        #[cfg(unix)]
+        // SAFETY: SIG_DFL installs no handler; it only restores the default disposition.
+        unsafe {
+            libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+        }
+    }
     if let Err(e) = init_logging(&cli.global, !is_view) {
         eprintln!("error: {e:#}");
         return ExitCode::FAILURE;

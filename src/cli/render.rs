@@ -523,7 +523,7 @@ fn run_shard(
         );
         return Ok(ExitCode::from(130));
     }
-    let (even, odd, invalid) = team.exact_sums();
+    let crate::common::accum::Sums { even, odd, invalid } = team.exact_sums();
     let part = Part {
         header: Header::new(scene, &settings, spp, (i, k), invalid),
         even,

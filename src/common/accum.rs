@@ -48,3 +48,41 @@ pub fn decode_pixel(p: &[u32]) -> [f32; 4] {
 pub fn decode(words: &[u32]) -> Vec<[f32; 4]> {
     words.chunks_exact(ACCUM_WORDS).map(decode_pixel).collect()
 }
+
+/// Adds the sums `b` to `a`, word for word as the tracers add samples: per pixel three
+/// 96-bit fixed-point channels (fraction, low, high) and a sample count.
+pub fn add_words(a: &mut [u32], b: &[u32]) {
+    for (p, q) in a
+        .chunks_exact_mut(ACCUM_WORDS)
+        .zip(b.chunks_exact(ACCUM_WORDS))
+    {
+        for c in 0..3 {
+            let v = |w: &[u32]| {
+                w[3 * c] as u128 | (w[3 * c + 1] as u128) << 32 | (w[3 * c + 2] as u128) << 64
+            };
+            let s = (v(p) + v(q)) & ((1u128 << 96) - 1);
+            p[3 * c] = s as u32;
+            p[3 * c + 1] = (s >> 32) as u32;
+            p[3 * c + 2] = (s >> 64) as u32;
+        }
+        p[ACCUM_WORDS - 1] = p[ACCUM_WORDS - 1].wrapping_add(q[ACCUM_WORDS - 1]);
+    }
+}
+
+/// A device's exact sums of an image (`ACCUM_WORDS` words per pixel, each half) and the
+/// samples it discarded as invalid, as `Renderer::exact_sums` reads them.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Sums {
+    pub even: Vec<u32>,
+    pub odd: Vec<u32>,
+    pub invalid: u64,
+}
+
+impl Sums {
+    /// Adds the sums of another device (or part) of the same image.
+    pub fn add(&mut self, other: &Sums) {
+        add_words(&mut self.even, &other.even);
+        add_words(&mut self.odd, &other.odd);
+        self.invalid += other.invalid;
+    }
+}

@@ -27,7 +27,7 @@ pub mod texture;
 pub mod trace;
 
 use crate::common::Resolved;
-use crate::common::accum::{ACCUM_WORDS, AccumData, decode};
+use crate::common::accum::{ACCUM_WORDS, AccumData, Sums, decode};
 use crate::common::guides::{GUIDE_SEED, GUIDE_WORDS, Guides};
 use crate::common::layout::DispatchUniforms;
 use crate::common::{Features, FrameSettings};
@@ -362,8 +362,12 @@ impl CpuEngine {
     }
 
     /// The exact sums (even, odd) and the invalid samples.
-    pub fn exact_sums(&self) -> (Vec<u32>, Vec<u32>, u64) {
-        (self.even.clone(), self.odd.clone(), self.counters.invalid)
+    pub fn exact_sums(&self) -> Sums {
+        Sums {
+            even: self.even.clone(),
+            odd: self.odd.clone(),
+            invalid: self.counters.invalid,
+        }
     }
 
     /// The sums on the host, as the GPU's readback gives them.

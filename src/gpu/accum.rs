@@ -4,7 +4,7 @@
 //! readback.
 
 use super::GpuContext;
-use crate::common::accum::{ACCUM_WORDS, AccumData, decode};
+use crate::common::accum::{ACCUM_WORDS, AccumData, Sums, decode};
 
 const PIXEL_BYTES: u64 = 4 * ACCUM_WORDS as u64;
 /// One lane's sums of one pixel in `scratch`: both halves.
@@ -77,14 +77,12 @@ impl Accumulation {
     }
 
     /// Copies the exact sums (even, odd) and the invalid count back to the host, undecoded.
-    pub fn read_words(&self, ctx: &GpuContext) -> (Vec<u32>, Vec<u32>, u64) {
+    pub fn read_words(&self, ctx: &GpuContext) -> Sums {
         let n = self.pixels as usize * ACCUM_WORDS;
-        self.read_with(ctx, |words, c| {
-            (
-                words[..n].to_vec(),
-                words[n..].to_vec(),
-                c[0] as u64 | (c[1] as u64) << 32,
-            )
+        self.read_with(ctx, |words, c| Sums {
+            even: words[..n].to_vec(),
+            odd: words[n..].to_vec(),
+            invalid: c[0] as u64 | (c[1] as u64) << 32,
         })
     }
 

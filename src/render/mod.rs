@@ -23,6 +23,7 @@ pub use schedule::Schedule;
 pub use snapshot::{ErrorEstimate, Snapshot};
 
 use crate::common::Resolved;
+use crate::common::accum::Sums;
 use crate::common::guides::{GUIDE_SAMPLES, Guides};
 use crate::common::layout::DispatchUniforms;
 use crate::common::{Features, FrameSettings};
@@ -847,7 +848,7 @@ impl Renderer {
 
     /// The exact sums (`ACCUM_WORDS` words per pixel, even then odd half) and the samples
     /// discarded as invalid, as the tracer holds them: what a shard writes (`render::shard`).
-    pub fn exact_sums(&self) -> (Vec<u32>, Vec<u32>, u64) {
+    pub fn exact_sums(&self) -> Sums {
         match &self.engine {
             Engine::Gpu(g) => g.accum.read_words(&g.ctx),
             Engine::Cpu(c) => c.exact_sums(),

@@ -10,9 +10,9 @@
 
 use super::claims::Claims;
 use super::failure::contained;
-use super::shard::{Sums, add_sums};
 use super::{Backend, RenderOptions, Renderer, Snapshot};
 use crate::common::FrameSettings;
+use crate::common::accum::Sums;
 use crate::common::accum::{AccumData, decode};
 use crate::scene::Scene;
 use std::ops::Range;
@@ -291,7 +291,7 @@ impl Team {
             let sums = r.exact_sums();
             match &mut total {
                 None => total = Some(sums),
-                Some(t) => add_sums(t, &sums),
+                Some(t) => t.add(&sums),
             }
         }
         total.expect("a team has a working device")
@@ -303,7 +303,7 @@ impl Team {
         if let [one] = self.members.as_slice() {
             return one.renderer.lock().expect("renderer poisoned").snapshot();
         }
-        let (even, odd, invalid) = self.exact_sums();
+        let Sums { even, odd, invalid } = self.exact_sums();
         let mut data = AccumData {
             invalid,
             ..AccumData::from_halves(decode(&even), decode(&odd))

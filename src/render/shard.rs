@@ -267,36 +267,7 @@ pub fn parse(bytes: &[u8]) -> Result<Part, String> {
     Ok(Part { header, even, odd })
 }
 
-/// Adds the sums `b` to `a`, word for word as the tracers add samples: per pixel three
-/// 96-bit fixed-point channels (fraction, low, high) and a sample count.
-pub fn add_words(a: &mut [u32], b: &[u32]) {
-    for (p, q) in a
-        .chunks_exact_mut(ACCUM_WORDS)
-        .zip(b.chunks_exact(ACCUM_WORDS))
-    {
-        for c in 0..3 {
-            let v = |w: &[u32]| {
-                w[3 * c] as u128 | (w[3 * c + 1] as u128) << 32 | (w[3 * c + 2] as u128) << 64
-            };
-            let s = (v(p) + v(q)) & ((1u128 << 96) - 1);
-            p[3 * c] = s as u32;
-            p[3 * c + 1] = (s >> 32) as u32;
-            p[3 * c + 2] = (s >> 64) as u32;
-        }
-        p[ACCUM_WORDS - 1] = p[ACCUM_WORDS - 1].wrapping_add(q[ACCUM_WORDS - 1]);
-    }
-}
-
-/// A device's exact sums (`ACCUM_WORDS` words per pixel, even then odd half) and the
-/// samples it discarded as invalid, as `Renderer::exact_sums` reads them.
-pub type Sums = (Vec<u32>, Vec<u32>, u64);
-
-/// Adds the sums of another device (or part) of the same image to `total`.
-pub fn add_sums(total: &mut Sums, other: &Sums) {
-    add_words(&mut total.0, &other.0);
-    add_words(&mut total.1, &other.1);
-    total.2 += other.2;
-}
+pub use crate::common::accum::{Sums, add_words};
 
 /// Merges the parts of one render (in any order) into the whole: refused, naming the files,
 /// if a part belongs to another render (scene, settings, version), a shard is missing or

@@ -9,9 +9,9 @@
 //! those samples.
 
 use crate::common::FrameSettings;
+use crate::common::accum::Sums;
 use crate::render::claims::Claims;
 use crate::render::failure::contained;
-use crate::render::shard::Sums;
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::Scene;
 use std::sync::mpsc::{Receiver, Sender, TryRecvError};

@@ -20,13 +20,13 @@ use super::event::{Event, Frame};
 use super::helpers::Helpers;
 use crate::common::FrameSettings;
 use crate::common::Resolved;
+use crate::common::accum::Sums;
 use crate::common::accum::decode;
 use crate::gpu::denoise::DenoisePass;
 use crate::gpu::resolve::{ResolvePass, SLOTS};
 use crate::output::{Transfer, write_png};
 use crate::render::claims::{Claims, Fail};
 use crate::render::failure::contained;
-use crate::render::shard::{Sums, add_sums};
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::Scene;
 use std::path::PathBuf;
@@ -559,27 +559,27 @@ impl Worker {
                         [one] => one,
                         [first, rest @ ..] => {
                             added = rest.iter().fold((**first).clone(), |mut t, part| {
-                                add_sums(&mut t, part);
+                                t.add(part);
                                 t
                             });
                             &added
                         }
                         [] => unreachable!("combined: some parts"),
                     };
-                    resolve.set_extra(ctx, &sums.0, &sums.1);
+                    resolve.set_extra(ctx, &sums.even, &sums.odd);
                     p.uploaded = parts.clone();
                     #[cfg(test)]
                     if let Some(c) = &self.claims {
                         c.note_upload();
                     }
                 }
-                tag.extra_invalid = parts.iter().map(|s| s.2).sum();
+                tag.extra_invalid = parts.iter().map(|s| s.invalid).sum();
                 None
             }
             _ => combined.then(|| {
                 let mut total = p.renderer.exact_sums();
                 for part in &parts {
-                    add_sums(&mut total, part);
+                    total.add(part);
                 }
                 total
             }),
@@ -589,7 +589,7 @@ impl Worker {
             p.renderer.make_guides();
             let start = Instant::now();
             let s = p.renderer.settings();
-            let frame = if let Some((even, odd, invalid)) = summed {
+            let frame = if let Some(Sums { even, odd, invalid }) = summed {
                 // Several devices' sums, on the host.
                 let d = crate::denoise::denoise(&decode(&even), &decode(&odd), p.renderer.guides());
                 d.resolved(p.factor, invalid)
@@ -620,7 +620,7 @@ impl Worker {
             };
             self.host_frame = Some((tag, frame));
             p.last_denoise = Some((Instant::now(), start.elapsed()));
-        } else if let Some((even, odd, invalid)) = summed {
+        } else if let Some(Sums { even, odd, invalid }) = summed {
             let s = p.renderer.settings();
             let frame = Resolved::from_sums(&even, &odd, (s.width, s.height), p.factor, invalid);
             self.host_frame = Some((tag, frame));
