@@ -143,7 +143,7 @@ fn main() {
             }
             // The GPU's frame against the host's: the same filters, so about one estimate.
             let g = pass.run(ctx, accum, guides, (w, h), 1);
-            let frame = termtrace::denoise::from_gpu(g, (w, h), 1);
+            let frame = termtrace::denoise::from_tiles(g, (w, h), 1);
             println!(
                 "{w:>4}×{h:<4} estimated error of the shown image at 4 spp: GPU {:?}, host {:.2}%",
                 frame.denoised.map(|e| e.text()),

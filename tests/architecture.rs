@@ -593,6 +593,96 @@ fn tracers_stand_side_by_side() {
     }
 }
 
+/// Stages that must not import others: the preview asks `render` for frames and never names
+/// a backend; the denoiser's filter is backend-neutral (its GPU pass lives in `gpu`); the
+/// backend-neutral core stands below the output stage.
+const FORBIDDEN: &[(&str, &str, &str)] = &[
+    ("ui", "gpu", "the preview asks `render` for frames"),
+    ("ui", "cpu", "the preview asks `render` for frames"),
+    (
+        "denoise",
+        "gpu",
+        "the filter is backend-neutral; its GPU pass lives in `gpu`",
+    ),
+    ("common", "output", "the core stands below the output stage"),
+];
+
+/// Each edge that breaks a rule of [`FORBIDDEN`], described.
+fn broken_rules(graph: &BTreeMap<ModPath, BTreeSet<ModPath>>) -> Vec<String> {
+    let mut broken = Vec::new();
+    for (from, tos) in graph {
+        for to in tos {
+            let (Some(a), Some(b)) = (from.first(), to.first()) else {
+                continue;
+            };
+            for (stage, other, why) in FORBIDDEN {
+                if a == stage && b == other {
+                    broken.push(format!("{} → {}: {why}", name(from), name(to)));
+                }
+            }
+        }
+    }
+    broken
+}
+
+#[test]
+fn stages_keep_the_house_rules() {
+    let (_, graph) = crate_graph();
+    let broken = broken_rules(&graph);
+    assert!(
+        broken.is_empty(),
+        "imports across the house rules:\n{}",
+        broken.join("\n")
+    );
+}
+
+/// Each rule catches a hand-made violation: a small crate on disk whose `ui`, `denoise` and
+/// `common` each name what they must not, read by the same reader.
+#[test]
+fn house_rules_catch_hand_made_violations() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = dir.path();
+    let files = [
+        (
+            "lib.rs",
+            "pub mod common; pub mod cpu; pub mod denoise; pub mod gpu; pub mod output; pub mod ui;",
+        ),
+        ("gpu/mod.rs", "pub mod resolve;"),
+        ("gpu/resolve.rs", "pub struct ResolvePass;"),
+        ("cpu/mod.rs", "pub fn threads() -> usize { 1 }"),
+        ("output/mod.rs", "pub struct LinearImage;"),
+        ("common/mod.rs", "use crate::output::LinearImage;"),
+        (
+            "denoise/mod.rs",
+            "pub fn f(_: crate::gpu::resolve::ResolvePass) {}",
+        ),
+        (
+            "ui/mod.rs",
+            "pub mod worker;\nfn n() -> usize { crate::cpu::threads() }",
+        ),
+        ("ui/worker.rs", "use crate::gpu::resolve::ResolvePass;"),
+    ];
+    for (file, code) in files {
+        let path = src.join(file);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, code).unwrap();
+    }
+    let graph = Crate::read(src).edges();
+    let broken = broken_rules(&graph);
+    for expected in [
+        "ui::worker → gpu::resolve",
+        "ui → cpu",
+        "denoise → gpu::resolve",
+        "common → output",
+    ] {
+        assert!(
+            broken.iter().any(|b| b.starts_with(expected)),
+            "`{expected}` not caught: {broken:?}"
+        );
+    }
+    assert_eq!(broken.len(), 4, "{broken:?}");
+}
+
 /// The reader itself: it sees the edges it must, so a pass above is not a blind one.
 #[test]
 fn reader_finds_known_edges() {

@@ -614,7 +614,7 @@ fn the_gpu_denoiser_agrees_with_the_host_one() {
         .filter(|(a, b)| a == b)
         .count();
     assert_eq!(g.invalid, invalid, "the invalid-sample counter read back");
-    let gpu_frame = termtrace::denoise::from_gpu(g, (w, h), 1);
+    let gpu_frame = termtrace::denoise::from_tiles(g, (w, h), 1);
     let close = host_frame
         .image
         .pixels

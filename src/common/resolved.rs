@@ -2,8 +2,8 @@
 //! and each pixel's standard error, from the terms `shaders/resolve.wgsl` computes on the GPU
 //! and `cpu` on the host.
 
+use super::LinearImage;
 use super::accum::{ACCUM_WORDS, decode_pixel};
-use crate::output::LinearImage;
 use rayon::prelude::*;
 
 /// pbrt's relative MSE adds this to the squared reference so that black pixels do not divide

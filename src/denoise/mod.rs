@@ -281,13 +281,21 @@ impl Denoised {
     }
 }
 
-/// The preview's frame from the GPU's denoiser (`gpu::denoise`): its image, and the tiles'
-/// sums made into the same estimates and choice as [`denoise`]'s.
-pub fn from_gpu(
-    g: crate::gpu::denoise::GpuDenoised,
-    (width, height): (u32, u32),
-    factor: u32,
-) -> Resolved {
+/// What a backend's denoiser pass brings back (the GPU's, `gpu::denoise`): per output pixel
+/// its colour, per tile (row-major, `tiles_x` a row) the estimate's sums (raw mse, rel, rel²,
+/// denoised mse, rel, rel², pixels, and 1 where the regression's image is the denoised one,
+/// 0 where the à-trous filter's is), and the samples discarded as invalid so far.
+pub struct DenoisedTiles {
+    pub out: (u32, u32),
+    pub blocks: Vec<[f32; 3]>,
+    pub tiles_x: u32,
+    pub tiles: Vec<[f32; 8]>,
+    pub invalid: u64,
+}
+
+/// The preview's frame from a backend's denoiser pass: its image, and the tiles' sums made
+/// into the same estimates and choice as [`denoise`]'s.
+pub fn from_tiles(g: DenoisedTiles, (width, height): (u32, u32), factor: u32) -> Resolved {
     let sums = |t: &[f32; 8], at: usize| Sums {
         mse: t[at] as f64,
         rel: t[at + 1] as f64,

@@ -7,6 +7,7 @@
 use super::accum::Accumulation;
 use super::{GpuContext, bind_buffers};
 use crate::common::layout::ResolveUniforms;
+use crate::denoise::DenoisedTiles;
 
 /// À-trous iterations (src/denoise/atrous.rs: ITERATIONS), taps 1 to 16 pixels apart.
 const ITERATIONS: u32 = 5;
@@ -22,18 +23,6 @@ const OUT_BYTES: u64 = 12;
 
 /// Bytes of the accumulation's invalid-sample counter, read back behind the tiles.
 const COUNTER_BYTES: u64 = 8;
-
-/// What one run brings back: per output pixel its colour, per tile (row-major, `tiles_x` a
-/// row) the estimate's sums (raw mse, rel, rel², denoised mse, rel, rel², pixels, and 1 where
-/// the regression's image is the denoised one, 0 where the à-trous filter's is), and
-/// the samples discarded as invalid so far.
-pub struct GpuDenoised {
-    pub out: (u32, u32),
-    pub blocks: Vec<[f32; 3]>,
-    pub tiles_x: u32,
-    pub tiles: Vec<[f32; 8]>,
-    pub invalid: u64,
-}
 
 struct Buffers {
     size: (u32, u32, u32),
@@ -212,7 +201,7 @@ impl DenoisePass {
         guides: &wgpu::Buffer,
         (width, height): (u32, u32),
         factor: u32,
-    ) -> GpuDenoised {
+    ) -> DenoisedTiles {
         let factor = factor.max(1);
         let device = &ctx.device;
         let out = ((width / factor).max(1), (height / factor).max(1));
@@ -321,7 +310,7 @@ impl DenoisePass {
         let invalid = c[0] as u64 | (c[1] as u64) << 32;
         drop(data);
         b.staging.unmap();
-        GpuDenoised {
+        DenoisedTiles {
             out,
             blocks,
             tiles_x,

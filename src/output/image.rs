@@ -117,27 +117,10 @@ fn encode8(table: &Encode8, c: f32) -> u8 {
     table.base[b] + u8::from(c >= table.next[b])
 }
 
-/// An image of linear radiance, row-major from the top-left pixel.
-#[derive(Clone, Debug, PartialEq)]
-pub struct LinearImage {
-    pub width: u32,
-    pub height: u32,
-    pub pixels: Vec<[f32; 3]>,
-}
+pub use crate::common::LinearImage;
 
+/// Encoding the backend-neutral image (`common::image`) for files and terminals.
 impl LinearImage {
-    pub fn new(width: u32, height: u32) -> LinearImage {
-        LinearImage {
-            width,
-            height,
-            pixels: vec![[0.0; 3]; width as usize * height as usize],
-        }
-    }
-
-    pub fn get(&self, x: u32, y: u32) -> [f32; 3] {
-        self.pixels[(y * self.width + x) as usize]
-    }
-
     /// 8-bit encoded image.
     pub fn to_rgb8(&self, t: Transfer) -> ::image::RgbImage {
         let mut out = ::image::RgbImage::new(self.width, self.height);

@@ -13,6 +13,7 @@
 
 pub mod claims;
 pub mod failure;
+pub mod frames;
 pub mod multi;
 mod schedule;
 pub mod shard;
@@ -211,6 +212,18 @@ impl Backend {
         match self {
             Backend::Gpu(ctx) => ctx.adapter_name(),
             Backend::Cpu => crate::cpu::describe(),
+        }
+    }
+
+    /// The device as the preview's status line names it, short:
+    /// `llvmpipe (LLVM 15.0.6, 256 bits)` → `llvmpipe (Vulkan)`, `CPU (2 threads, x86_64)`.
+    pub fn short_name(&self) -> String {
+        match self {
+            Backend::Gpu(ctx) => {
+                let short = ctx.info.name.split(" (").next().unwrap_or(&ctx.info.name);
+                format!("{short} ({:?})", ctx.info.backend)
+            }
+            Backend::Cpu => format!("CPU ({})", crate::cpu::threads()),
         }
     }
 

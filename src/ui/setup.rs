@@ -242,17 +242,7 @@ pub(super) fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
     for b in &backends {
         b.check_fits(&scene)?;
     }
-    // `llvmpipe (LLVM 15.0.6, 256 bits)` → `llvmpipe (Vulkan)`: the status line is short.
-    let names: Vec<String> = backends
-        .iter()
-        .map(|b| match b {
-            Backend::Gpu(ctx) => {
-                let short = ctx.info.name.split(" (").next().unwrap_or(&ctx.info.name);
-                format!("{short} ({:?})", ctx.info.backend)
-            }
-            Backend::Cpu => format!("CPU ({})", crate::cpu::threads()),
-        })
-        .collect();
+    let names: Vec<String> = backends.iter().map(Backend::short_name).collect();
     let adapter = names.join(" + ");
     let color = opts.color.unwrap_or_else(|| {
         ColorMode::detect(

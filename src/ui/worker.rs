@@ -20,13 +20,10 @@ use super::event::{Event, Frame};
 use super::helpers::Helpers;
 use crate::common::FrameSettings;
 use crate::common::Resolved;
-use crate::common::accum::Sums;
-use crate::common::accum::decode;
-use crate::gpu::denoise::DenoisePass;
-use crate::gpu::resolve::{ResolvePass, SLOTS};
 use crate::output::{Transfer, write_png};
 use crate::render::claims::{Claims, Fail};
 use crate::render::failure::contained;
+use crate::render::frames::Frames;
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::Scene;
 use std::path::PathBuf;
@@ -91,8 +88,6 @@ struct FrameTag {
     /// Of `spp`, the samples per pixel the other devices traced.
     helped: u32,
     paths: u64,
-    /// Invalid samples of the other devices, whose sums the GPU's resolve pass added.
-    extra_invalid: u64,
 }
 
 /// The preview's state since its last reset.
@@ -111,8 +106,6 @@ struct Preview {
     last_denoise: Option<(Instant, Duration)>,
     /// When the last frame of every device's sums was made, and what making it took.
     last_combined: Option<(Instant, Duration)>,
-    /// The other devices' sums last uploaded to the GPU's resolve pass.
-    uploaded: Vec<Arc<Sums>>,
     /// No samples are left for this device to claim (the others may still be tracing).
     exhausted: bool,
     /// The other devices have been told to trace this state (after its first frame, so
@@ -128,15 +121,8 @@ struct Worker {
     /// The other devices, and the claims this epoch's samples are shared by.
     helpers: Option<Helpers>,
     claims: Option<Arc<Claims>>,
-    /// The GPU's resolve pass (on the CPU tracer frames are made on the host at once).
-    resolve: Option<ResolvePass>,
-    /// The GPU's denoiser, made on the first denoised frame (on the CPU tracer the host's
-    /// filter denoises).
-    denoiser: Option<DenoisePass>,
-    /// A frame made on the host, waiting to be sent.
-    host_frame: Option<(FrameTag, Resolved)>,
-    /// The frame each staging slot is bringing back.
-    pending: [Option<FrameTag>; SLOTS],
+    /// This device's frame makers and the frames on their way (`render::frames`).
+    frames: Frames<FrameTag>,
     /// The UI's number of the scene request being traced.
     generation: u64,
     /// Counts every restart of the accumulation: frames of an older epoch are dropped.
@@ -222,16 +208,13 @@ impl Worker {
     ) -> Worker {
         let backend = backends.remove(0);
         let mut w = Worker {
-            resolve: backend.gpu().map(|ctx| ResolvePass::new(&ctx.device)),
-            denoiser: None,
-            host_frame: None,
+            frames: Frames::new(&backend),
             backend,
             opts,
             events,
             preview: None,
             helpers: None,
             claims: None,
-            pending: [None; SLOTS],
             generation: 0,
             epoch: 0,
             save: None,
@@ -285,7 +268,7 @@ impl Worker {
     }
 
     fn frames_pending(&self) -> bool {
-        self.host_frame.is_some() || self.pending.iter().any(Option::is_some)
+        self.frames.pending()
     }
 
     /// Whether the preview holds samples that no frame has shown yet (from its first look
@@ -396,7 +379,6 @@ impl Worker {
                     noise: None,
                     last_denoise: None,
                     last_combined: None,
-                    uploaded: Vec::new(),
                     exhausted: false,
                     helpers_told: false,
                 })
@@ -417,9 +399,7 @@ impl Worker {
     /// dropped when they land.
     fn restart_clock(&mut self) {
         self.epoch += 1;
-        if let Some(r) = &mut self.resolve {
-            r.clear_extra();
-        }
+        self.frames.clear_extra();
         if let Some(p) = &mut self.preview {
             p.since_reset = Instant::now();
             p.paths = 0;
@@ -429,7 +409,6 @@ impl Worker {
             p.exhausted = false;
             p.helpers_told = false;
             p.last_combined = None;
-            p.uploaded.clear();
             // On several devices: new claims, this device first to take from them (the
             // others start after the first frame: `tell_helpers`).
             if let Some(h) = &self.helpers {
@@ -460,12 +439,9 @@ impl Worker {
         }
         h.resume(self.epoch);
         // Its sums are left out of the frames from now on.
-        if let Some(r) = &mut self.resolve {
-            r.clear_extra();
-        }
+        self.frames.clear_extra();
         if let Some(p) = &mut self.preview {
             p.exhausted = false;
-            p.uploaded.clear();
         }
     }
 
@@ -512,7 +488,6 @@ impl Worker {
             spp,
             helped,
             paths: shown,
-            extra_invalid: 0,
         };
         // Denoised frames need a sample in each half of every pixel; once the accumulation
         // stops (`--max-spp`), `auto` shows the final, unbiased image.
@@ -543,100 +518,25 @@ impl Worker {
             .as_ref()
             .map_or(Vec::new(), |h| h.contributions(self.epoch));
         let combined = !parts.is_empty();
-        let mut tag = tag;
-        let summed = match (&self.backend, &mut self.resolve) {
-            // The GPU's resolve pass adds the others' sums, uploaded when they have changed.
-            (Backend::Gpu(ctx), Some(resolve)) if !denoise => {
-                let changed = parts.len() != p.uploaded.len()
-                    || parts
-                        .iter()
-                        .zip(&p.uploaded)
-                        .any(|(a, b)| !Arc::ptr_eq(a, b));
-                if combined && changed {
-                    // One helper's sums are uploaded as they are; several are added first.
-                    let added;
-                    let sums: &Sums = match parts.as_slice() {
-                        [one] => one,
-                        [first, rest @ ..] => {
-                            added = rest.iter().fold((**first).clone(), |mut t, part| {
-                                t.add(part);
-                                t
-                            });
-                            &added
-                        }
-                        [] => unreachable!("combined: some parts"),
-                    };
-                    resolve.set_extra(ctx, &sums.even, &sums.odd);
-                    p.uploaded = parts.clone();
-                    #[cfg(test)]
-                    if let Some(c) = &self.claims {
-                        c.note_upload();
-                    }
-                }
-                tag.extra_invalid = parts.iter().map(|s| s.invalid).sum();
-                None
-            }
-            _ => combined.then(|| {
-                let mut total = p.renderer.exact_sums();
-                for part in &parts {
-                    total.add(part);
-                }
-                total
-            }),
-        };
         if denoise {
             // The guides are made once per edit: not part of a frame's cost.
             p.renderer.make_guides();
-            let start = Instant::now();
-            let s = p.renderer.settings();
-            let frame = if let Some(Sums { even, odd, invalid }) = summed {
-                // Several devices' sums, on the host.
-                let d = crate::denoise::denoise(&decode(&even), &decode(&odd), p.renderer.guides());
-                d.resolved(p.factor, invalid)
-            } else {
-                match (
-                    &self.backend,
-                    p.renderer.accumulation(),
-                    p.renderer.guide_buffer(),
-                ) {
-                    // On the GPU, where the sums and the guides are (shaders/denoise.wgsl).
-                    (Backend::Gpu(ctx), Some(accum), Some(guides)) => {
-                        let pass = self
-                            .denoiser
-                            .get_or_insert_with(|| DenoisePass::new(&ctx.device));
-                        let g = pass.run(ctx, accum, guides, (s.width, s.height), p.factor);
-                        crate::denoise::from_gpu(g, (s.width, s.height), p.factor)
-                    }
-                    _ => {
-                        let snap = p.renderer.snapshot();
-                        let d = crate::denoise::denoise(
-                            &snap.data.even,
-                            &snap.data.odd,
-                            p.renderer.guides(),
-                        );
-                        d.resolved(p.factor, snap.data.invalid)
-                    }
-                }
-            };
-            self.host_frame = Some((tag, frame));
+        }
+        let start = Instant::now();
+        let requested = self
+            .frames
+            .request(&mut p.renderer, &parts, denoise, p.factor, tag);
+        #[cfg(test)]
+        if requested.uploaded
+            && let Some(c) = &self.claims
+        {
+            c.note_upload();
+        }
+        if !requested.made {
+            return;
+        }
+        if denoise {
             p.last_denoise = Some((Instant::now(), start.elapsed()));
-        } else if let Some(Sums { even, odd, invalid }) = summed {
-            let s = p.renderer.settings();
-            let frame = Resolved::from_sums(&even, &odd, (s.width, s.height), p.factor, invalid);
-            self.host_frame = Some((tag, frame));
-        } else if let Some(resolved) = p.renderer.resolve_on_host(p.factor) {
-            self.host_frame = Some((tag, resolved));
-        } else {
-            let s = p.renderer.settings();
-            let (Some(resolve), Backend::Gpu(ctx), Some(accum)) =
-                (&mut self.resolve, &self.backend, p.renderer.accumulation())
-            else {
-                return;
-            };
-            let Some(slot) = resolve.request(ctx, accum, (s.width, s.height), p.factor) else {
-                return;
-            };
-            self.pending[slot] = Some(tag);
         }
         if combined {
             p.last_combined = Some((Instant::now(), combining.elapsed()));
@@ -658,37 +558,15 @@ impl Worker {
         if !self.frames_pending() {
             return true;
         }
-        if let Some((tag, resolved)) = self.host_frame.take()
+        if let Some((tag, resolved)) = self.frames.take_host()
             && !self.send_frame(tag, resolved)
         {
             return false;
         }
         // Nothing else to do: wait for the frame rather than spin.
         let block = !self.preview_busy(self.helper_progress().0) && self.save.is_none();
-        let (Some(resolve), Backend::Gpu(ctx)) = (&mut self.resolve, &self.backend) else {
-            return true;
-        };
-        let poll = if block {
-            wgpu::PollType::wait_indefinitely()
-        } else {
-            wgpu::PollType::Poll
-        };
-        let _ = ctx.device.poll(poll);
-        let mut landed = Vec::new();
-        for slot in 0..SLOTS {
-            let Some(tag) = self.pending[slot] else {
-                continue;
-            };
-            if !resolve.ready(slot) {
-                continue;
-            }
-            self.pending[slot] = None;
-            if let Some(mut resolved) = resolve.take(slot) {
-                resolved.invalid += tag.extra_invalid;
-                landed.push((tag, resolved));
-            }
-        }
-        landed
+        self.frames
+            .take_landed(block)
             .into_iter()
             .all(|(tag, resolved)| self.send_frame(tag, resolved))
     }
