@@ -6,6 +6,7 @@
 // #include "common/fixed.wgsl"
 // #include "common/texture.wgsl"
 // #include "common/envmap.wgsl"
+// Twin: src/cpu/trace.rs (tests/twins.rs keeps their functions paired).
 // The path tracer: one invocation traces its share of a round's `sample_count` paths through
 // one pixel and adds them to that pixel's running sums (src/gpu/trace.rs drives it).
 
@@ -308,6 +309,40 @@ fn occluded(ray: Ray, t_max: f32, skip: u32) -> bool {
 struct Surface {
     point: SurfacePoint,
     material: u32,
+}
+
+// A hit's material with a glTF material's texture maps applied, and where they were read
+// (its texture record, TEX_NONE where no map applies; barycentrics; coordinates), for the
+// normal map (src/cpu/trace.rs's `material_at`).
+struct Shading {
+    m: Material,
+    rec: u32,
+    bary: vec2f,
+    uv: vec2f,
+}
+
+fn material_at(hit: Hit, surf: Surface) -> Shading {
+    var s = Shading(materials[surf.material], TEX_NONE, vec2f(0.0), vec2f(0.0));
+    if HAS_TEXTURES && hit.kind == KIND_TRIANGLE {
+        s.rec = tex_record(surf.material);
+        if s.rec != TEX_NONE {
+            let tri = triangles[hit.index];
+            s.bary = triangle_barycentrics(tri, surf.point.position - tri.v0);
+            s.uv = tex_uv_at(hit.index, s.bary);
+            s.m = tex_material(s.m, s.rec, s.uv);
+        }
+    }
+    return s;
+}
+
+// The shading normal on the side of n: a normal map's where the hit has one
+// (docs/MODEL-NOTES.md, "Normal maps"), else n (src/cpu/trace.rs's `shading_normal_at`).
+fn shading_normal_at(s: Shading, hit: Hit, n_out: vec3f, n: vec3f) -> vec3f {
+    if HAS_NORMAL_MAPS && hit.kind == KIND_TRIANGLE && tex_has_normal_map(s.rec) {
+        let ns = tex_shading_normal(s.rec, hit.index, s.bary, s.uv, n_out);
+        return select(-ns, ns, dot(ns, n) >= 0.0);
+    }
+    return n;
 }
 
 fn surface_at(hit: Hit, ray: Ray) -> Surface {
@@ -656,21 +691,8 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         return true;
     }
     let surf = surface_at(hit, ray);
-    var m = materials[surf.material];
-    // A textured hit's record, barycentrics and texture coordinates (the normal map reads
-    // them too).
-    var rec = TEX_NONE;
-    var bary = vec2f(0.0);
-    var uv = vec2f(0.0);
-    if HAS_TEXTURES && hit.kind == KIND_TRIANGLE {
-        rec = tex_record(surf.material);
-        if rec != TEX_NONE {
-            let tri = triangles[hit.index];
-            bary = triangle_barycentrics(tri, surf.point.position - tri.v0);
-            uv = tex_uv_at(hit.index, bary);
-            m = tex_material(m, rec, uv);
-        }
-    }
+    let sh = material_at(hit, surf);
+    let m = sh.m;
     if HAS_EMITTERS && m.light > 0.0 {
         var w = 1.0;
         if nee && (*path).prev_pdf > 0.0 && m.light_slot > 0u {
@@ -694,13 +716,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         // A certain lobe takes no draw.
         let is_spec = m.specular >= 1.0 || (m.specular > 0.0 && rand(state) < m.specular);
         let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);
-        // The shading normal, on the side of n: a normal map's where there is one
-        // (docs/MODEL-NOTES.md, "Normal maps"), else n.
-        var ns = n;
-        if HAS_NORMAL_MAPS && hit.kind == KIND_TRIANGLE && tex_has_normal_map(rec) {
-            ns = tex_shading_normal(rec, hit.index, bary, uv, n_out);
-            ns = select(-ns, ns, dot(ns, n) >= 0.0);
-        }
+        let ns = shading_normal_at(sh, hit, n_out, n);
         // A lobe with the cosine density: the Lambertian one, or the specular one at
         // smoothness 0 (the same distribution, its own tint).
         let cosine_lobe = !is_spec || m.smoothness == 0.0;
@@ -900,19 +916,8 @@ fn guide_of(primary: Ray) -> Guide {
             return Guide(tint, vec3f(0.0));
         }
         let surf = surface_at(hit, ray);
-        var m = materials[surf.material];
-        var rec = TEX_NONE;
-        var bary = vec2f(0.0);
-        var uv = vec2f(0.0);
-        if HAS_TEXTURES && hit.kind == KIND_TRIANGLE {
-            rec = tex_record(surf.material);
-            if rec != TEX_NONE {
-                let tri = triangles[hit.index];
-                bary = triangle_barycentrics(tri, surf.point.position - tri.v0);
-                uv = tex_uv_at(hit.index, bary);
-                m = tex_material(m, rec, uv);
-            }
-        }
+        let sh = material_at(hit, surf);
+        let m = sh.m;
         let n_out = surf.point.normal;
         let front = dot(ray.dir, n_out) < 0.0;
         let n = select(-n_out, n_out, front);
@@ -937,11 +942,7 @@ fn guide_of(primary: Ray) -> Guide {
             ray = Ray(offset_ray(surf.point.position, side), dir);
             continue;
         }
-        var ns = n;
-        if HAS_NORMAL_MAPS && hit.kind == KIND_TRIANGLE && tex_has_normal_map(rec) {
-            ns = tex_shading_normal(rec, hit.index, bary, uv, n_out);
-            ns = select(-ns, ns, dot(ns, n) >= 0.0);
-        }
+        let ns = shading_normal_at(sh, hit, n_out, n);
         if m.specular >= 1.0 && m.smoothness >= 1.0 && m.absorption == 0.0 && !last {
             // A perfect mirror.
             tint *= m.specular_color;

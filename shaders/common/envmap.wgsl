@@ -1,3 +1,4 @@
+// Twin: src/scene/envmap_sampling.rs (tests/twins.rs keeps their functions paired).
 // The environment map (src/scene/envmap_sampling.rs does the same arithmetic for the CPU tracer):
 // its texels, looked up where a ray leaves the scene, and its piecewise-constant
 // distribution (luminance × sin θ per texel), sampled by inverting the marginal CDF over rows

@@ -1,3 +1,4 @@
+// Twin: src/cpu/fixed.rs (tests/twins.rs keeps their functions paired).
 // Exact fixed-point sums of radiance: the accumulation's number format (src/common/accum.rs
 // decodes it).
 

@@ -1,4 +1,5 @@
 // #include "common/types.wgsl"
+// Twin: src/cpu/intersect.rs (tests/twins.rs keeps their functions paired).
 // Ray/primitive intersection and self-intersection avoidance.
 
 struct Ray {

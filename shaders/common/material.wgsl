@@ -1,5 +1,6 @@
 // #include "common/types.wgsl"
 // #include "common/sampling.wgsl"
+// Twin: src/cpu/material.rs (tests/twins.rs keeps their functions paired).
 // Scattering by the material rules of MODEL.md ("Materials", steps 2 and 3).
 
 struct Scatter {

@@ -1,3 +1,4 @@
+// Twin: src/cpu/rng.rs (tests/twins.rs keeps their functions paired).
 // Random numbers: one sampler per (pixel, sample, seed), so a render is the same whatever the
 // batching. The first QMC_SLOTS draws of a sample are points of Owen-scrambled Sobol
 // sequences, the rest a PCG stream; src/cpu/rng.rs gives the reasoning and the sources

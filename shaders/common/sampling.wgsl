@@ -1,4 +1,5 @@
 // #include "common/rng.wgsl"
+// Twin: src/cpu/sampling.rs (tests/twins.rs keeps their functions paired).
 // Directions and points drawn from the random streams.
 
 const PI: f32 = 3.14159265358979;

@@ -2,6 +2,7 @@
 // #include "common/rng.wgsl"
 // #include "common/sampling.wgsl"
 // #include "common/intersect.wgsl"
+// Twin: src/cpu/texture.rs (tests/twins.rs keeps their functions paired).
 // Textures (src/common/textures.rs lays out the words, src/cpu/texture.rs reads them the same
 // way): glTF's base colour, metallic-roughness and emissive maps, sampled bilinearly with
 // their wrap modes, mapped onto the model's material at each hit; tangent-space normal maps;

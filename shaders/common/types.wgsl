@@ -1,3 +1,4 @@
+// Twin: src/common/layout.rs (tests/twins.rs keeps their functions paired).
 // Scene data as the tracer sees it. Mirrored field by field by `src/common/layout.rs`
 // (byte offsets in the comments; a test checks both against naga's layout).
 

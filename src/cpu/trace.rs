@@ -19,12 +19,12 @@ use super::material::{Scatter, reflect, refract_dir, scatter_dielectric, scatter
 use super::packet::Packets;
 use super::rng::Rng;
 use super::sampling::{PI, basis, random_in_disk, sin_cos_turns};
-use super::scene::CpuScene;
+use super::scene::{CpuScene, Material};
 use crate::common::Features;
 use crate::common::arrays::REF_INDEX as INDEX;
 use crate::common::arrays::{ENV_NONE, ENV_VISIBLE};
 use crate::common::layout::GpuLight;
-use glam::Vec3A;
+use glam::{Vec2, Vec3A};
 
 /// `P`: only spheres.
 pub const SPHERES: u32 = 1;
@@ -38,6 +38,14 @@ const RR_START: u32 = 3;
 const RR_MAX_SURVIVAL: f32 = 0.95;
 const LOCAL_SELECTION_MAX: u32 = 32;
 const BACKFACE_WEIGHT: f32 = 0.1;
+
+/// Where a textured hit read its maps: its texture record, barycentrics and coordinates.
+#[derive(Clone, Copy)]
+struct Mapped {
+    rec: u32,
+    bary: (f32, f32),
+    uv: Vec2,
+}
 
 #[derive(Clone, Copy)]
 struct Hit {
@@ -223,6 +231,49 @@ impl<'a> Tracer<'a> {
             #[inline(always)]
             |r| r != skip && r != from && hit_primitive::<P>(s, r, ray, t_max) > 0.0,
         )
+    }
+
+    /// A glTF material's texture maps applied at a textured hit (`None` elsewhere: the
+    /// material as it is), and where they were read, for the normal map (trace.wgsl's
+    /// `material_at`).
+    #[inline(always)]
+    fn material_at(
+        &self,
+        hit: Hit,
+        point: &SurfacePoint,
+        material: u32,
+    ) -> (Option<Material>, Option<Mapped>) {
+        if self.s.tex.is_empty() || hit.r >> 30 != 3 {
+            return (None, None);
+        }
+        let Some(rec) = super::texture::record(&self.s.tex, material) else {
+            return (None, None);
+        };
+        let i = hit.r & INDEX;
+        let tri = &self.s.triangles[i as usize];
+        let bary = triangle_barycentrics(tri, point.position - tri.v0);
+        let uv = super::texture::uv_at(&self.s.tex, i, bary);
+        let m = &self.s.materials[material as usize];
+        (
+            Some(super::texture::material(&self.s.tex, m, rec, uv)),
+            Some(Mapped { rec, bary, uv }),
+        )
+    }
+
+    /// The shading normal on the side of `n`: a normal map's where the hit has one
+    /// (docs/MODEL-NOTES.md, "Normal maps"), else `n` (trace.wgsl's `shading_normal_at`).
+    #[inline(always)]
+    fn shading_normal_at(&self, hit: Hit, mapped: Option<Mapped>, n_out: Vec3A, n: Vec3A) -> Vec3A {
+        if self.s.normal_maps
+            && let Some(Mapped { rec, bary, uv }) = mapped
+            && super::texture::has_normal_map(&self.s.tex, rec)
+        {
+            let i = hit.r & INDEX;
+            let ns = super::texture::shading_normal(&self.s.tex, rec, i, bary, uv, n_out);
+            if ns.dot(n) < 0.0 { -ns } else { ns }
+        } else {
+            n
+        }
     }
 
     #[inline(always)]
@@ -567,21 +618,10 @@ impl<'a> Tracer<'a> {
                 break;
             };
             let (point, material) = self.surface_at(hit, &ray);
-            let mut m = &self.s.materials[material as usize];
-            let textured;
-            let mut mapped = None;
-            if !self.s.tex.is_empty()
-                && hit.r >> 30 == 3
-                && let Some(rec) = super::texture::record(&self.s.tex, material)
-            {
-                let i = hit.r & INDEX;
-                let tri = &self.s.triangles[i as usize];
-                let bary = triangle_barycentrics(tri, point.position - tri.v0);
-                let uv = super::texture::uv_at(&self.s.tex, i, bary);
-                textured = super::texture::material(&self.s.tex, m, rec, uv);
-                m = &textured;
-                mapped = Some((rec, bary, uv));
-            }
+            let (textured, mapped) = self.material_at(hit, &point, material);
+            let m = textured
+                .as_ref()
+                .unwrap_or(&self.s.materials[material as usize]);
             if self.f.emitters && m.light > 0.0 {
                 let mut w = 1.0;
                 if nee && prev_pdf > 0.0 && m.light_slot > 0 {
@@ -607,17 +647,7 @@ impl<'a> Tracer<'a> {
                 let front = ray.dir.dot(n_out) < 0.0;
                 let n = if front { n_out } else { -n_out };
                 // The shading normal, on the side of n (trace.wgsl: path_step).
-                let mut ns = n;
-                if self.s.normal_maps
-                    && let Some((rec, bary, uv)) = mapped
-                    && super::texture::has_normal_map(&self.s.tex, rec)
-                {
-                    let i = hit.r & INDEX;
-                    ns = super::texture::shading_normal(&self.s.tex, rec, i, bary, uv, n_out);
-                    if ns.dot(n) < 0.0 {
-                        ns = -ns;
-                    }
-                }
+                let ns = self.shading_normal_at(hit, mapped, n_out, n);
                 let cosine_lobe = !is_spec || m.smoothness == 0.0;
                 if nee && cosine_lobe {
                     let tint = if is_spec { m.specular_color } else { m.color };
@@ -679,21 +709,10 @@ impl Tracer<'_> {
                 return (tint.to_array(), [0.0; 3]);
             };
             let (point, material) = self.surface_at(hit, &ray);
-            let mut m = &self.s.materials[material as usize];
-            let textured;
-            let mut mapped = None;
-            if !self.s.tex.is_empty()
-                && hit.r >> 30 == 3
-                && let Some(rec) = super::texture::record(&self.s.tex, material)
-            {
-                let i = hit.r & INDEX;
-                let tri = &self.s.triangles[i as usize];
-                let bary = triangle_barycentrics(tri, point.position - tri.v0);
-                let uv = super::texture::uv_at(&self.s.tex, i, bary);
-                textured = super::texture::material(&self.s.tex, m, rec, uv);
-                m = &textured;
-                mapped = Some((rec, bary, uv));
-            }
+            let (textured, mapped) = self.material_at(hit, &point, material);
+            let m = textured
+                .as_ref()
+                .unwrap_or(&self.s.materials[material as usize]);
             let n_out = point.normal;
             let front = ray.dir.dot(n_out) < 0.0;
             let n = if front { n_out } else { -n_out };
@@ -716,17 +735,7 @@ impl Tracer<'_> {
                 };
                 tint *= m.color;
             } else {
-                let mut ns = n;
-                if self.s.normal_maps
-                    && let Some((rec, bary, uv)) = mapped
-                    && super::texture::has_normal_map(&self.s.tex, rec)
-                {
-                    let i = hit.r & INDEX;
-                    ns = super::texture::shading_normal(&self.s.tex, rec, i, bary, uv, n_out);
-                    if ns.dot(n) < 0.0 {
-                        ns = -ns;
-                    }
-                }
+                let ns = self.shading_normal_at(hit, mapped, n_out, n);
                 if !(m.specular >= 1.0 && m.smoothness >= 1.0 && m.absorption == 0.0) || last {
                     let s = m.specular.clamp(0.0, 1.0);
                     let albedo = tint * m.color.lerp(m.specular_color, s);
