@@ -6,6 +6,7 @@
 // #include "common/fixed.wgsl"
 // #include "common/texture.wgsl"
 // #include "common/envmap.wgsl"
+// #include "common/pbr.wgsl"
 // Twin: src/cpu/trace.rs (tests/twins.rs keeps their functions paired).
 // The path tracer: one invocation traces its share of a round's `sample_count` paths through
 // one pixel and adds them to that pixel's running sums (src/gpu/trace.rs drives it).
@@ -26,6 +27,7 @@ override HAS_CUTOUTS: bool = true;
 override HAS_NORMAL_MAPS: bool = true;
 // An HDR environment map (common/envmap.wgsl): looked up by escaping rays, sampled with HAS_NEE.
 override HAS_ENV_MAP: bool = true;
+override HAS_PBR: bool = true;
 // Counting path segments costs an atomic per workgroup; only `bench` turns it on.
 override COUNT_SEGMENTS: bool = false;
 // Walk the BVH, or test every primitive in turn (tests compare the two; see src/common/features.rs).
@@ -414,15 +416,6 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     return a2 / (a2 + b * b);
 }
 
-// An orthonormal basis around a unit vector (Duff et al., "Building an Orthonormal Basis,
-// Revisited", JCGT 6(1), 2017).
-fn basis(n: vec3f) -> mat3x3f {
-    let s = select(-1.0, 1.0, n.z >= 0.0);
-    let a = -1.0 / (s + n.z);
-    let b = n.x * n.y * a;
-    return mat3x3f(vec3f(1.0 + s * n.x * n.x * a, s * b, -s * n.x), vec3f(b, s + n.y * n.y * a, -n.y), n);
-}
-
 fn sphere_center(s: Sphere) -> vec3f {
     return s.anchor - abs(s.radius) * s.anchor_normal;
 }
@@ -544,7 +537,9 @@ fn light_choice_pmf(i: u32, p: vec3f, n: vec3f) -> f32 {
 // The light-sampled estimate at point p with facing (shading) normal n, for the Lambertian
 // lobe (its 1/π included, its tint not): emitted radiance × cos / π / pdf, MIS-weighted.
 // n_geo: the facing geometric normal; the shadow ray leaves on its side, never into it.
-fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, state: ptr<function, Rng>) -> vec3f {
+// `pbr`: the surface is glTF's BRDF `lobe` (else the cosine lobe, whose tint the caller
+// applies).
+fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, state: ptr<function, Rng>) -> vec3f {
     // The environment map, with probability env_pick (src/common/arrays.rs: env_pick), or
     // one of the scene's lights by choose_light; one light alone is chosen without a draw.
     let pe = env_pick();
@@ -553,7 +548,7 @@ fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, state: ptr<function, Rng>) -> 
         pick = rand(state);
     }
     if pe > 0.0 && pick < pe {
-        return sample_env(p, n, n_geo, pe, state);
+        return sample_env(p, n, n_geo, pe, pbr, lobe, state);
     }
     if pe > 0.0 {
         pick = (pick - pe) / (1.0 - pe);
@@ -613,6 +608,10 @@ fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, state: ptr<function, Rng>) -> 
     }
     let m = materials[material];
     let pl = (1.0 - pe) * choice.pmf * pdf;
+    if HAS_PBR && pbr {
+        let e = pbr_eval(lobe, dir);
+        return m.color * m.light * e.xyz * (power_heuristic(pl, e.w) / pl);
+    }
     let bsdf_pdf = cos_s / PI;
     return m.color * m.light * (cos_s / PI / pl * power_heuristic(pl, bsdf_pdf));
 }
@@ -631,7 +630,7 @@ fn env_pick() -> f32 {
 
 // The environment map's share of sample_light, picked with probability pe: a direction from
 // the map's distribution, unoccluded, MIS-weighted against the cosine lobe.
-fn sample_env(p: vec3f, n: vec3f, n_geo: vec3f, pe: f32, state: ptr<function, Rng>) -> vec3f {
+fn sample_env(p: vec3f, n: vec3f, n_geo: vec3f, pe: f32, pbr: bool, lobe: PbrLobe, state: ptr<function, Rng>) -> vec3f {
     let s = env_sample(rand2(state), scene.env_rotation);
     let cos_s = dot(n, s.dir);
     if s.pdf <= 0.0 || cos_s <= 0.0 || (HAS_NORMAL_MAPS && dot(n_geo, s.dir) <= 0.0) {
@@ -641,6 +640,10 @@ fn sample_env(p: vec3f, n: vec3f, n_geo: vec3f, pe: f32, state: ptr<function, Rn
         return vec3f(0.0);
     }
     let pl = pe * s.pdf;
+    if HAS_PBR && pbr {
+        let e = pbr_eval(lobe, s.dir);
+        return s.radiance * scene.env_intensity * e.xyz * (power_heuristic(pl, e.w) / pl);
+    }
     return s.radiance * scene.env_intensity * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI));
 }
 
@@ -712,6 +715,18 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     (*path).prev_pdf = 0.0;
     if HAS_DIELECTRICS && m.smoothness < 0.0 {
         sc = scatter_dielectric(m, ray.dir, n_out, state);
+    } else if HAS_PBR && m.model == MODEL_PBR {
+        // glTF's BRDF (common/pbr.wgsl): light sampling on every lobe but the mirror's.
+        let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);
+        let ns = shading_normal_at(sh, hit, n_out, n);
+        let lobe = pbr_lobe(m, -ray.dir, ns);
+        if nee && (lobe.alpha >= PBR_ALPHA_MIN || lobe.p_spec < 1.0) {
+            (*path).radiance += (*path).throughput * sample_light(surf.point.position, ns, n, true, lobe, state);
+        }
+        let s = pbr_sample(lobe, state);
+        sc = Scatter(s.dir, s.weight, !s.ok || (HAS_NORMAL_MAPS && dot(s.dir, n) <= 0.0));
+        (*path).prev_pdf = s.pdf;
+        (*path).prev_normal = ns;
     } else {
         // A certain lobe takes no draw.
         let is_spec = m.specular >= 1.0 || (m.specular > 0.0 && rand(state) < m.specular);
@@ -722,7 +737,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         let cosine_lobe = !is_spec || m.smoothness == 0.0;
         if nee && cosine_lobe {
             let tint = select(m.color, m.specular_color, is_spec);
-            (*path).radiance += (*path).throughput * tint * sample_light(surf.point.position, ns, n, state);
+            (*path).radiance += (*path).throughput * tint * sample_light(surf.point.position, ns, n, false, PbrLobe(), state);
         }
         sc = scatter_surface(m, ray.dir, ns, is_spec, state);
         // A direction that the shading normal allows but that enters the surface ends the

@@ -61,8 +61,33 @@ fn every_key_reaches_its_parameter() {
     use termtrace::ui::keys::{Action, action};
     for p in Param::all() {
         let key = KeyEvent::new(KeyCode::Char(p.spec().key), KeyModifiers::NONE);
-        assert_eq!(action(key), Some(Action::Choose(p)), "{}", p.name());
+        // A key may serve one parameter of each material model: the selected material's
+        // model picks (`App::active_param`).
+        let Some(Action::Choose(chosen)) = action(key) else {
+            panic!("{}: its key chooses nothing", p.name());
+        };
+        assert_eq!(chosen.for_model(p.spec().model), p, "{}", p.name());
     }
+}
+
+#[test]
+fn a_number_of_another_model_is_refused_by_name() {
+    let text = "[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\nmetallic = 1\n";
+    let err = Scene::from_toml(text, "t.toml").unwrap_err().to_string();
+    assert!(
+        err.contains("t.toml:4:")
+            && err.contains("`metallic` belongs to another material model than `lecture`"),
+        "{err}"
+    );
+    let text = "[materials.gold]\nmodel = \"pbr\"\nsmoothness = 1\n";
+    let err = Scene::from_toml(text, "t.toml").unwrap_err().to_string();
+    assert!(
+        err.contains("`smoothness` belongs to another material model than `pbr`"),
+        "{err}"
+    );
+    let text = "[materials.gold]\nmodel = \"pbs\"\n";
+    let err = Scene::from_toml(text, "t.toml").unwrap_err().to_string();
+    assert!(err.contains("unknown material model `pbs`"), "{err}");
 }
 
 #[test]
@@ -75,7 +100,12 @@ fn a_scene_file_is_checked_against_the_declared_range() {
         } else {
             s.range.lo - 1.0
         };
-        let body = format!("{key} = {outside}");
+        // A pbr material's number is a key of a `model = "pbr"` material.
+        let model = match s.model {
+            Some(m) => format!("model = {:?}\n", m.name()),
+            None => String::new(),
+        };
+        let body = format!("{model}{key} = {outside}");
         let text = match table {
             "material" => format!("[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\n{body}\n"),
             _ => format!("[{table}]\n{body}\n"),
@@ -90,9 +120,9 @@ fn a_scene_file_is_checked_against_the_declared_range() {
         // Its default is accepted.
         if let Some(d) = s.default {
             let body = if s.step == termtrace::scene::params::Step::Count {
-                format!("{key} = {}", d as u32)
+                format!("{model}{key} = {}", d as u32)
             } else {
-                format!("{key} = {d:?}")
+                format!("{model}{key} = {d:?}")
             };
             let text = match table {
                 "material" => format!("[[sphere]]\ncenter = [0, 0, 0]\nradius = 1\n{body}\n"),

@@ -60,6 +60,14 @@ const TWINS: &[Twin] = &[
         rust_only: &["reflect"],
     },
     Twin {
+        wgsl: "shaders/common/pbr.wgsl",
+        rust: "src/cpu/pbr.rs",
+        prefix: "pbr_",
+        wgsl_only: &[],
+        // WGSL has `reflect` built in.
+        rust_only: &["reflect"],
+    },
+    Twin {
         wgsl: "shaders/common/rng.wgsl",
         rust: "src/cpu/rng.rs",
         prefix: "rng_",
@@ -86,7 +94,7 @@ const TWINS: &[Twin] = &[
         prefix: "",
         wgsl_only: &[],
         // WGSL's sin and cos are the GPU's; the host's turn-based pair matches them.
-        rust_only: &["basis", "sin_cos_turns"],
+        rust_only: &["sin_cos_turns"],
     },
     Twin {
         wgsl: "shaders/common/texture.wgsl",
@@ -104,7 +112,6 @@ const TWINS: &[Twin] = &[
         // the host's recursive walk differ in their plumbing, not in the model.
         wgsl_only: &[
             "add_u64",
-            "basis",
             "count_tests",
             "count_visit",
             "fixed_load",

@@ -29,3 +29,12 @@ fn normalize_or(v: vec3f, fallback: vec3f) -> vec3f {
     }
     return v * inverseSqrt(l2);
 }
+
+// An orthonormal basis around a unit vector (Duff et al., "Building an Orthonormal Basis,
+// Revisited", JCGT 6(1), 2017).
+fn basis(n: vec3f) -> mat3x3f {
+    let s = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (s + n.z);
+    let b = n.x * n.y * a;
+    return mat3x3f(vec3f(1.0 + s * n.x * n.x * a, s * b, -s * n.x), vec3f(b, s + n.y * n.y * a, -n.y), n);
+}

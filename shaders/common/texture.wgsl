@@ -167,6 +167,12 @@ fn tex_material(m: Material, rec: u32, uv: vec2f) -> Material {
         return out;
     }
     out.light = 0.0;
+    if m.model == MODEL_PBR {
+        out.color = base.xyz;
+        out.metallic = metallic;
+        out.roughness = roughness;
+        return out;
+    }
     let specular = metallic + (1.0 - metallic) * DIELECTRIC_F0;
     out.color = base.xyz;
     out.smoothness = 1.0;

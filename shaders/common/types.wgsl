@@ -72,7 +72,15 @@ struct Material {
     light: f32,             //  36  emission strength
     ior: f32,               //  40  index of refraction
     light_slot: u32,        //  44  1 + this object's index in `lights`; 0: not sampled
-}                           //  48
+    metallic: f32,          //  48  pbr: glTF's metallic factor
+    roughness: f32,         //  52  pbr: glTF's perceptual roughness (α = roughness²)
+    model: u32,             //  56  MODEL_LECTURE or MODEL_PBR
+    _pad0: u32,             //  60
+}                           //  64
+
+// Material.model.
+const MODEL_LECTURE: u32 = 0u;
+const MODEL_PBR: u32 = 1u;
 
 // A sphere stored by a point on its surface (the anchor, chosen near the part of the scene
 // the camera looks at) and the outward normal there, so that ray/sphere terms are computed

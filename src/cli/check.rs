@@ -55,8 +55,13 @@ fn c3(v: glam::Vec3) -> String {
 
 /// A material's colour and every number the parameter table declares for it.
 fn material_values(m: &crate::scene::Material) -> String {
-    let mut parts = vec![format!("color {}", c3(m.color))];
-    for (p, key) in crate::scene::params::material_keys() {
+    let mut parts = vec![
+        format!("model {}", m.model.name()),
+        format!("color {}", c3(m.color)),
+    ];
+    for (p, key) in
+        crate::scene::params::material_keys().filter(|(p, _)| p.applies_to(Some(m.model)))
+    {
         if let Some(v) = crate::scene::params::material_value(p, m) {
             parts.push(format!("{key} {v}"));
         }
@@ -69,11 +74,13 @@ pub fn summary(s: &Scene) -> String {
     let c = &s.camera;
     let r = &s.render;
     let n = s.counts();
-    let mut kinds = [0usize; 4];
+    let mut kinds = [0usize; 5];
     for o in &s.objects {
         let m = &o.material;
         let k = if m.is_emitter() {
             3
+        } else if m.is_pbr() {
+            4
         } else if m.is_dielectric() {
             2
         } else if m.smoothness > 0.0 && m.specular > 0.0 {
@@ -139,7 +146,7 @@ pub fn summary(s: &Scene) -> String {
         "{}: ok\n  camera     from {} to {}, vfov {}°, aperture {}, focus distance {}\n  \
          render     {}x{}, {} spp, max_bounces {}, seed {}\n  sky        {}\n  \
          objects    {} ({} spheres, {} quads, {} boxes, {} meshes of {} triangles)\n  \
-         materials  {} Lambertian, {} glossy/metal, {} dielectric, {} emitters; {} named{named}\n  \
+         materials  {} Lambertian, {} glossy/metal, {} dielectric, {} emitters, {} pbr; {} named{named}\n  \
          tracer     {}{env}{gltf}{tex}",
         s.origin,
         v3(c.look_from),
@@ -163,6 +170,7 @@ pub fn summary(s: &Scene) -> String {
         kinds[1],
         kinds[2],
         kinds[3],
+        kinds[4],
         s.materials.len(),
         Features::of(s).summary(),
     )

@@ -5,7 +5,7 @@
 use super::layout::*;
 use crate::bvh::wide::GpuBvhNode4;
 use crate::bvh::{Aabb, Bvh};
-use crate::scene::{Camera, Object, Scene, Shape, Sky, euler_xyz};
+use crate::scene::{Camera, MaterialModel, Object, Scene, Shape, Sky, euler_xyz};
 use glam::DVec3;
 use std::hash::{Hash, Hasher};
 
@@ -399,6 +399,13 @@ fn material(o: &Object) -> GpuMaterial {
         light: m.light,
         ior: m.ior,
         light_slot: 0,
+        metallic: m.metallic,
+        roughness: m.roughness,
+        model: match m.model {
+            MaterialModel::Lecture => MODEL_LECTURE,
+            MaterialModel::Pbr => MODEL_PBR,
+        },
+        _pad0: 0,
     }
 }
 

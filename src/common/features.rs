@@ -30,6 +30,8 @@ pub struct Features {
     /// An HDR environment map: looked up where rays leave the scene, and sampled by
     /// next-event estimation (with `nee`).
     pub env_map: bool,
+    /// glTF's metallic-roughness BRDF (`model = "pbr"` materials).
+    pub pbr: bool,
     /// Counts path segments (benchmarks only); not a scene feature.
     pub count_segments: bool,
     /// Walk the BVH (true) or test every primitive (false: for tests and scaling benchmarks).
@@ -53,6 +55,7 @@ impl Features {
             cutouts: true,
             normal_maps: true,
             env_map: true,
+            pbr: true,
             count_segments: false,
             bvh: true,
         }
@@ -74,6 +77,7 @@ impl Features {
             cutouts: false,
             normal_maps: false,
             env_map: false,
+            pbr: false,
             count_segments: false,
             bvh: false,
         }
@@ -98,11 +102,12 @@ impl Features {
                 "cutouts" => &mut f.cutouts,
                 "normal_maps" => &mut f.normal_maps,
                 "env_map" => &mut f.env_map,
+                "pbr" => &mut f.pbr,
                 _ => {
                     return Err(format!(
                         "unknown feature `{name}` (expected spheres, quads, boxes, triangles, \
-                         dielectrics, emitters, nee, dof, sun, textures, cutouts, normal_maps \
-                         or env_map)"
+                         dielectrics, emitters, nee, dof, sun, textures, cutouts, normal_maps, \
+                         env_map or pbr)"
                     ));
                 }
             };
@@ -129,6 +134,7 @@ impl Features {
                 Shape::Mesh { .. } => f.triangles = true,
             }
             f.dielectrics |= o.material.is_dielectric();
+            f.pbr |= o.material.is_pbr() && !o.material.is_emitter();
             f.emitters |= o.material.is_emitter();
             if let Some(t) = &o.material.textured
                 && !o.material.is_dielectric()
@@ -160,6 +166,7 @@ impl Features {
             cutouts: self.cutouts | other.cutouts,
             normal_maps: self.normal_maps | other.normal_maps,
             env_map: self.env_map | other.env_map,
+            pbr: self.pbr | other.pbr,
             count_segments: self.count_segments | other.count_segments,
             bvh: self.bvh | other.bvh,
         }
@@ -187,6 +194,7 @@ impl Features {
             ("HAS_CUTOUTS", b(self.cutouts)),
             ("HAS_NORMAL_MAPS", b(self.normal_maps)),
             ("HAS_ENV_MAP", b(self.env_map)),
+            ("HAS_PBR", b(self.pbr)),
             ("COUNT_SEGMENTS", b(self.count_segments)),
             ("USE_BVH", b(self.bvh)),
         ]
@@ -208,6 +216,7 @@ impl Features {
             (self.cutouts, "cutouts"),
             (self.normal_maps, "normal_maps"),
             (self.env_map, "env_map"),
+            (self.pbr, "pbr"),
         ];
         let on: Vec<&str> = names.iter().filter(|(b, _)| *b).map(|(_, n)| *n).collect();
         if on.is_empty() {

@@ -82,7 +82,17 @@ pub struct GpuMaterial {
     pub light: f32,
     pub ior: f32,
     pub light_slot: u32,
+    pub metallic: f32,
+    pub roughness: f32,
+    /// [`MODEL_LECTURE`] or [`MODEL_PBR`].
+    pub model: u32,
+    pub _pad0: u32,
 }
+
+/// `GpuMaterial::model`: the lecture's material model (MODEL_LECTURE in types.wgsl).
+pub const MODEL_LECTURE: u32 = 0;
+/// `GpuMaterial::model`: glTF's metallic-roughness BRDF (MODEL_PBR in types.wgsl).
+pub const MODEL_PBR: u32 = 1;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
@@ -217,6 +227,10 @@ pub fn mirrors() -> Vec<MirrorLayout> {
                 light,
                 ior,
                 light_slot,
+                metallic,
+                roughness,
+                model,
+                _pad0,
             ]
         ),
         m!(
@@ -244,7 +258,7 @@ const _: () = {
     assert!(std::mem::size_of::<SceneUniforms>() == 208);
     assert!(std::mem::size_of::<DispatchUniforms>() == 32);
     assert!(std::mem::size_of::<ResolveUniforms>() == 32);
-    assert!(std::mem::size_of::<GpuMaterial>() == 48);
+    assert!(std::mem::size_of::<GpuMaterial>() == 64);
     assert!(std::mem::size_of::<GpuSphere>() == 32);
     assert!(std::mem::size_of::<GpuQuad>() == 80);
     assert!(std::mem::size_of::<GpuCuboid>() == 80);

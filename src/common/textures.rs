@@ -121,8 +121,9 @@ impl<'a> Layout<'a> {
 
     /// The records: each glTF material's maps and factors, the factors taken from the
     /// model's material as it is now (so that the preview's keys edit a textured material
-    /// too: colour keys tint its base colour map, `specular` is the metallic share, fuzz the
-    /// roughness, light the emission), the inverse of `scene::gltf::material`.
+    /// too: colour keys tint its base colour map, light the emission; a pbr material's
+    /// metallic and roughness are its own, a lecture material's `specular` is the metallic
+    /// share and fuzz the roughness, the inverse of the old lecture mapping).
     fn records(&self) -> Vec<u32> {
         let mut w = Vec::with_capacity(RECORD_WORDS * self.records.len());
         for (t, m) in &self.records {
@@ -149,6 +150,14 @@ impl<'a> Layout<'a> {
             let (base, metallic, roughness, emissive) = if m.light > 0.0 {
                 let e = m.color * m.light;
                 (t.base_factor, t.metallic, t.roughness, e.to_array())
+            } else if m.is_pbr() {
+                let c = m.color;
+                (
+                    [c.x, c.y, c.z, t.base_factor[3]],
+                    m.metallic,
+                    m.roughness,
+                    t.emissive_factor,
+                )
             } else {
                 let c = m.color;
                 let metallic =

@@ -40,6 +40,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         "common/envmap.wgsl",
         include_str!("../../shaders/common/envmap.wgsl"),
     ),
+    (
+        "common/pbr.wgsl",
+        include_str!("../../shaders/common/pbr.wgsl"),
+    ),
 ];
 
 /// The source of one file compiled into the binary, by path relative to `shaders/`.

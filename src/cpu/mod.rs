@@ -20,6 +20,7 @@ pub mod intersect;
 pub mod material;
 #[cfg(target_arch = "x86_64")]
 mod packet;
+pub mod pbr;
 pub mod rng;
 pub mod sampling;
 pub mod scene;

@@ -9,7 +9,7 @@ use super::bvh8::Bvh8;
 use super::intersect::{Cuboid, Quad, Sphere, Triangle};
 use crate::common::FrameSettings;
 use crate::common::arrays::{Primitives, geometry_hash, gpu_bvh, scene_uniforms};
-use crate::common::layout::{GpuLight, GpuMaterial, SceneUniforms};
+use crate::common::layout::{GpuLight, GpuMaterial, MODEL_PBR, SceneUniforms};
 use crate::scene::Scene;
 use crate::scene::envmap::EnvMap;
 use glam::{DVec3, Vec3A};
@@ -29,6 +29,10 @@ pub struct Material {
     pub light: f32,
     pub ior: f32,
     pub light_slot: u32,
+    pub metallic: f32,
+    pub roughness: f32,
+    /// glTF's metallic-roughness BRDF (`cpu::pbr`) rather than the lecture's lobes.
+    pub pbr: bool,
 }
 
 /// The uniforms the tracer reads per sample, as vectors.
@@ -100,6 +104,9 @@ fn material(m: &GpuMaterial) -> Material {
         light: m.light,
         ior: m.ior,
         light_slot: m.light_slot,
+        metallic: m.metallic,
+        roughness: m.roughness,
+        pbr: m.model == MODEL_PBR,
     }
 }
 

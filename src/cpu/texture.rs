@@ -186,6 +186,12 @@ pub fn material(tex: &[u32], m: &Material, rec: u32, uv: Vec2) -> Material {
     }
     out.light = 0.0;
     let base = Vec3A::from(base.truncate());
+    if m.pbr {
+        out.color = base;
+        out.metallic = metallic;
+        out.roughness = roughness;
+        return out;
+    }
     let specular = metallic + (1.0 - metallic) * DIELECTRIC_F0;
     out.color = base;
     out.smoothness = 1.0;

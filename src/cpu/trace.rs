@@ -17,6 +17,7 @@ use super::intersect::*;
 use super::material::{Scatter, reflect, refract_dir, scatter_dielectric, scatter_surface};
 #[cfg(target_arch = "x86_64")]
 use super::packet::Packets;
+use super::pbr;
 use super::rng::Rng;
 use super::sampling::{PI, basis, random_in_disk, sin_cos_turns};
 use super::scene::{CpuScene, Material};
@@ -343,6 +344,7 @@ impl<'a> Tracer<'a> {
 
     /// The environment map's share of `sample_light`, picked with probability `pe`
     /// (trace.wgsl: sample_env).
+    #[allow(clippy::too_many_arguments)]
     fn sample_env<const P: u32>(
         &mut self,
         p: Vec3A,
@@ -350,6 +352,7 @@ impl<'a> Tracer<'a> {
         n_geo: Vec3A,
         from: u32,
         pe: f32,
+        lobe: Option<&pbr::Lobe>,
         rng: &mut Rng,
     ) -> Vec3A {
         let Some(map) = self.s.env.as_ref() else {
@@ -372,6 +375,10 @@ impl<'a> Tracer<'a> {
             return Vec3A::ZERO;
         }
         let pl = pe * s.pdf;
+        if let Some(l) = lobe {
+            let (f, pdf) = pbr::eval(l, dir);
+            return radiance * f * (power_heuristic(pl, pdf) / pl);
+        }
         radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI))
     }
 
@@ -499,12 +506,15 @@ impl<'a> Tracer<'a> {
     /// 1/π included and its tint not, MIS-weighted. `n_geo`: the facing geometric normal; the
     /// shadow ray leaves on its side, never into it.
     /// `from`: the primitive p lies on, where the shadow ray cannot meet it (`leaving`).
+    /// `lobe`: the surface is glTF's BRDF (else the cosine lobe, whose tint the caller
+    /// applies).
     fn sample_light<const P: u32>(
         &mut self,
         p: Vec3A,
         n: Vec3A,
         n_geo: Vec3A,
         from: u32,
+        lobe: Option<&pbr::Lobe>,
         rng: &mut Rng,
     ) -> Vec3A {
         // The environment map with probability env_pick, else one of the scene's lights;
@@ -516,7 +526,7 @@ impl<'a> Tracer<'a> {
             0.0
         };
         if pe > 0.0 && pick < pe {
-            return self.sample_env::<P>(p, n, n_geo, from, pe, rng);
+            return self.sample_env::<P>(p, n, n_geo, from, pe, lobe, rng);
         }
         if pe > 0.0 {
             pick = (pick - pe) / (1.0 - pe);
@@ -574,6 +584,10 @@ impl<'a> Tracer<'a> {
         let m = &self.s.materials[material as usize];
         let pl = (1.0 - pe) * pmf * pdf;
         let bsdf_pdf = cos_s / PI;
+        if let Some(l) = lobe {
+            let (f, pdf) = pbr::eval(l, dir);
+            return m.color * m.light * f * (power_heuristic(pl, pdf) / pl);
+        }
         m.color * m.light * (cos_s / PI / pl * power_heuristic(pl, bsdf_pdf))
     }
 
@@ -641,6 +655,25 @@ impl<'a> Tracer<'a> {
             prev_pdf = 0.0;
             if self.f.dielectrics && m.smoothness < 0.0 {
                 sc = scatter_dielectric(m, ray.dir, n_out, rng);
+            } else if self.f.pbr && m.pbr {
+                // glTF's BRDF (cpu::pbr): light sampling on every lobe but the mirror's.
+                let front = ray.dir.dot(n_out) < 0.0;
+                let n = if front { n_out } else { -n_out };
+                let ns = self.shading_normal_at(hit, mapped, n_out, n);
+                let lobe = pbr::lobe(m, -ray.dir, ns);
+                if nee && (lobe.alpha >= pbr::ALPHA_MIN || lobe.p_spec < 1.0) {
+                    let from = self.leaving(hit.r, front);
+                    radiance += throughput
+                        * self.sample_light::<P>(point.position, ns, n, from, Some(&lobe), rng);
+                }
+                let s = pbr::sample(&lobe, rng);
+                sc = Scatter {
+                    dir: s.dir,
+                    attenuation: s.weight,
+                    absorbed: !s.ok || (self.s.normal_maps && s.dir.dot(n) <= 0.0),
+                };
+                prev_pdf = s.pdf;
+                prev_normal = ns;
             } else {
                 // A certain lobe takes no draw.
                 let is_spec = m.specular >= 1.0 || (m.specular > 0.0 && rng.rand() < m.specular);
@@ -655,7 +688,7 @@ impl<'a> Tracer<'a> {
                     let from = self.leaving(hit.r, front);
                     radiance += throughput
                         * tint
-                        * self.sample_light::<P>(point.position, ns, n, from, rng);
+                        * self.sample_light::<P>(point.position, ns, n, from, None, rng);
                 }
                 sc = scatter_surface(m, ray.dir, ns, is_spec, rng);
                 // A direction the shading normal allows but that enters the surface ends the

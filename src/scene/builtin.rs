@@ -20,6 +20,7 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
     ("mesh", include_str!("../../scenes/mesh.toml")),
     ("lamp", include_str!("../../scenes/lamp.toml")),
     ("outdoor", include_str!("../../scenes/outdoor.toml")),
+    ("pbr", include_str!("../../scenes/pbr.toml")),
 ];
 
 /// The extreme scenes of `scenes/extreme/` (numerical stability; `check --stress`).

@@ -7,7 +7,7 @@
 //! (directional) or small emitting spheres of the same power (point, spot).
 
 use super::mesh::Mesh;
-use super::model::{Camera, Material, Object, Shape, Sun};
+use super::model::{Camera, Material, MaterialModel, Object, Shape, Sun};
 use glam::{DMat4, DVec3, Vec3};
 use std::path::Path;
 use std::sync::Arc;
@@ -15,6 +15,8 @@ use std::sync::Arc;
 /// The reflectance of a dielectric at normal incidence that glTF's metallic-roughness model
 /// assumes (glTF 2.0 specification, Appendix B: `F0 = 0.04`).
 pub const DIELECTRIC_F0: f32 = 0.04;
+/// glTF's index of refraction where `KHR_materials_ior` is silent.
+pub const DEFAULT_IOR: f32 = 1.5;
 /// The radius of the sphere a point or spot light becomes, as a fraction of the scene's
 /// bounding-box diagonal: small enough to read as a point, large enough to be found by
 /// paths that do not sample it.
@@ -539,18 +541,13 @@ fn accessor_fits(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(
     }
 }
 
-/// glTF's metallic-roughness factors as MODEL.md's material (docs/MODEL-NOTES.md):
-/// - base colour → `color` (glTF's factors are linear already);
-/// - a metal reflects all it does specularly, tinted by its base colour; a dielectric base
-///   reflects `F0 = 0.04` specularly, untinted, and the rest diffusely: `specular` is
-///   `metallic + (1 − metallic) · 0.04` and `specular_color` the mix of white and base colour
-///   that gives each part its share;
-/// - roughness → `absorption` (the fuzz radius), with `smoothness` 1 (the lobe about the
-///   mirror direction);
-/// - emission → `light` (strength × the brightest channel of `emissiveFactor`) with the
-///   emissive colour as `color`, since the model's emitter radiance is `color × light`;
-/// - `KHR_materials_transmission` above one half → the model's dielectric, with
-///   `KHR_materials_ior` (default 1.5) and the base colour as the glass's tint.
+/// glTF's metallic-roughness material as the `pbr` model renders it (docs/MODEL-NOTES.md,
+/// "pbr"): base colour (linear already), metallic, roughness and `KHR_materials_ior` (default
+/// 1.5) as they are; and where the model has no lobe for it yet:
+/// - emission → an emitter: `light` (strength × the brightest channel of `emissiveFactor`)
+///   with the emissive colour as `color`, since an emitter's radiance is `color × light`;
+/// - `KHR_materials_transmission` above one half → the lecture's dielectric, with the ior and
+///   the base colour as the glass's tint, frosted by the roughness.
 pub fn material(m: &gltf::Material) -> Material {
     let pbr = m.pbr_metallic_roughness();
     let [r, g, b, _] = pbr.base_color_factor();
@@ -578,54 +575,46 @@ pub struct Pbr {
     pub ior: f32,
 }
 
-/// [`Pbr`] factors as MODEL.md's material, by the rules of [`material`].
+/// [`Pbr`] factors as a material, by the rules of [`material`].
 pub fn pbr_material(p: &Pbr) -> Material {
     let base = p.base.max(Vec3::ZERO);
     let metallic = p.metallic.clamp(0.0, 1.0);
     let roughness = p.roughness.clamp(0.0, 1.0);
     let emissive = p.emissive.max(Vec3::ZERO);
-    let (transmission, ior) = (p.transmission, p.ior);
+    let ior = if p.ior > 0.0 && p.ior.is_finite() {
+        p.ior
+    } else {
+        DEFAULT_IOR
+    };
     if emissive.max_element() > 0.0 {
         let light = emissive.max_element();
         return Material {
             color: emissive / light,
             smoothness: 0.0,
-            absorption: 0.0,
             specular: 0.0,
             light,
-            ior: 1.5,
-            specular_color: None,
-            textured: None,
+            ..Material::default()
         };
     }
-    if transmission > 0.5 {
+    if p.transmission > 0.5 {
+        // KHR_materials_transmission is not yet the specification's rough dielectric: a
+        // mostly transmissive material is the lecture's glass, frosted by its roughness.
         return Material {
             color: base,
             smoothness: -1.0,
             absorption: roughness,
             specular: 1.0,
-            light: 0.0,
-            ior: if ior > 0.0 && ior.is_finite() {
-                ior
-            } else {
-                1.5
-            },
-            specular_color: None,
-            textured: None,
+            ior,
+            ..Material::default()
         };
     }
-    let specular = metallic + (1.0 - metallic) * DIELECTRIC_F0;
-    // The specular part's mean tint: metallic·base + (1 − metallic)·F0·white, per unit share.
-    let tint = (metallic * base + (1.0 - metallic) * DIELECTRIC_F0 * Vec3::ONE) / specular;
     Material {
         color: base,
-        smoothness: 1.0,
-        absorption: roughness,
-        specular,
-        light: 0.0,
-        ior: 1.5,
-        specular_color: Some(tint),
-        textured: None,
+        model: MaterialModel::Pbr,
+        metallic,
+        roughness,
+        ior,
+        ..Material::default()
     }
 }
 

@@ -190,9 +190,43 @@ pub struct Material {
     pub ior: f32,
     /// Tint of specular bounces; `None` means the same as `color`.
     pub specular_color: Option<Vec3>,
+    /// Which material model the surface follows: the lecture's, or glTF's metallic-roughness
+    /// BRDF (`color` is then the base colour, `ior` the dielectric's index).
+    pub model: MaterialModel,
+    /// glTF's metallic factor (0 dielectric … 1 metal); the `pbr` model's.
+    pub metallic: f32,
+    /// glTF's perceptual roughness (α = roughness²); the `pbr` model's.
+    pub roughness: f32,
     /// A glTF material's texture maps, mapped onto the other fields at each hit (`None`: the
     /// fields as they are).
     pub textured: Option<TexturedRef>,
+}
+
+/// The material models a surface can follow.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum MaterialModel {
+    /// MODEL.md's: smoothness, absorption (fuzz), specular probability, glass below 0.
+    #[default]
+    Lecture,
+    /// glTF 2.0's metallic-roughness BRDF (its Appendix B; docs/MODEL-NOTES.md, "pbr").
+    Pbr,
+}
+
+impl MaterialModel {
+    /// The model as a scene file names it (`model = "pbr"`).
+    pub fn name(self) -> &'static str {
+        match self {
+            MaterialModel::Lecture => "lecture",
+            MaterialModel::Pbr => "pbr",
+        }
+    }
+
+    /// The model of that name.
+    pub fn named(name: &str) -> Option<MaterialModel> {
+        [MaterialModel::Lecture, MaterialModel::Pbr]
+            .into_iter()
+            .find(|m| m.name() == name)
+    }
 }
 
 /// Default albedo of MODEL.md for non-dielectrics.
@@ -202,7 +236,10 @@ pub const DEFAULT_GLASS_COLOR: Vec3 = Vec3::ONE;
 
 impl Material {
     pub fn is_dielectric(&self) -> bool {
-        self.smoothness < 0.0
+        self.model == MaterialModel::Lecture && self.smoothness < 0.0
+    }
+    pub fn is_pbr(&self) -> bool {
+        self.model == MaterialModel::Pbr
     }
     pub fn is_emitter(&self) -> bool {
         self.light > 0.0

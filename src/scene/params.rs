@@ -5,7 +5,9 @@
 //! table (`tests/params.rs` fails when they differ). docs/PARAMETERS.md says how to add one.
 
 use super::color::{linear_to_srgb, srgb_to_linear};
-use super::model::{Camera, DEFAULT_COLOR, MAX_BOUNCES, Material, RenderSettings, Scene};
+use super::model::{
+    Camera, DEFAULT_COLOR, MAX_BOUNCES, Material, MaterialModel, RenderSettings, Scene,
+};
 use glam::DVec3;
 
 /// The values a parameter may take: `[lo, hi]`, either end open.
@@ -140,6 +142,8 @@ pub enum Access {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Group {
     Material,
+    /// A pbr material's own numbers (its colour, light and ior are shared).
+    Pbr,
     Colour,
     Camera,
 }
@@ -150,6 +154,7 @@ impl Group {
     pub fn help(self, names: &str) -> String {
         match self {
             Group::Colour => format!("adjust the colour's {names} (sRGB)"),
+            Group::Pbr => format!("adjust a pbr (glTF) material's {names}"),
             _ => format!("adjust {names}"),
         }
     }
@@ -173,8 +178,11 @@ pub struct ParamSpec {
     /// `look_at`).
     pub default: Option<f64>,
     pub unit: &'static str,
-    /// The key that makes it the one `+ - ] [` adjust.
+    /// The key that makes it the one `+ - ] [` adjust (a key may serve one parameter of
+    /// each material model).
     pub key: char,
+    /// The material model it belongs to (`None`: every model's, or not a material's).
+    pub model: Option<MaterialModel>,
     pub group: Group,
     /// One line of doc.
     pub doc: &'static str,
@@ -182,7 +190,7 @@ pub struct ParamSpec {
 }
 
 /// Every parameter, in the preview's order (`m` goes to the next).
-pub static PARAMS: [ParamSpec; 12] = [
+pub static PARAMS: [ParamSpec; 14] = [
     ParamSpec {
         name: "smoothness",
         label: "smooth",
@@ -195,6 +203,7 @@ pub static PARAMS: [ParamSpec; 12] = [
         default: Some(0.0),
         unit: "",
         key: '1',
+        model: Some(MaterialModel::Lecture),
         group: Group::Material,
         doc: "0 Lambertian … 1 mirror; below 0 a dielectric (glass)",
         access: Access::Material {
@@ -214,6 +223,7 @@ pub static PARAMS: [ParamSpec; 12] = [
         default: Some(0.0),
         unit: "",
         key: '2',
+        model: Some(MaterialModel::Lecture),
         group: Group::Material,
         doc: "the lecture's fuzz: radius of the random vector added to reflected and refracted rays",
         access: Access::Material {
@@ -233,6 +243,7 @@ pub static PARAMS: [ParamSpec; 12] = [
         default: Some(1.0),
         unit: "",
         key: '3',
+        model: Some(MaterialModel::Lecture),
         group: Group::Material,
         doc: "probability that a bounce takes the specular lobe",
         access: Access::Material {
@@ -252,6 +263,7 @@ pub static PARAMS: [ParamSpec; 12] = [
         default: Some(0.0),
         unit: "",
         key: '4',
+        model: None,
         group: Group::Material,
         doc: "emission strength: the surface emits colour × light",
         access: Access::Material {
@@ -271,11 +283,52 @@ pub static PARAMS: [ParamSpec; 12] = [
         default: Some(1.5),
         unit: "",
         key: '5',
+        model: None,
         group: Group::Material,
         doc: "index of refraction of a dielectric (smoothness below 0)",
         access: Access::Material {
             get: |m| m.ior,
             set: |m, v| m.ior = v,
+        },
+    },
+    ParamSpec {
+        name: "metallic",
+        label: "metal",
+        help: "metallic",
+        toml: Some(("material", "metallic")),
+        range: Range::closed(0.0, 1.0),
+        fine: 0.01,
+        coarse: 0.1,
+        step: Step::Add,
+        default: Some(0.0),
+        unit: "",
+        key: '1',
+        model: Some(MaterialModel::Pbr),
+        group: Group::Pbr,
+        doc: "glTF's metallic factor: 0 a dielectric (diffuse base under a Fresnel coat) … 1 a metal",
+        access: Access::Material {
+            get: |m| m.metallic,
+            set: |m, v| m.metallic = v,
+        },
+    },
+    ParamSpec {
+        name: "roughness",
+        label: "rough",
+        help: "roughness",
+        toml: Some(("material", "roughness")),
+        range: Range::closed(0.0, 1.0),
+        fine: 0.01,
+        coarse: 0.1,
+        step: Step::Add,
+        default: Some(0.5),
+        unit: "",
+        key: '2',
+        model: Some(MaterialModel::Pbr),
+        group: Group::Pbr,
+        doc: "glTF's perceptual roughness (GGX α = roughness²): 0 a mirror … 1 matte",
+        access: Access::Material {
+            get: |m| m.roughness,
+            set: |m, v| m.roughness = v,
         },
     },
     channel("red", "r", '6', 0),
@@ -293,6 +346,7 @@ pub static PARAMS: [ParamSpec; 12] = [
         default: Some(0.0),
         unit: "scene units",
         key: '9',
+        model: None,
         group: Group::Camera,
         doc: "lens diameter; 0 is a pinhole",
         access: Access::Scene {
@@ -312,6 +366,7 @@ pub static PARAMS: [ParamSpec; 12] = [
         default: None,
         unit: "scene units",
         key: '0',
+        model: None,
         group: Group::Camera,
         doc: "distance to the plane in focus; by default the distance to look_at",
         access: Access::Scene {
@@ -331,6 +386,7 @@ pub static PARAMS: [ParamSpec; 12] = [
         default: Some(10.0),
         unit: "",
         key: 'b',
+        model: None,
         group: Group::Camera,
         doc: "the longest path, in bounces",
         access: Access::Scene {
@@ -350,6 +406,7 @@ pub static PARAMS: [ParamSpec; 12] = [
         default: Some(60.0),
         unit: "degrees",
         key: 'v',
+        model: None,
         group: Group::Camera,
         doc: "vertical field of view",
         access: Access::Scene {
@@ -373,6 +430,7 @@ const fn channel(name: &'static str, label: &'static str, key: char, i: usize) -
         default: None,
         unit: "sRGB",
         key,
+        model: None,
         group: Group::Colour,
         doc: "a channel of the colour (albedo, emission colour or glass tint), sRGB-encoded",
         access: Access::Channel(i),
@@ -396,9 +454,29 @@ impl Param {
             .unwrap_or_else(|| panic!("no parameter `{name}`"))
     }
 
-    /// The parameter whose key is `c`.
+    /// The parameter whose key is `c` (the lecture's model's where a key serves each model).
     pub fn by_key(c: char) -> Option<Param> {
         Param::all().find(|p| p.spec().key == c)
+    }
+
+    /// Whether it is a parameter of a material of `model` (or of the scene).
+    pub fn applies_to(self, model: Option<MaterialModel>) -> bool {
+        match (self.spec().model, model) {
+            (None, _) => true,
+            (Some(own), Some(m)) => own == m,
+            (Some(_), None) => false,
+        }
+    }
+
+    /// The parameter on the same key for a material of `model`: `1` is smoothness for the
+    /// lecture's model and metallic for pbr.
+    pub fn for_model(self, model: Option<MaterialModel>) -> Param {
+        if self.applies_to(model) {
+            return self;
+        }
+        Param::all()
+            .find(|p| p.spec().key == self.spec().key && p.applies_to(model))
+            .unwrap_or(self)
     }
 
     pub fn spec(self) -> &'static ParamSpec {
@@ -421,6 +499,9 @@ impl Param {
     /// The value as the preview shows it (a colour channel sRGB-encoded); `None` for a
     /// material's parameter when no object is selected.
     pub fn value(self, scene: &Scene, selected: Option<&Material>) -> Option<f64> {
+        if self.is_material() && !self.applies_to(selected.map(|m| m.model)) {
+            return None;
+        }
         Some(match self.spec().access {
             Access::Material { get, .. } => get(selected?) as f64,
             Access::Channel(i) => linear_to_srgb(selected?.color[i] as f64),
@@ -432,6 +513,9 @@ impl Param {
     /// the range. Returns whether the material changed.
     pub fn adjust_material(self, m: &mut Material, up: bool, coarse: bool) -> bool {
         let s = self.spec();
+        if !self.applies_to(Some(m.model)) {
+            return false;
+        }
         let before = m.clone();
         let step = signed_step(s, up, coarse);
         match s.access {
@@ -550,6 +634,9 @@ impl Default for Material {
             light: 0.0,
             ior: 0.0,
             specular_color: None,
+            model: MaterialModel::Lecture,
+            metallic: 0.0,
+            roughness: 0.0,
             textured: None,
         };
         for (p, _) in material_keys() {
@@ -636,11 +723,14 @@ pub fn reference_table() -> String {
             ),
             Step::Count => "± 1 / × 2".to_string(),
         };
+        let key = match s.model {
+            Some(m) => format!("`{}` ({})", s.key, m.name()),
+            None => format!("`{}`", s.key),
+        };
         t += &format!(
-            "| {} | {file} | {}{unit} | {default} | {steps} | `{}` | {} |\n",
+            "| {} | {file} | {}{unit} | {default} | {steps} | {key} | {} |\n",
             s.name,
             s.range.describe(),
-            s.key,
             s.doc
         );
     }
@@ -656,7 +746,12 @@ mod tests {
         for a in Param::all() {
             for b in Param::all().filter(|b| *b != a) {
                 assert_ne!(a.spec().name, b.spec().name);
-                assert_ne!(a.spec().key, b.spec().key);
+                // One key, one parameter for each material model.
+                let overlap = match (a.spec().model, b.spec().model) {
+                    (Some(x), Some(y)) => x == y,
+                    _ => true,
+                };
+                assert!(!overlap || a.spec().key != b.spec().key, "{}", a.name());
                 assert!(a.spec().toml.is_none() || a.spec().toml != b.spec().toml);
             }
         }

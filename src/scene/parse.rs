@@ -53,7 +53,7 @@ const GLTF_KEYS: &[&str] = &[
 ];
 /// The keys of a material: its colours and the numbers the parameter table declares.
 fn material_keys() -> Vec<&'static str> {
-    let mut keys = vec!["color"];
+    let mut keys = vec!["model", "color"];
     keys.extend(params::material_keys().map(|(_, k)| k));
     keys.push("specular_color");
     keys
@@ -104,7 +104,11 @@ fn read_scene(root: &Table, origin: &str) -> Scene {
     let materials: Vec<(String, MaterialPatch)> = root
         .named_tables("materials", &material_keys())
         .into_iter()
-        .map(|(name, t)| (name, MaterialPatch::read(&t)))
+        .map(|(name, t)| {
+            let patch = MaterialPatch::read(&t);
+            patch.check_model(&t, patch.model.unwrap_or_default());
+            (name, patch)
+        })
         .collect();
 
     let with = |extra: &[&'static str]| -> Vec<&'static str> {
@@ -290,6 +294,7 @@ fn read_sun(t: &Table) -> Option<Sun> {
 /// Material keys as given in one table; `None` where the table is silent.
 #[derive(Clone, Default)]
 struct MaterialPatch {
+    model: Option<MaterialModel>,
     color: Option<Vec3>,
     /// The numbers of the parameter table, by parameter.
     numbers: Vec<(Param, f32)>,
@@ -298,12 +303,48 @@ struct MaterialPatch {
 
 impl MaterialPatch {
     fn read(t: &Table) -> MaterialPatch {
+        let model = t.string("model").and_then(|name| {
+            let model = MaterialModel::named(&name);
+            if model.is_none() {
+                t.error(
+                    "model",
+                    format!("unknown material model `{name}`"),
+                    Some("`lecture` (MODEL.md's, the default) or `pbr` (glTF's)".into()),
+                );
+            }
+            model
+        });
         MaterialPatch {
+            model,
             color: t.color("color"),
             numbers: params::material_keys()
                 .filter_map(|(p, key)| Some((p, t.param("material", key)? as f32)))
                 .collect(),
             specular_color: t.color("specular_color"),
+        }
+    }
+
+    /// Reports each number given in `t` that belongs to another model than `model`.
+    fn check_model(&self, t: &Table, model: MaterialModel) {
+        for (p, key) in params::material_keys() {
+            if self.number(p).is_some() && !p.applies_to(Some(model)) {
+                t.error(
+                    key,
+                    format!(
+                        "`{key}` belongs to another material model than `{}`",
+                        model.name()
+                    ),
+                    Some(format!(
+                        "a `{}` material takes {}",
+                        model.name(),
+                        params::material_keys()
+                            .filter(|(q, _)| q.applies_to(Some(model)))
+                            .map(|(_, k)| format!("`{k}`"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )),
+                );
+            }
         }
     }
 
@@ -314,6 +355,7 @@ impl MaterialPatch {
     /// `self` over `base`: keys given here win.
     fn over(&self, base: &MaterialPatch) -> MaterialPatch {
         MaterialPatch {
+            model: self.model.or(base.model),
             color: self.color.or(base.color),
             numbers: params::material_keys()
                 .filter_map(|(p, _)| Some((p, self.number(p).or(base.number(p))?)))
@@ -325,6 +367,7 @@ impl MaterialPatch {
     /// Every key of a complete material.
     fn of(m: &Material) -> MaterialPatch {
         MaterialPatch {
+            model: Some(m.model),
             color: Some(m.color),
             numbers: params::material_keys()
                 .filter_map(|(p, _)| Some((p, params::material_value(p, m)?)))
@@ -335,7 +378,10 @@ impl MaterialPatch {
 
     /// Fills the defaults of MODEL.md; a dielectric's default colour is white.
     fn resolve(&self) -> Material {
-        let mut m = Material::default();
+        let mut m = Material {
+            model: self.model.unwrap_or_default(),
+            ..Material::default()
+        };
         for (p, v) in &self.numbers {
             params::set_material_value(*p, &mut m, *v);
         }
@@ -372,10 +418,12 @@ fn read_object(
             }
         },
     };
+    let merged = inline.over(&base);
+    inline.check_model(t, merged.model.unwrap_or_default());
     Some(Object {
         name: t.string("name"),
         shape: shape?,
-        material: inline.over(&base).resolve(),
+        material: merged.resolve(),
         material_name,
         gltf: None,
     })

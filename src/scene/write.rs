@@ -37,7 +37,10 @@ fn material_lines(out: &mut String, m: &Material, base: &Material) {
     if m.color != base_color {
         let _ = writeln!(out, "color = {}", col(m.color));
     }
-    for (p, key) in params::material_keys() {
+    if m.model != base.model {
+        let _ = writeln!(out, "model = {:?}", m.model.name());
+    }
+    for (p, key) in params::material_keys().filter(|(p, _)| p.applies_to(Some(m.model))) {
         let (v, b) = (
             params::material_value(p, m),
             params::material_value(p, base),

@@ -141,6 +141,13 @@ impl App {
         self.scene.objects.get(self.selected).map(|o| &o.material)
     }
 
+    /// The parameter `+ - ] [` adjust: the chosen one, or the one on its key for the
+    /// selected material's model (`1` is smoothness, or a pbr material's metallic).
+    pub fn active_param(&self) -> Param {
+        self.param
+            .for_model(self.selected_material().map(|m| m.model))
+    }
+
     /// The current value of a parameter, for display.
     pub fn value(&self, p: Param) -> Option<f64> {
         p.value(&self.scene, self.selected_material())
@@ -175,7 +182,13 @@ impl App {
                 Effect::None
             }
             Action::NextParam => {
-                self.param = self.param.next();
+                // The next one the selected object has (a material's model decides).
+                let model = self.selected_material().map(|m| m.model);
+                let mut p = self.active_param().next();
+                while !p.applies_to(model) {
+                    p = p.next();
+                }
+                self.param = p;
                 Effect::None
             }
             Action::Adjust { up, coarse } => self.adjust(up, coarse),
@@ -263,7 +276,7 @@ impl App {
     }
 
     fn adjust(&mut self, up: bool, coarse: bool) -> Effect {
-        let p = self.param;
+        let p = self.active_param();
         if !p.is_material() {
             p.adjust_scene(&mut self.scene, up, coarse);
             return Effect::SceneChanged;
@@ -425,6 +438,45 @@ mod tests {
         let before = a.value(Param::named("red")).unwrap();
         press(&mut a, KeyCode::Char(']'));
         assert!((a.value(Param::named("red")).unwrap() - (before + 0.1)).abs() < 2e-3);
+    }
+
+    #[test]
+    fn a_pbr_material_is_edited_in_its_own_terms() {
+        let mut a = App::new(
+            Scene::load("pbr").unwrap(),
+            "test adapter".into(),
+            CellMode::Half,
+        );
+        press(&mut a, KeyCode::Tab); // "gold mirror": metallic 1, roughness 0
+        // `1` and `2` are metallic and roughness here; the lecture's numbers are not shown.
+        press(&mut a, KeyCode::Char('2'));
+        assert_eq!(a.active_param(), Param::named("roughness"));
+        assert_eq!(press(&mut a, KeyCode::Char(']')), Effect::SceneChanged);
+        assert_eq!(a.scene.objects[1].material.roughness, 0.1);
+        press(&mut a, KeyCode::Char('1'));
+        assert_eq!(a.active_param(), Param::named("metallic"));
+        assert_eq!(
+            press(&mut a, KeyCode::Char('+')),
+            Effect::None,
+            "metallic is at 1"
+        );
+        press(&mut a, KeyCode::Char('-'));
+        assert_eq!(a.scene.objects[1].material.metallic, 0.99);
+        assert_eq!(a.value(Param::named("smoothness")), None);
+        assert_eq!(a.value(Param::named("metallic")), Some(0.99f32 as f64));
+        // `m` walks the pbr material's parameters and the camera's, never the lecture's.
+        for _ in 0..12 {
+            press(&mut a, KeyCode::Char('m'));
+            assert!(
+                a.value(a.active_param()).is_some(),
+                "{:?}",
+                a.active_param()
+            );
+        }
+        // On a lecture material the same key is smoothness again.
+        let mut b = app();
+        press(&mut b, KeyCode::Char('1'));
+        assert_eq!(b.active_param(), Param::named("smoothness"));
     }
 
     #[test]

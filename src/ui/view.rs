@@ -269,7 +269,7 @@ fn params_spans(app: &App, camera: bool, hint: bool) -> Vec<Span<'static>> {
     let mut previous = None;
     for p in Param::all() {
         let spec = p.spec();
-        if !camera && !p.is_material() && p != app.param {
+        if !camera && !p.is_material() && p != app.active_param() {
             continue;
         }
         let Some(v) = app.value(p) else { continue };
@@ -279,7 +279,7 @@ fn params_spans(app: &App, camera: bool, hint: bool) -> Vec<Span<'static>> {
         previous = Some(spec.group);
         let label = spec.label;
         let text = format!("{label} {}", fmt_value(v));
-        if p == app.param {
+        if p == app.active_param() {
             spans.push(Span::styled(
                 text,
                 Style::new().add_modifier(Modifier::REVERSED),

@@ -1,0 +1,159 @@
+// #include "common/types.wgsl"
+// #include "common/rng.wgsl"
+// #include "common/sampling.wgsl"
+// Twin: src/cpu/pbr.rs (tests/twins.rs keeps their functions paired).
+// glTF 2.0's metallic-roughness BRDF as the specification's Appendix B writes it: a
+// Lambertian base under a dielectric Fresnel layer (Schlick, f0 from the ior: 0.04 at 1.5),
+// mixed by metallic with a metal whose f0 is the base colour; the specular lobe is
+// Trowbridge-Reitz (GGX) with α = roughness² and the height-correlated Smith visibility
+// (Heitz 2014). Sampled by the distribution of visible normals (Heitz, "Sampling the GGX
+// Distribution of Visible Normals", JCGT 7(4), 2018) mixed with the cosine lobe, with a
+// density light sampling's MIS evaluates. Below PBR_ALPHA_MIN the specular lobe is a mirror.
+
+// The smallest α the microfacet lobe keeps; below it the lobe is a perfect mirror (a delta,
+// which light sampling cannot find): roughness 0 is a mirror, continuously.
+const PBR_ALPHA_MIN: f32 = 1e-4;
+const PBR_LUMINANCE: vec3f = vec3f(0.2126, 0.7152, 0.0722);
+
+// A pbr material at a hit, seen from `wo` (unit, towards the viewer) over the shading
+// normal `n` (on the side of wo).
+struct PbrLobe {
+    base: vec3f,
+    metallic: f32,
+    n: vec3f,
+    alpha: f32,
+    wo: vec3f,
+    // The dielectric's reflectance at normal incidence, ((ior − 1)/(ior + 1))².
+    f0: f32,
+    // The probability of sampling the specular lobe (else the cosine lobe).
+    p_spec: f32,
+}
+
+// A direction drawn from the lobe: f·cos/pdf as the throughput's factor, and the density
+// (0 for the mirror, which MIS cannot weigh).
+struct PbrSample {
+    dir: vec3f,
+    weight: vec3f,
+    pdf: f32,
+    ok: bool,
+}
+
+fn pbr_pow5(x: f32) -> f32 {
+    let x2 = x * x;
+    return x2 * x2 * x;
+}
+
+fn pbr_lobe(m: Material, wo: vec3f, n: vec3f) -> PbrLobe {
+    let r = (m.ior - 1.0) / (m.ior + 1.0);
+    let f0 = r * r;
+    let fd = f0 + (1.0 - f0) * pbr_pow5(1.0 - clamp(dot(n, wo), 0.0, 1.0));
+    // Each lobe in proportion to what it reflects towards wo, roughly.
+    let spec_w = m.metallic + (1.0 - m.metallic) * fd;
+    let diff_w = (1.0 - m.metallic) * (1.0 - fd) * dot(m.color, PBR_LUMINANCE);
+    let total = spec_w + diff_w;
+    let p_spec = select(1.0, spec_w / total, total > 0.0);
+    let alpha = m.roughness * m.roughness;
+    return PbrLobe(m.color, m.metallic, n, alpha, wo, f0, p_spec);
+}
+
+// Trowbridge-Reitz (GGX) normal distribution, from cos and sin² of the half vector's angle:
+// its denominator written as sin² + cos²·α² rather than cos²(α² − 1) + 1, which cancels to 0
+// in f32 for α below about 2.4e-4 (1 − α² rounds to 1) and made D infinite.
+fn pbr_d(n_dot_h: f32, sin2_h: f32, alpha: f32) -> f32 {
+    let a2 = alpha * alpha;
+    let k = sin2_h + n_dot_h * n_dot_h * a2;
+    return a2 / (PI * k * k);
+}
+
+// The height-correlated Smith visibility V = G2 / (4 |n·l| |n·v|) (glTF's V_GGX).
+fn pbr_v(n_dot_l: f32, n_dot_v: f32, alpha: f32) -> f32 {
+    let a2 = alpha * alpha;
+    let gv = n_dot_l * sqrt(n_dot_v * n_dot_v * (1.0 - a2) + a2);
+    let gl = n_dot_v * sqrt(n_dot_l * n_dot_l * (1.0 - a2) + a2);
+    return 0.5 / (gv + gl);
+}
+
+// Smith's masking of one direction, G1 = 2 cos / (cos + sqrt(α² + (1 − α²) cos²)).
+fn pbr_g1(n_dot_v: f32, alpha: f32) -> f32 {
+    let a2 = alpha * alpha;
+    return 2.0 * n_dot_v / (n_dot_v + sqrt(a2 + (1.0 - a2) * n_dot_v * n_dot_v));
+}
+
+// The BRDF times the cosine towards `wi`, and the density with which pbr_sample draws wi
+// (its part that can be evaluated: the mirror's delta is left out of both).
+fn pbr_eval(l: PbrLobe, wi: vec3f) -> vec4f {
+    let nl = dot(l.n, wi);
+    let nv = dot(l.n, l.wo);
+    if nl <= 0.0 || nv <= 0.0 {
+        return vec4f(0.0);
+    }
+    let h = normalize(l.wo + wi);
+    let x5 = pbr_pow5(1.0 - clamp(dot(l.wo, h), 0.0, 1.0));
+    let fd = l.f0 + (1.0 - l.f0) * x5;
+    let fm = l.base + (1.0 - l.base) * x5;
+    var f = (1.0 - l.metallic) * (1.0 - fd) * l.base / PI;
+    var pdf = (1.0 - l.p_spec) * nl / PI;
+    if l.alpha >= PBR_ALPHA_MIN {
+        let nh = clamp(dot(l.n, h), 0.0, 1.0);
+        let nxh = cross(l.n, h);
+        let d = pbr_d(nh, dot(nxh, nxh), l.alpha);
+        f += ((1.0 - l.metallic) * fd + l.metallic * fm) * (d * pbr_v(nl, nv, l.alpha));
+        pdf += l.p_spec * d * pbr_g1(nv, l.alpha) / (4.0 * nv);
+    }
+    return vec4f(f * nl, pdf);
+}
+
+// A visible normal of the GGX distribution seen from `wo` (local frame, z the normal):
+// Heitz 2018, listing 1.
+fn pbr_visible_normal(wo: vec3f, alpha: f32, u: vec2f) -> vec3f {
+    let vh = normalize(vec3f(alpha * wo.x, alpha * wo.y, wo.z));
+    let len2 = vh.x * vh.x + vh.y * vh.y;
+    var t1 = vec3f(1.0, 0.0, 0.0);
+    if len2 > 0.0 {
+        t1 = vec3f(-vh.y, vh.x, 0.0) * inverseSqrt(len2);
+    }
+    let t2 = cross(vh, t1);
+    let r = sqrt(u.x);
+    let phi = 2.0 * PI * u.y;
+    let p1 = r * cos(phi);
+    let s = 0.5 * (1.0 + vh.z);
+    let p2 = (1.0 - s) * sqrt(max(0.0, 1.0 - p1 * p1)) + s * r * sin(phi);
+    let nh = p1 * t1 + p2 * t2 + sqrt(max(0.0, 1.0 - p1 * p1 - p2 * p2)) * vh;
+    return normalize(vec3f(alpha * nh.x, alpha * nh.y, max(0.0, nh.z)));
+}
+
+// Draws a direction: the specular lobe with probability p_spec (a visible normal, or the
+// mirror direction below PBR_ALPHA_MIN), else the cosine lobe. Three draws either way.
+fn pbr_sample(l: PbrLobe, state: ptr<function, Rng>) -> PbrSample {
+    let pick = rand(state);
+    let u = rand2(state);
+    let nv = dot(l.n, l.wo);
+    if nv <= 0.0 {
+        return PbrSample(l.n, vec3f(0.0), 0.0, false);
+    }
+    var wi: vec3f;
+    if pick < l.p_spec {
+        if l.alpha < PBR_ALPHA_MIN {
+            // The mirror: its Fresnel weight over the choice's probability.
+            let x5 = pbr_pow5(1.0 - clamp(nv, 0.0, 1.0));
+            let fd = l.f0 + (1.0 - l.f0) * x5;
+            let fm = l.base + (1.0 - l.base) * x5;
+            let w = ((1.0 - l.metallic) * fd + l.metallic * fm) / l.p_spec;
+            return PbrSample(reflect(-l.wo, l.n), w, 0.0, true);
+        }
+        let b = basis(l.n);
+        let wo_local = vec3f(dot(b[0], l.wo), dot(b[1], l.wo), nv);
+        let h = b * pbr_visible_normal(wo_local, l.alpha, u);
+        wi = reflect(-l.wo, h);
+    } else {
+        let z = 1.0 - 2.0 * u.x;
+        let phi = 2.0 * PI * u.y;
+        let r = sqrt(max(0.0, 1.0 - z * z));
+        wi = normalize_or(l.n + vec3f(r * cos(phi), r * sin(phi), z), l.n);
+    }
+    let e = pbr_eval(l, wi);
+    if e.w <= 0.0 {
+        return PbrSample(wi, vec3f(0.0), 0.0, false);
+    }
+    return PbrSample(wi, e.xyz / e.w, e.w, true);
+}
