@@ -162,30 +162,31 @@ fn indexed_strips_and_fans_become_triangles() {
 
 #[test]
 fn metallic_roughness_maps_onto_the_model() {
+    use termtrace::scene::MaterialModel;
     let nodes = r#"[{"mesh":0}]"#;
     let m = |mat: &str| {
         let imp = import(&gltf(&TRIANGLE, None, 4, nodes, mat, "")).unwrap();
         imp.objects[0].material.clone()
     };
-    // glTF's defaults: base colour 1, metallic 1, roughness 1: all specular, base-tinted.
+    // glTF's own BRDF (the pbr model), with glTF's defaults: base colour 1, metallic 1,
+    // roughness 1, ior 1.5.
     let d = m("{}");
-    assert_eq!((d.specular, d.absorption, d.smoothness), (1.0, 1.0, 1.0));
-    assert_eq!(d.specular_color, Some(Vec3::ONE));
-    // A dielectric base: F0 = 0.04 of white specular, the rest diffuse in the base colour.
-    let p = m(
-        r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.5,0.25,1,1],"metallicFactor":0,"roughnessFactor":0.3}}"#,
+    assert_eq!(d.model, MaterialModel::Pbr);
+    assert_eq!(
+        (d.color, d.metallic, d.roughness, d.ior),
+        (Vec3::ONE, 1.0, 1.0, 1.5)
     );
+    // The factors as they are.
+    let p = m(
+        r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.5,0.25,1,1],"metallicFactor":0,"roughnessFactor":0.3},
+        "extensions":{"KHR_materials_ior":{"ior":1.7}}}"#,
+    );
+    assert_eq!(p.model, MaterialModel::Pbr);
     assert_eq!(p.color, Vec3::new(0.5, 0.25, 1.0));
-    assert!((p.specular - 0.04).abs() < 1e-7);
-    assert_eq!(p.absorption, 0.3);
-    let tint = p.specular_color.unwrap();
-    assert!((tint - Vec3::ONE).abs().max_element() < 1e-6, "{tint}");
-    // Half metal: specular 0.52, tint (0.5·base + 0.02) / 0.52.
-    let h =
-        m(r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.5,0.25,1,1],"metallicFactor":0.5}}"#);
-    assert!((h.specular - 0.52).abs() < 1e-6);
-    let want = (0.5 * Vec3::new(0.5, 0.25, 1.0) + Vec3::splat(0.02)) / 0.52;
-    assert!((h.specular_color.unwrap() - want).abs().max_element() < 1e-6);
+    assert_eq!((p.metallic, p.roughness, p.ior), (0.0, 0.3, 1.7));
+    // Out-of-range factors are clamped to the specification's [0, 1].
+    let h = m(r#"{"pbrMetallicRoughness":{"metallicFactor":1.5,"roughnessFactor":-1}}"#);
+    assert_eq!((h.metallic, h.roughness), (1.0, 0.0));
     // Emission with KHR_materials_emissive_strength: colour normalized, strength in `light`.
     let e = m(
         r#"{"emissiveFactor":[1,0.5,0.25],"extensions":{"KHR_materials_emissive_strength":{"emissiveStrength":4}}}"#,
@@ -406,8 +407,10 @@ fn a_placed_box_is_a_furnace_on_both_tracers() {
     // A convex object: every bounce off it escapes to the uniform sky, so a pixel that sees
     // only the box is exactly albedo × sky and one that misses it exactly the sky; pixels on
     // the edge mix the two, with one share for all channels.
+    // The override puts the glTF material into the lecture's model, as a Lambertian one.
     let toml = placed_box(
-        "[gltf.materials.\"#0\"]\ncolor = [0.5, 0.25, 0.75]\nspecular = 0\nabsorption = 0\n",
+        "[gltf.materials.\"#0\"]\nmodel = \"lecture\"\ncolor = [0.5, 0.25, 0.75]\nspecular = 0\n\
+         absorption = 0\n",
     );
     on_both(|| {
         let img = render(&toml, 40, 40, 8, 10);
@@ -439,9 +442,16 @@ fn a_placed_box_is_a_furnace_on_both_tracers() {
 
 #[test]
 fn overrides_and_edits_are_written_back_and_read_again() {
-    let toml = placed_box("[gltf.materials.\"#0\"]\nspecular = 0.25\n");
+    let toml = placed_box("[gltf.materials.\"#0\"]\nroughness = 0.25\n");
     let mut s = Scene::from_toml(&toml, "test").unwrap();
-    assert_eq!(s.objects[0].material.specular, 0.25);
+    assert_eq!(s.objects[0].material.roughness, 0.25);
+    // An override speaks the glTF material's model: the lecture's keys are refused by name.
+    let lecture = placed_box("[gltf.materials.\"#0\"]\nspecular = 0.25\n");
+    let e = Scene::from_toml(&lecture, "test").unwrap_err().to_string();
+    assert!(
+        e.contains("`specular` belongs to another material model than `pbr`"),
+        "{e}"
+    );
     assert_eq!(s.objects[0].gltf, Some(0));
     // The object is placed: translated by 0.1 in y.
     let ys: Vec<f64> = triangles(&s.objects[0])

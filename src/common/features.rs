@@ -134,7 +134,8 @@ impl Features {
                 Shape::Mesh { .. } => f.triangles = true,
             }
             f.dielectrics |= o.material.is_dielectric();
-            f.pbr |= o.material.is_pbr() && !o.material.is_emitter();
+            // An emissive pbr material still needs the BRDF where its emissive map is dark.
+            f.pbr |= o.material.is_pbr();
             f.emitters |= o.material.is_emitter();
             if let Some(t) = &o.material.textured
                 && !o.material.is_dielectric()

@@ -230,7 +230,6 @@ pub fn mirrors() -> Vec<MirrorLayout> {
                 metallic,
                 roughness,
                 model,
-                _pad0,
             ]
         ),
         m!(

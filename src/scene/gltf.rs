@@ -588,11 +588,14 @@ pub fn pbr_material(p: &Pbr) -> Material {
     };
     if emissive.max_element() > 0.0 {
         let light = emissive.max_element();
+        // Still a pbr material: where its emissive map is dark, a texel is glTF's BRDF.
         return Material {
             color: emissive / light,
-            smoothness: 0.0,
-            specular: 0.0,
             light,
+            model: MaterialModel::Pbr,
+            metallic,
+            roughness,
+            ior,
             ..Material::default()
         };
     }

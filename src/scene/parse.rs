@@ -574,6 +574,11 @@ fn read_gltf(
     let overrides = t.named_tables("materials", &material_keys());
     let keys: Vec<&str> = imported.materials.iter().map(|(k, _)| k.as_str()).collect();
     for (name, o) in &overrides {
+        // An override speaks its material's model (a glTF material's is pbr).
+        if let Some((_, m)) = imported.materials.iter().find(|(k, _)| k == name) {
+            let patch = MaterialPatch::read(o);
+            patch.check_model(o, patch.model.unwrap_or(m.model));
+        }
         if !keys.contains(&name.as_str()) {
             let help = match super::reader::suggest(name, &keys) {
                 Some(s) => format!("did you mean `{s}`?"),

@@ -11,7 +11,8 @@ use crate::common::layout::{GpuQuad, GpuSphere};
 use crate::gpu::GpuContext;
 use crate::render::{RenderOptions, Renderer};
 use crate::scene::generate::SplitMix64;
-use crate::scene::{Material, Scene, Shape, Sky};
+use crate::scene::gltf::DIELECTRIC_F0;
+use crate::scene::{Material, MaterialModel, Scene, Shape, Sky};
 use glam::{DVec3, Vec3};
 use probe::{GpuProbeInput, GpuProbeOutput, PROBE_QUAD, PROBE_SCATTER, PROBE_SPHERE, ProbePass};
 use std::sync::Arc;
@@ -503,6 +504,21 @@ pub fn white_furnace(scene: &Scene, l: f32) -> Scene {
             Material {
                 color: Vec3::ONE,
                 ..Material::default()
+            }
+        } else if m.is_pbr() {
+            // glTF's BRDF is not lossless (single scattering; `fresnel_mix` as the
+            // specification writes it): a pbr surface becomes the lecture's white one, a
+            // Lambertian and a mirror lobe in glTF's shares, its maps (a normal map's
+            // shading normals) kept.
+            Material {
+                color: Vec3::ONE,
+                model: MaterialModel::Lecture,
+                smoothness: 1.0,
+                specular: m.metallic + (1.0 - m.metallic) * DIELECTRIC_F0,
+                specular_color: None,
+                absorption: 0.0,
+                light: 0.0,
+                ..m
             }
         } else {
             Material {
