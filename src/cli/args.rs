@@ -37,6 +37,37 @@ pub struct GlobalArgs {
     pub verbose: u8,
 }
 
+/// The frame options `render` and `converge` share: the scene's `[render]` values,
+/// overridden.
+#[derive(Args, Debug, Clone, Copy, Default)]
+pub struct FrameArgs {
+    /// Image width [default: the scene's].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=crate::scene::MAX_IMAGE_SIDE as i64))]
+    pub width: Option<u32>,
+    /// Image height [default: the scene's].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=crate::scene::MAX_IMAGE_SIDE as i64))]
+    pub height: Option<u32>,
+    /// Random seed [default: the scene's]; the same seed gives the same image on one adapter
+    /// (`converge`: its first run's; the next runs count up from it).
+    #[arg(long)]
+    pub seed: Option<u32>,
+    /// Maximum scatterings per path [default: the scene's].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(..=crate::scene::MAX_BOUNCES as i64))]
+    pub max_bounces: Option<u32>,
+}
+
+impl FrameArgs {
+    /// The frame settings of `scene` with these overrides.
+    pub fn settings(&self, scene: &crate::scene::Scene) -> crate::common::FrameSettings {
+        crate::common::FrameSettings::new(
+            self.width.unwrap_or(scene.render.width),
+            self.height.unwrap_or(scene.render.height),
+            self.max_bounces.unwrap_or(scene.render.max_bounces),
+            self.seed.unwrap_or(scene.render.seed),
+        )
+    }
+}
+
 /// The image options `render` and `merge` share.
 #[derive(Args, Debug, Clone)]
 pub struct ImageArgs {

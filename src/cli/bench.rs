@@ -3,7 +3,7 @@
 //! pseudo-terminal (`measure::preview`).
 
 use super::args::GlobalArgs;
-use super::render::{frame_settings, rate_text};
+use super::render::rate_text;
 use crate::render::Backend;
 use crate::render::RenderOptions;
 use crate::render::multi::Team;
@@ -122,7 +122,13 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     };
     let settings = crate::common::FrameSettings {
         nee: !a.no_nee,
-        ..frame_settings(&scene, Some(a.width), Some(a.height), a.max_bounces, None)
+        ..super::args::FrameArgs {
+            width: Some(a.width),
+            height: Some(a.height),
+            max_bounces: a.max_bounces,
+            seed: None,
+        }
+        .settings(&scene)
     };
     let backends = Backend::open_all(g.adapter.as_deref())?;
     for b in &backends {

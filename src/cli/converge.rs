@@ -2,7 +2,6 @@
 //! several ways of rendering the same scene.
 
 use super::args::GlobalArgs;
-use super::render::frame_settings;
 use crate::converge::{self, Variant, metrics, plot, reference};
 use crate::output::{Transfer, write_exr, write_png};
 use crate::render::Backend;
@@ -59,15 +58,8 @@ pub struct ConvergeArgs {
     /// Tile size of the bias check, in pixels.
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u32).range(1..))]
     pub tile: u32,
-    #[arg(long)]
-    pub width: Option<u32>,
-    #[arg(long)]
-    pub height: Option<u32>,
-    #[arg(long)]
-    pub max_bounces: Option<u32>,
-    /// Seed of the first run (the next runs count up from it).
-    #[arg(long)]
-    pub seed: Option<u32>,
+    #[command(flatten)]
+    pub frame: super::args::FrameArgs,
     /// Also denoise the image at every checkpoint (`denoise`): a second curve per variant,
     /// `LABEL denoised`, its time including the denoiser's, and its estimated error beside the
     /// true one.
@@ -127,7 +119,7 @@ fn bar(quiet: bool, len: u64, template: &str) -> ProgressBar {
 
 pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.scene, g.camera.as_deref(), g.sky.as_deref())?;
-    let settings = frame_settings(&scene, a.width, a.height, a.max_bounces, a.seed);
+    let settings = a.frame.settings(&scene);
     let variants = if a.compare.is_empty() {
         vec![Variant::default()]
     } else {

@@ -1,13 +1,12 @@
 //! `termtrace render`: a headless render to PNG (and linear EXR), with a progress bar,
 //! Ctrl-C that stops early and still saves, and atomic output files.
 
-use super::args::{GlobalArgs, ImageArgs};
+use super::args::{FrameArgs, GlobalArgs, ImageArgs};
 use crate::common::FrameSettings;
 use crate::output::{ImageFile, LinearImage, check_writable, write_exr, write_png};
 use crate::render::Backend;
 use crate::render::RenderOptions;
 use crate::render::multi::Team;
-use crate::scene::MAX_IMAGE_SIDE;
 use crate::scene::load_scene;
 use anyhow::Context;
 use clap::Args;
@@ -31,18 +30,8 @@ pub struct RenderArgs {
     /// Render for this many seconds instead of a fixed sample count.
     #[arg(long, value_name = "SECONDS", value_parser = positive_seconds)]
     pub time: Option<f64>,
-    /// Image width [default: the scene's].
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
-    pub width: Option<u32>,
-    /// Image height [default: the scene's].
-    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=MAX_IMAGE_SIDE as i64))]
-    pub height: Option<u32>,
-    /// Random seed [default: the scene's]; the same seed gives the same image on one adapter.
-    #[arg(long)]
-    pub seed: Option<u32>,
-    /// Maximum scatterings per path [default: the scene's].
-    #[arg(long, value_parser = clap::value_parser!(u32).range(..=crate::scene::MAX_BOUNCES as i64))]
-    pub max_bounces: Option<u32>,
+    #[command(flatten)]
+    pub frame: FrameArgs,
     #[command(flatten)]
     pub image: ImageArgs,
     /// Use the generic tracer instead of one specialized for the scene.
@@ -98,22 +87,6 @@ fn install_ctrlc() {
     });
 }
 
-/// The frame settings of a scene with the command line's overrides.
-pub(crate) fn frame_settings(
-    scene: &crate::scene::Scene,
-    width: Option<u32>,
-    height: Option<u32>,
-    max_bounces: Option<u32>,
-    seed: Option<u32>,
-) -> FrameSettings {
-    FrameSettings::new(
-        width.unwrap_or(scene.render.width),
-        height.unwrap_or(scene.render.height),
-        max_bounces.unwrap_or(scene.render.max_bounces),
-        seed.unwrap_or(scene.render.seed),
-    )
-}
-
 pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let scene = load_scene(&a.scene, g.camera.as_deref(), g.sky.as_deref())?;
     let to_tta = a
@@ -132,7 +105,7 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     a.image.check(&out, kind)?;
     let settings = FrameSettings {
         nee: !a.no_nee,
-        ..frame_settings(&scene, a.width, a.height, a.max_bounces, a.seed)
+        ..a.frame.settings(&scene)
     };
     let backends = Backend::open_all(g.adapter.as_deref())?;
     for b in &backends {
@@ -485,7 +458,7 @@ fn run_shard(
     check_writable(&out)?;
     let settings = FrameSettings {
         nee: !a.no_nee,
-        ..frame_settings(scene, a.width, a.height, a.max_bounces, a.seed)
+        ..a.frame.settings(scene)
     };
     let (first, end) = Header::range(i, k, spp);
     let backends = Backend::open_all(g.adapter.as_deref())?;
