@@ -715,37 +715,45 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     (*path).prev_pdf = 0.0;
     if HAS_DIELECTRICS && m.smoothness < 0.0 {
         sc = scatter_dielectric(m, ray.dir, n_out, state);
-    } else if HAS_PBR && m.model == MODEL_PBR {
-        // glTF's BRDF (common/pbr.wgsl): light sampling on every lobe but the mirror's.
-        let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);
-        let ns = shading_normal_at(sh, hit, n_out, n);
-        let lobe = pbr_lobe(m, -ray.dir, ns);
-        if nee && (lobe.alpha >= PBR_ALPHA_MIN || lobe.p_spec < 1.0) {
-            (*path).radiance += (*path).throughput * sample_light(surf.point.position, ns, n, true, lobe, state);
-        }
-        let s = pbr_sample(lobe, state);
-        sc = Scatter(s.dir, s.weight, !s.ok || (HAS_NORMAL_MAPS && dot(s.dir, n) <= 0.0));
-        (*path).prev_pdf = s.pdf;
-        (*path).prev_normal = ns;
     } else {
+        // The lecture's lobes, or glTF's BRDF (common/pbr.wgsl); one light-sampling call for
+        // both (inlined once: a second call site cost the H200 half its speed on pbr scenes).
+        let pbr = HAS_PBR && m.model == MODEL_PBR;
         // A certain lobe takes no draw.
-        let is_spec = m.specular >= 1.0 || (m.specular > 0.0 && rand(state) < m.specular);
+        let is_spec = !pbr && (m.specular >= 1.0 || (m.specular > 0.0 && rand(state) < m.specular));
         let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);
         let ns = shading_normal_at(sh, hit, n_out, n);
-        // A lobe with the cosine density: the Lambertian one, or the specular one at
-        // smoothness 0 (the same distribution, its own tint).
-        let cosine_lobe = !is_spec || m.smoothness == 0.0;
-        if nee && cosine_lobe {
-            let tint = select(m.color, m.specular_color, is_spec);
-            (*path).radiance += (*path).throughput * tint * sample_light(surf.point.position, ns, n, false, PbrLobe(), state);
+        var lobe = PbrLobe();
+        // A lobe with a density light sampling can weigh: the Lambertian one, the lecture's
+        // specular one at smoothness 0 (the same distribution, its own tint), or glTF's but
+        // for its mirror.
+        var light_lobe = !is_spec || m.smoothness == 0.0;
+        var tint = select(m.color, m.specular_color, is_spec);
+        if pbr {
+            lobe = pbr_lobe(m, -ray.dir, ns);
+            light_lobe = lobe.alpha >= PBR_ALPHA_MIN || lobe.p_spec < 1.0;
+            tint = vec3f(1.0);
         }
-        sc = scatter_surface(m, ray.dir, ns, is_spec, state);
+        if nee && light_lobe {
+            (*path).radiance += (*path).throughput * tint * sample_light(surf.point.position, ns, n, pbr, lobe, state);
+        }
+        var pbr_pdf = 0.0;
+        if pbr {
+            let ps = pbr_sample(lobe, state);
+            sc = Scatter(ps.dir, ps.weight, !ps.ok);
+            pbr_pdf = ps.pdf;
+        } else {
+            sc = scatter_surface(m, ray.dir, ns, is_spec, state);
+        }
         // A direction that the shading normal allows but that enters the surface ends the
         // path (the light a normal map cannot send there is lost, not leaked).
         if HAS_NORMAL_MAPS && dot(sc.dir, n) <= 0.0 {
             sc.absorbed = true;
         }
-        if cosine_lobe {
+        if pbr {
+            (*path).prev_pdf = pbr_pdf;
+            (*path).prev_normal = ns;
+        } else if light_lobe {
             (*path).prev_pdf = max(dot(sc.dir, ns), 0.0) / PI;
             (*path).prev_normal = ns;
         }

@@ -655,48 +655,58 @@ impl<'a> Tracer<'a> {
             prev_pdf = 0.0;
             if self.f.dielectrics && m.smoothness < 0.0 {
                 sc = scatter_dielectric(m, ray.dir, n_out, rng);
-            } else if self.f.pbr && m.pbr {
-                // glTF's BRDF (cpu::pbr): light sampling on every lobe but the mirror's.
-                let front = ray.dir.dot(n_out) < 0.0;
-                let n = if front { n_out } else { -n_out };
-                let ns = self.shading_normal_at(hit, mapped, n_out, n);
-                let lobe = pbr::lobe(m, -ray.dir, ns);
-                if nee && (lobe.alpha >= pbr::ALPHA_MIN || lobe.p_spec < 1.0) {
-                    let from = self.leaving(hit.r, front);
-                    radiance += throughput
-                        * self.sample_light::<P>(point.position, ns, n, from, Some(&lobe), rng);
-                }
-                let s = pbr::sample(&lobe, rng);
-                sc = Scatter {
-                    dir: s.dir,
-                    attenuation: s.weight,
-                    absorbed: !s.ok || (self.s.normal_maps && s.dir.dot(n) <= 0.0),
-                };
-                prev_pdf = s.pdf;
-                prev_normal = ns;
             } else {
+                // The lecture's lobes, or glTF's BRDF (cpu::pbr), with one light-sampling
+                // call for both (trace.wgsl: path_step).
+                let pbr = self.f.pbr && m.pbr;
                 // A certain lobe takes no draw.
-                let is_spec = m.specular >= 1.0 || (m.specular > 0.0 && rng.rand() < m.specular);
+                let is_spec =
+                    !pbr && (m.specular >= 1.0 || (m.specular > 0.0 && rng.rand() < m.specular));
                 let front = ray.dir.dot(n_out) < 0.0;
                 let n = if front { n_out } else { -n_out };
-                // The shading normal, on the side of n (trace.wgsl: path_step).
+                // The shading normal, on the side of n.
                 let ns = self.shading_normal_at(hit, mapped, n_out, n);
-                let cosine_lobe = !is_spec || m.smoothness == 0.0;
-                if nee && cosine_lobe {
-                    let tint = if is_spec { m.specular_color } else { m.color };
+                let lobe = pbr.then(|| pbr::lobe(m, -ray.dir, ns));
+                // A lobe with a density light sampling can weigh: the Lambertian one, the
+                // lecture's specular one at smoothness 0, or glTF's but for its mirror.
+                let light_lobe = match &lobe {
+                    Some(l) => l.alpha >= pbr::ALPHA_MIN || l.p_spec < 1.0,
+                    None => !is_spec || m.smoothness == 0.0,
+                };
+                if nee && light_lobe {
+                    let tint = match (&lobe, is_spec) {
+                        (Some(_), _) => Vec3A::ONE,
+                        (None, true) => m.specular_color,
+                        (None, false) => m.color,
+                    };
                     // The shadow ray leaves on the side of n.
                     let from = self.leaving(hit.r, front);
                     radiance += throughput
                         * tint
-                        * self.sample_light::<P>(point.position, ns, n, from, None, rng);
+                        * self.sample_light::<P>(point.position, ns, n, from, lobe.as_ref(), rng);
                 }
-                sc = scatter_surface(m, ray.dir, ns, is_spec, rng);
+                let mut pbr_pdf = 0.0;
+                sc = match &lobe {
+                    Some(l) => {
+                        let s = pbr::sample(l, rng);
+                        pbr_pdf = s.pdf;
+                        Scatter {
+                            dir: s.dir,
+                            attenuation: s.weight,
+                            absorbed: !s.ok,
+                        }
+                    }
+                    None => scatter_surface(m, ray.dir, ns, is_spec, rng),
+                };
                 // A direction the shading normal allows but that enters the surface ends the
                 // path.
                 if self.s.normal_maps && sc.dir.dot(n) <= 0.0 {
                     sc.absorbed = true;
                 }
-                if cosine_lobe {
+                if pbr {
+                    prev_pdf = pbr_pdf;
+                    prev_normal = ns;
+                } else if light_lobe {
                     prev_pdf = sc.dir.dot(ns).max(0.0) / PI;
                     prev_normal = ns;
                 }
