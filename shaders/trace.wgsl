@@ -28,6 +28,7 @@ override HAS_NORMAL_MAPS: bool = true;
 // An HDR environment map (common/envmap.wgsl): looked up by escaping rays, sampled with HAS_NEE.
 override HAS_ENV_MAP: bool = true;
 override HAS_PBR: bool = true;
+override HAS_LECTURE: bool = true;
 // Counting path segments costs an atomic per workgroup; only `bench` turns it on.
 override COUNT_SEGMENTS: bool = false;
 // Walk the BVH, or test every primitive in turn (tests compare the two; see src/common/features.rs).
@@ -718,7 +719,9 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     } else {
         // The lecture's lobes, or glTF's BRDF (common/pbr.wgsl); one light-sampling call for
         // both (inlined once: a second call site cost the H200 half its speed on pbr scenes).
-        let pbr = HAS_PBR && m.model == MODEL_PBR;
+        // A scene of glTF materials alone (no HAS_LECTURE) compiles none of the lecture's
+        // lobes.
+        let pbr = HAS_PBR && (!HAS_LECTURE || m.model == MODEL_PBR);
         // A certain lobe takes no draw.
         let is_spec = !pbr && (m.specular >= 1.0 || (m.specular > 0.0 && rand(state) < m.specular));
         let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);

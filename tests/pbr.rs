@@ -171,4 +171,11 @@ fn gltf_files_open_as_pbr_materials() {
     assert!(m.textured.is_some());
     let f = termtrace::common::Features::of(&s);
     assert!(f.pbr && f.textures && !f.dielectrics, "{}", f.summary());
+    // A scene of glTF materials alone compiles none of the lecture's lobes; the shipped pbr
+    // scene neither (its specialized and generic pipelines agree bit for bit:
+    // tests/specialization.rs), and a lecture scene none of glTF's.
+    assert!(!f.lecture);
+    assert!(!termtrace::common::Features::of(&Scene::load("pbr").unwrap()).lecture);
+    let weekend = termtrace::common::Features::of(&Scene::load("weekend").unwrap());
+    assert!(weekend.lecture && !weekend.pbr);
 }

@@ -32,6 +32,10 @@ pub struct Features {
     pub env_map: bool,
     /// glTF's metallic-roughness BRDF (`model = "pbr"` materials).
     pub pbr: bool,
+    /// The lecture's surface lobes (a non-emitting, non-dielectric material of its model):
+    /// a scene of glTF materials alone compiles none of them. Without `pbr` too (the
+    /// benchmarks' feature lists) the lecture's lobes are what every surface runs.
+    pub lecture: bool,
     /// Counts path segments (benchmarks only); not a scene feature.
     pub count_segments: bool,
     /// Walk the BVH (true) or test every primitive (false: for tests and scaling benchmarks).
@@ -56,6 +60,7 @@ impl Features {
             normal_maps: true,
             env_map: true,
             pbr: true,
+            lecture: true,
             count_segments: false,
             bvh: true,
         }
@@ -78,6 +83,7 @@ impl Features {
             normal_maps: false,
             env_map: false,
             pbr: false,
+            lecture: false,
             count_segments: false,
             bvh: false,
         }
@@ -103,11 +109,12 @@ impl Features {
                 "normal_maps" => &mut f.normal_maps,
                 "env_map" => &mut f.env_map,
                 "pbr" => &mut f.pbr,
+                "lecture" => &mut f.lecture,
                 _ => {
                     return Err(format!(
                         "unknown feature `{name}` (expected spheres, quads, boxes, triangles, \
                          dielectrics, emitters, nee, dof, sun, textures, cutouts, normal_maps, \
-                         env_map or pbr)"
+                         env_map, pbr or lecture)"
                     ));
                 }
             };
@@ -136,6 +143,10 @@ impl Features {
             f.dielectrics |= o.material.is_dielectric();
             // An emissive pbr material still needs the BRDF where its emissive map is dark.
             f.pbr |= o.material.is_pbr();
+            // (A textured emitter's dark texels are surfaces too.)
+            f.lecture |= !o.material.is_pbr()
+                && !o.material.is_dielectric()
+                && (!o.material.is_emitter() || o.material.textured.is_some());
             f.emitters |= o.material.is_emitter();
             if let Some(t) = &o.material.textured
                 && !o.material.is_dielectric()
@@ -168,6 +179,7 @@ impl Features {
             normal_maps: self.normal_maps | other.normal_maps,
             env_map: self.env_map | other.env_map,
             pbr: self.pbr | other.pbr,
+            lecture: self.lecture | other.lecture,
             count_segments: self.count_segments | other.count_segments,
             bvh: self.bvh | other.bvh,
         }
@@ -196,6 +208,7 @@ impl Features {
             ("HAS_NORMAL_MAPS", b(self.normal_maps)),
             ("HAS_ENV_MAP", b(self.env_map)),
             ("HAS_PBR", b(self.pbr)),
+            ("HAS_LECTURE", b(self.lecture)),
             ("COUNT_SEGMENTS", b(self.count_segments)),
             ("USE_BVH", b(self.bvh)),
         ]

@@ -658,7 +658,7 @@ impl<'a> Tracer<'a> {
             } else {
                 // The lecture's lobes, or glTF's BRDF (cpu::pbr), with one light-sampling
                 // call for both (trace.wgsl: path_step).
-                let pbr = self.f.pbr && m.pbr;
+                let pbr = self.f.pbr && (!self.f.lecture || m.pbr);
                 // A certain lobe takes no draw.
                 let is_spec =
                     !pbr && (m.specular >= 1.0 || (m.specular > 0.0 && rng.rand() < m.specular));
