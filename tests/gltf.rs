@@ -452,6 +452,10 @@ fn overrides_and_edits_are_written_back_and_read_again() {
         e.contains("`specular` belongs to another material model than `pbr`"),
         "{e}"
     );
+    // A bad value in an override is reported once.
+    let bad = placed_box("[gltf.materials.\"#0\"]\nroughness = 5\n");
+    let e = Scene::from_toml(&bad, "test").unwrap_err().to_string();
+    assert_eq!(e.matches("is out of range").count(), 1, "{e}");
     assert_eq!(s.objects[0].gltf, Some(0));
     // The object is placed: translated by 0.1 in y.
     let ys: Vec<f64> = triangles(&s.objects[0])

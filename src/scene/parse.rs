@@ -573,10 +573,14 @@ fn read_gltf(
     };
     let overrides = t.named_tables("materials", &material_keys());
     let keys: Vec<&str> = imported.materials.iter().map(|(k, _)| k.as_str()).collect();
-    for (name, o) in &overrides {
+    // Each override read once, so that a bad value is reported once (not once per object).
+    let patches: Vec<(&str, MaterialPatch)> = overrides
+        .iter()
+        .map(|(name, o)| (name.as_str(), MaterialPatch::read(o)))
+        .collect();
+    for ((name, o), (_, patch)) in overrides.iter().zip(&patches) {
         // An override speaks its material's model (a glTF material's is pbr).
         if let Some((_, m)) = imported.materials.iter().find(|(k, _)| k == name) {
-            let patch = MaterialPatch::read(o);
             patch.check_model(o, patch.model.unwrap_or(m.model));
         }
         if !keys.contains(&name.as_str()) {
@@ -588,10 +592,10 @@ fn read_gltf(
         }
     }
     let apply = |key: &str, m: &Material| -> Material {
-        match overrides.iter().find(|(n, _)| n == key) {
-            Some((_, o)) => Material {
+        match patches.iter().find(|(n, _)| *n == key) {
+            Some((_, patch)) => Material {
                 textured: m.textured.clone(),
-                ..MaterialPatch::read(o).over(&MaterialPatch::of(m)).resolve()
+                ..patch.over(&MaterialPatch::of(m)).resolve()
             },
             None => m.clone(),
         }
