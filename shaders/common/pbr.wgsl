@@ -43,10 +43,17 @@ fn pbr_pow5(x: f32) -> f32 {
     return x2 * x2 * x;
 }
 
+// Schlick's Fresnel at `cos` (of V·H, or of n·v for the mirror): the metal's, of f0 `base`,
+// in xyz, and the dielectric's, of f0 `f0`, in w.
+fn pbr_fresnel(f0: f32, base: vec3f, cos: f32) -> vec4f {
+    let x5 = pbr_pow5(1.0 - clamp(cos, 0.0, 1.0));
+    return vec4f(base + (1.0 - base) * x5, f0 + (1.0 - f0) * x5);
+}
+
 fn pbr_lobe(m: Material, wo: vec3f, n: vec3f) -> PbrLobe {
     let r = (m.ior - 1.0) / (m.ior + 1.0);
     let f0 = r * r;
-    let fd = f0 + (1.0 - f0) * pbr_pow5(1.0 - clamp(dot(n, wo), 0.0, 1.0));
+    let fd = pbr_fresnel(f0, m.color, dot(n, wo)).w;
     // Each lobe in proportion to what it reflects towards wo, roughly.
     let spec_w = m.metallic + (1.0 - m.metallic) * fd;
     let diff_w = (1.0 - m.metallic) * (1.0 - fd) * dot(m.color, PBR_LUMINANCE);
@@ -88,9 +95,9 @@ fn pbr_eval(l: PbrLobe, wi: vec3f) -> vec4f {
         return vec4f(0.0);
     }
     let h = normalize(l.wo + wi);
-    let x5 = pbr_pow5(1.0 - clamp(dot(l.wo, h), 0.0, 1.0));
-    let fd = l.f0 + (1.0 - l.f0) * x5;
-    let fm = l.base + (1.0 - l.base) * x5;
+    let fr = pbr_fresnel(l.f0, l.base, dot(l.wo, h));
+    let fd = fr.w;
+    let fm = fr.xyz;
     var f = (1.0 - l.metallic) * (1.0 - fd) * l.base / PI;
     var pdf = (1.0 - l.p_spec) * nl / PI;
     if l.alpha >= PBR_ALPHA_MIN {
@@ -135,10 +142,8 @@ fn pbr_sample(l: PbrLobe, state: ptr<function, Rng>) -> PbrSample {
     if pick < l.p_spec {
         if l.alpha < PBR_ALPHA_MIN {
             // The mirror: its Fresnel weight over the choice's probability.
-            let x5 = pbr_pow5(1.0 - clamp(nv, 0.0, 1.0));
-            let fd = l.f0 + (1.0 - l.f0) * x5;
-            let fm = l.base + (1.0 - l.base) * x5;
-            let w = ((1.0 - l.metallic) * fd + l.metallic * fm) / l.p_spec;
+            let fr = pbr_fresnel(l.f0, l.base, nv);
+            let w = ((1.0 - l.metallic) * fr.w + l.metallic * fr.xyz) / l.p_spec;
             return PbrSample(reflect(-l.wo, l.n), w, 0.0, true);
         }
         let b = basis(l.n);

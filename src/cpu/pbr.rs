@@ -39,11 +39,19 @@ fn pow5(x: f32) -> f32 {
     x2 * x2 * x
 }
 
+/// Schlick's Fresnel at `cos` (of V·H, or of n·v for the mirror): the metal's, of f0 `base`,
+/// and the dielectric's, of f0 `f0` (pbr.wgsl: pbr_fresnel).
+#[inline(always)]
+fn fresnel(f0: f32, base: Vec3A, cos: f32) -> (Vec3A, f32) {
+    let x5 = pow5(1.0 - cos.clamp(0.0, 1.0));
+    (base + (Vec3A::ONE - base) * x5, f0 + (1.0 - f0) * x5)
+}
+
 /// The lobe of material `m` towards `wo` over `n` (pbr.wgsl: pbr_lobe).
 pub fn lobe(m: &Material, wo: Vec3A, n: Vec3A) -> Lobe {
     let r = (m.ior - 1.0) / (m.ior + 1.0);
     let f0 = r * r;
-    let fd = f0 + (1.0 - f0) * pow5(1.0 - n.dot(wo).clamp(0.0, 1.0));
+    let (_, fd) = fresnel(f0, m.color, n.dot(wo));
     let spec_w = m.metallic + (1.0 - m.metallic) * fd;
     let diff_w = (1.0 - m.metallic) * (1.0 - fd) * m.color.dot(LUMINANCE);
     let total = spec_w + diff_w;
@@ -93,9 +101,7 @@ pub fn eval(l: &Lobe, wi: Vec3A) -> (Vec3A, f32) {
         return (Vec3A::ZERO, 0.0);
     }
     let h = (l.wo + wi).normalize();
-    let x5 = pow5(1.0 - l.wo.dot(h).clamp(0.0, 1.0));
-    let fd = l.f0 + (1.0 - l.f0) * x5;
-    let fm = l.base + (Vec3A::ONE - l.base) * x5;
+    let (fm, fd) = fresnel(l.f0, l.base, l.wo.dot(h));
     let mut f = (1.0 - l.metallic) * (1.0 - fd) * l.base / PI;
     let mut pdf = (1.0 - l.p_spec) * nl / PI;
     if l.alpha >= ALPHA_MIN {
@@ -142,9 +148,7 @@ pub fn sample(l: &Lobe, rng: &mut Rng) -> Sample {
     }
     let wi = if pick < l.p_spec {
         if l.alpha < ALPHA_MIN {
-            let x5 = pow5(1.0 - nv.clamp(0.0, 1.0));
-            let fd = l.f0 + (1.0 - l.f0) * x5;
-            let fm = l.base + (Vec3A::ONE - l.base) * x5;
+            let (fm, fd) = fresnel(l.f0, l.base, nv);
             return Sample {
                 dir: reflect(-l.wo, l.n),
                 weight: ((1.0 - l.metallic) * fd + l.metallic * fm) / l.p_spec,
