@@ -380,12 +380,17 @@ mod tests {
     use crate::ui::keys::action;
     use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
 
-    fn app() -> App {
+    /// The preview's state on built-in scene `name`.
+    fn app_of(name: &str) -> App {
         App::new(
-            Scene::load("specular").unwrap(),
+            Scene::load(name).unwrap(),
             "test adapter".into(),
             CellMode::Half,
         )
+    }
+
+    fn app() -> App {
+        app_of("specular")
     }
 
     fn press(app: &mut App, c: KeyCode) -> Effect {
@@ -442,11 +447,7 @@ mod tests {
 
     #[test]
     fn a_pbr_material_is_edited_in_its_own_terms() {
-        let mut a = App::new(
-            Scene::load("pbr").unwrap(),
-            "test adapter".into(),
-            CellMode::Half,
-        );
+        let mut a = app_of("pbr");
         press(&mut a, KeyCode::Tab); // "gold mirror": metallic 1, roughness 0
         // `1` and `2` are metallic and roughness here; the lecture's numbers are not shown.
         press(&mut a, KeyCode::Char('2'));
@@ -598,11 +599,7 @@ mod tests {
 
     #[test]
     fn sky_keys_turn_and_scale_the_map_and_restart() {
-        let mut a = App::new(
-            Scene::load("outdoor").unwrap(),
-            "test adapter".into(),
-            CellMode::Half,
-        );
+        let mut a = app_of("outdoor");
         assert_eq!(press(&mut a, KeyCode::Char('.')), Effect::SceneChanged);
         assert_eq!(press(&mut a, KeyCode::Char('.')), Effect::SceneChanged);
         assert_eq!(press(&mut a, KeyCode::Char(',')), Effect::SceneChanged);
