@@ -9,6 +9,40 @@
 //! tools. `tests/architecture.rs` keeps the modules free of import circles and the two
 //! tracers from importing each other.
 
+/// Declares an error type whose whole content is a message for the user, naming what it is
+/// about ("accessor 3 has no buffer view"): a `thiserror` struct that displays its message,
+/// made from a `String` or `&str` (so `?` and `.into()` convert into it). For the errors of a
+/// stage whose callers only report them; an error that callers tell apart is an enum.
+macro_rules! message_error {
+    ($(#[$doc:meta])* $name:ident) => {
+        $(#[$doc])*
+        #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+        #[error("{0}")]
+        pub struct $name(pub String);
+
+        impl From<String> for $name {
+            fn from(s: String) -> $name {
+                $name(s)
+            }
+        }
+
+        impl From<&str> for $name {
+            fn from(s: &str) -> $name {
+                $name(s.to_string())
+            }
+        }
+
+        /// The message, to read or search.
+        impl std::ops::Deref for $name {
+            type Target = str;
+            fn deref(&self) -> &str {
+                &self.0
+            }
+        }
+    };
+}
+pub(crate) use message_error;
+
 pub mod bvh;
 pub mod cli;
 pub mod common;

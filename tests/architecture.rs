@@ -708,3 +708,195 @@ fn reader_finds_known_edges() {
     g.insert(m("c"), BTreeSet::new());
     assert_eq!(circles(&g), vec![vec![m("a"), m("b")]]);
 }
+
+/// The library's error style: `thiserror` types, `anyhow` only in the command line's
+/// `cli/`, no `Result<_, String>`, and no command-line flag named below the front ends
+/// (`cli/`, and `ui/`, whose on-screen hints tell the user what to type).
+fn error_style_breaks(src: &Path, flags: &[String]) -> Vec<String> {
+    let mut files = Vec::new();
+    rust_files(src, &mut files);
+    let mut broken = Vec::new();
+    for file in files {
+        let rel = file.strip_prefix(src).unwrap().display().to_string();
+        if rel.starts_with("cli/") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&file).unwrap();
+        let code = strip(&text);
+        if find_word(&code, "anyhow").is_some() {
+            broken.push(format!("{rel}: anyhow below `cli`"));
+        }
+        let squashed: String = code.chars().filter(|c| !c.is_whitespace()).collect();
+        if string_errors(&squashed) {
+            broken.push(format!("{rel}: a `Result<_, String>`"));
+        }
+        if rel.starts_with("ui/") {
+            continue;
+        }
+        for lit in literals(&remove_test_items(&without_comments(&text))) {
+            for flag in flags {
+                let named = lit.match_indices(flag.as_str()).any(|(k, _)| {
+                    let next = lit[k + flag.len()..].chars().next();
+                    !next.is_some_and(|c| c.is_ascii_alphanumeric() || c == '-')
+                });
+                if named {
+                    broken.push(format!("{rel}: names the flag {flag}"));
+                }
+            }
+        }
+    }
+    broken
+}
+
+/// Whether whitespace-free `code` has a `Result<…,String>` (the error type `String` at the
+/// generic list's top level).
+fn string_errors(code: &str) -> bool {
+    code.match_indices("Result<").any(|(k, m)| {
+        let mut depth = 1;
+        let mut top_comma = None;
+        for (j, c) in code[k + m.len()..].char_indices() {
+            match c {
+                '<' | '(' | '[' => depth += 1,
+                '>' | ')' | ']' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        let body = &code[k + m.len()..k + m.len() + j];
+                        return top_comma.is_some_and(|t: usize| &body[t + 1..] == "String");
+                    }
+                }
+                ',' if depth == 1 => top_comma = Some(j),
+                _ => {}
+            }
+        }
+        false
+    })
+}
+
+/// `src` without its comments (strings kept).
+fn without_comments(src: &str) -> String {
+    let mut out = String::new();
+    let mut in_string = false;
+    let mut chars = src.chars().peekable();
+    while let Some(c) = chars.next() {
+        if in_string {
+            out.push(c);
+            match c {
+                '\\' => out.extend(chars.next()),
+                '"' => in_string = false,
+                _ => {}
+            }
+        } else if c == '/' && chars.peek() == Some(&'/') {
+            for d in chars.by_ref() {
+                if d == '\n' {
+                    out.push('\n');
+                    break;
+                }
+            }
+        } else {
+            in_string = c == '"';
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// The contents of `code`'s string literals.
+fn literals(code: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut chars = code.chars();
+    while let Some(c) = chars.next() {
+        if c == '"' {
+            let mut s = String::new();
+            while let Some(d) = chars.next() {
+                match d {
+                    '\\' => s.extend(chars.next()),
+                    '"' => break,
+                    _ => s.push(d),
+                }
+            }
+            out.push(s);
+        }
+    }
+    out
+}
+
+/// Every long flag of the command line, from clap's own description of it.
+fn cli_flags() -> Vec<String> {
+    use clap::CommandFactory;
+    fn walk(cmd: &clap::Command, out: &mut Vec<String>) {
+        for a in cmd.get_arguments() {
+            if let Some(l) = a.get_long()
+                && !["help", "version"].contains(&l)
+            {
+                out.push(format!("--{l}"));
+            }
+        }
+        for s in cmd.get_subcommands() {
+            walk(s, out);
+        }
+    }
+    let mut out = Vec::new();
+    walk(&termtrace::cli::Cli::command(), &mut out);
+    out.sort();
+    out.dedup();
+    out
+}
+
+#[test]
+fn errors_keep_one_style() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let flags = cli_flags();
+    assert!(
+        flags.iter().any(|f| f == "--sky") && flags.iter().any(|f| f == "--adapter"),
+        "{flags:?}"
+    );
+    let broken = error_style_breaks(&src, &flags);
+    assert!(broken.is_empty(), "{}", broken.join("\n"));
+}
+
+/// Each error-style rule catches a hand-made violation.
+#[test]
+fn error_style_catches_hand_made_violations() {
+    let dir = tempfile::tempdir().unwrap();
+    let src = dir.path();
+    let files = [
+        (
+            "cli/mod.rs",
+            "pub fn run() -> anyhow::Result<()> { Ok(()) }",
+        ),
+        (
+            "scene/mod.rs",
+            "pub fn f() -> anyhow::Result<()> { Ok(()) }",
+        ),
+        (
+            "gpu/mod.rs",
+            "pub fn g() -> Result<Vec<(u8, u8)>, String> { Err(\"x\".into()) }\n\
+             pub fn ok() -> Result<u8, Error<String>> { todo!() }",
+        ),
+        (
+            "render/mod.rs",
+            "pub fn h() -> &'static str { \"name one with --adapter 0\" }\n\
+             // --sky in a comment is fine\npub fn k() -> &'static str { \"--skyline\" }",
+        ),
+        (
+            "ui/app.rs",
+            "pub fn hint() -> &'static str { \"open with --sky\" }",
+        ),
+    ];
+    for (file, code) in files {
+        let path = src.join(file);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, code).unwrap();
+    }
+    let flags = vec!["--adapter".to_string(), "--sky".to_string()];
+    let mut broken = error_style_breaks(src, &flags);
+    broken.sort();
+    assert_eq!(
+        broken,
+        [
+            "gpu/mod.rs: a `Result<_, String>`",
+            "render/mod.rs: names the flag --adapter",
+            "scene/mod.rs: anyhow below `cli`",
+        ],
+    );
+}

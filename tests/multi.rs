@@ -163,7 +163,7 @@ fn the_command_line_takes_a_list_and_all() {
     let e = Backend::open(Some("0,1")).err().expect("a list refused");
     assert!(
         e.to_string()
-            .contains("--adapter 0,1 names several devices"),
+            .contains("adapter `0,1` names several devices"),
         "{e}"
     );
 }

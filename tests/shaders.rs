@@ -66,6 +66,7 @@ fn include_errors_are_reported() {
     assert!(
         shader::assemble("nope.wgsl")
             .unwrap_err()
+            .to_string()
             .contains("nope.wgsl")
     );
 }

@@ -24,12 +24,7 @@ pub fn run(a: CheckArgs, g: &super::args::GlobalArgs) -> anyhow::Result<ExitCode
     }
     let mut failed = 0;
     for name in &a.scenes {
-        let loaded = Scene::load_with_camera(name, g.camera.as_deref())
-            .map_err(|e| format!("invalid scene\n{e}"))
-            .and_then(|mut s| match &g.sky {
-                Some(p) => s.set_sky_map(p).map(|()| s).map_err(|e| e.to_string()),
-                None => Ok(s),
-            });
+        let loaded = crate::scene::load_scene(name, g.camera.as_deref(), g.sky.as_deref());
         match loaded {
             Ok(s) => println!("{}", summary(&s)),
             Err(e) => {

@@ -172,7 +172,7 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
                 a.reference_spp,
                 cache.as_deref(),
                 |done, _| pb.set_position(done as u64),
-            )?;
+            );
             pb.finish_and_clear();
             write_exr(&a.out.join("reference.exr"), &r.image)?;
             r

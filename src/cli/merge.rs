@@ -64,7 +64,8 @@ pub fn run(a: MergeArgs) -> anyhow::Result<ExitCode> {
         }
     }
     if !errors.is_empty() {
-        anyhow::bail!("{}; nothing written", errors.join("\n"));
+        let all: Vec<String> = errors.iter().map(ToString::to_string).collect();
+        anyhow::bail!("{}; nothing written", all.join("\n"));
     }
     let whole = shard::merge(&parts).map_err(|e| anyhow::anyhow!("{e}; nothing written"))?;
     let h = &whole.header;

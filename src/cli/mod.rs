@@ -176,7 +176,7 @@ pub fn main() -> ExitCode {
         }
     }
     if let Err(e) = init_logging(&cli.global, !is_view) {
-        eprintln!("error: {e:#}");
+        eprintln!("error: {}", chain(&e));
         return ExitCode::FAILURE;
     }
     let result = match cli.command {
@@ -192,10 +192,25 @@ pub fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", chain(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// An error and its causes on one line, each cause left out where a message above already
+/// says it (a library error's message often quotes its source: "cannot read x: No such
+/// file").
+fn chain(e: &anyhow::Error) -> String {
+    let mut out = e.to_string();
+    for cause in e.chain().skip(1) {
+        let c = cause.to_string();
+        if !out.contains(&c) {
+            out.push_str(": ");
+            out.push_str(&c);
+        }
+    }
+    out
 }
 
 fn view(a: ViewArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
@@ -219,6 +234,7 @@ fn view(a: ViewArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         exit_after: a.exit_after.map(std::time::Duration::from_secs_f64),
         stats: a.stats,
     })
+    .map_err(Into::into)
 }
 
 /// Loads the scene a command names (a file, or a built-in name).

@@ -39,7 +39,7 @@ pub fn too_large(d: &Distribution, name: &str, limit: u64) -> Option<String> {
         format!(
             "the environment map {name} ({}×{}) takes {:.1} MiB in one storage buffer, more \
              than the {:.1} MiB this adapter binds. Use a smaller map, or trace on the CPU \
-             (--adapter cpu-native), which has no such limit",
+             (the adapter `cpu-native`), which has no such limit",
             d.width,
             d.height,
             mib(bytes),

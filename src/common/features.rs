@@ -7,6 +7,14 @@
 
 use crate::scene::{Scene, Shape, Sky};
 
+/// A feature name [`Features::parse_list`] does not know.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "unknown feature `{0}` (expected spheres, quads, boxes, triangles, dielectrics, emitters, \
+     nee, dof, sun, textures, cutouts, normal_maps, env_map, pbr or lecture)"
+)]
+pub struct UnknownFeature(pub String);
+
 /// The optional parts of the tracer a scene needs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Features {
@@ -91,7 +99,7 @@ impl Features {
 
     /// Features named in a comma-separated list (`quads,nee`), as [`Features::summary`]
     /// spells them; for benchmarks that add features one at a time.
-    pub fn parse_list(list: &str) -> Result<Features, String> {
+    pub fn parse_list(list: &str) -> Result<Features, UnknownFeature> {
         let mut f = Features::none();
         for name in list.split(',').map(str::trim).filter(|n| !n.is_empty()) {
             let flag = match name {
@@ -110,13 +118,7 @@ impl Features {
                 "env_map" => &mut f.env_map,
                 "pbr" => &mut f.pbr,
                 "lecture" => &mut f.lecture,
-                _ => {
-                    return Err(format!(
-                        "unknown feature `{name}` (expected spheres, quads, boxes, triangles, \
-                         dielectrics, emitters, nee, dof, sun, textures, cutouts, normal_maps, \
-                         env_map, pbr or lecture)"
-                    ));
-                }
+                _ => return Err(UnknownFeature(name.to_string())),
             };
             *flag = true;
         }

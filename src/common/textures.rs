@@ -363,7 +363,7 @@ pub fn too_large(scene: &Scene, limit: u64) -> Option<String> {
     Some(format!(
         "the scene's textures take {:.1} MiB in one storage buffer, more than the {:.1} MiB \
          this adapter binds; the largest: {}. Use smaller images, or trace on the CPU \
-         (--adapter cpu-native), which has no such limit",
+         (the adapter `cpu-native`), which has no such limit",
         mib(bytes),
         mib(limit),
         largest.join(", ")

@@ -16,6 +16,39 @@ use std::io::Write;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+/// Why a convergence measurement cannot go on: its reference or its plot.
+#[derive(Debug, thiserror::Error)]
+pub enum ConvergeError {
+    #[error("{} is not a cached termtrace reference of {width}x{height}", path.display())]
+    NotCached {
+        path: std::path::PathBuf,
+        width: u32,
+        height: u32,
+    },
+    #[error("cannot read the reference {}: {source}", path.display())]
+    Read {
+        path: std::path::PathBuf,
+        #[source]
+        source: image::ImageError,
+    },
+    #[error(
+        "the reference {} is {}x{}, but the runs render {}x{}: render the reference at the \
+         same size, or the runs at {}x{}",
+        path.display(), reference.0, reference.1, runs.0, runs.1, reference.0, reference.1
+    )]
+    Size {
+        path: std::path::PathBuf,
+        reference: (u32, u32),
+        runs: (u32, u32),
+    },
+    #[error("no checkpoints to plot")]
+    NoCheckpoints,
+    #[error("cannot draw the plot: {0}")]
+    Draw(String),
+    #[error(transparent)]
+    Output(#[from] crate::output::write::OutputError),
+}
+
 /// The first checkpoint, in seconds of rendering.
 pub const FIRST_CHECKPOINT: f64 = 0.05;
 /// Checkpoints are this factor apart: two per doubling of time.

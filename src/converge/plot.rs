@@ -45,14 +45,16 @@ fn sig2(v: f64) -> String {
 }
 
 /// Writes the plot as a PNG.
-pub fn plot(path: &Path, title: &str, curves: &[Curve]) -> anyhow::Result<()> {
+pub fn plot(path: &Path, title: &str, curves: &[Curve]) -> Result<(), super::ConvergeError> {
     register_font();
     let all: Vec<(f64, f64)> = curves
         .iter()
         .flat_map(|c| c.points.iter().flat_map(|p| [(p.0, p.2), (p.0, p.3)]))
         .filter(|(t, e)| *t > 0.0 && *e > 0.0 && e.is_finite())
         .collect();
-    anyhow::ensure!(!all.is_empty(), "no checkpoints to plot");
+    if all.is_empty() {
+        return Err(super::ConvergeError::NoCheckpoints);
+    }
     let (t0, t1) = all
         .iter()
         .fold((f64::MAX, f64::MIN), |a, p| (a.0.min(p.0), a.1.max(p.0)));
@@ -63,20 +65,21 @@ pub fn plot(path: &Path, title: &str, curves: &[Curve]) -> anyhow::Result<()> {
     // second version of the crate), written atomically like every output.
     let (width, height) = (900u32, 600u32);
     let mut rgb = vec![0u8; (width * height * 3) as usize];
-    draw(&mut rgb, (width, height), title, curves, (t0, t1), (e0, e1))?;
+    draw(&mut rgb, (width, height), title, curves, (t0, t1), (e0, e1))
+        .map_err(|e| super::ConvergeError::Draw(e.to_string()))?;
     crate::output::write::write_rgb8_png(path, width, height, rgb)?;
     Ok(())
 }
 
 /// Draws the plot into an RGB buffer of `size`.
-fn draw(
-    rgb: &mut [u8],
+fn draw<'a>(
+    rgb: &'a mut [u8],
     size: (u32, u32),
     title: &str,
     curves: &[Curve],
     (t0, t1): (f64, f64),
     (e0, e1): (f64, f64),
-) -> anyhow::Result<()> {
+) -> Result<(), DrawingAreaErrorKind<<BitMapBackend<'a> as DrawingBackend>::ErrorType>> {
     let root = BitMapBackend::with_buffer(rgb, size).into_drawing_area();
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(&root)

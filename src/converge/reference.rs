@@ -1,6 +1,7 @@
 //! The reference a convergence run is measured against: an EXR the user gives, or a long
 //! render made once and cached under a hash of everything that decides its pixels.
 
+use super::ConvergeError;
 use crate::common::AccumData;
 use crate::common::FrameSettings;
 use crate::output::LinearImage;
@@ -8,7 +9,6 @@ use crate::render::Backend;
 use crate::render::multi::Team;
 use crate::render::{RenderOptions, Snapshot};
 use crate::scene::Scene;
-use anyhow::{Context, bail};
 use std::hash::{Hash, Hasher};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -37,13 +37,12 @@ impl Reference {
 /// two halves, so that its own noise is known: how a reference made by an earlier build is
 /// kept for the bias check of a new one), or else a linear EXR, taken as exact. Its size
 /// must be the render's.
-pub fn from_file(path: &Path, width: u32, height: u32) -> anyhow::Result<Reference> {
+pub fn from_file(path: &Path, width: u32, height: u32) -> Result<Reference, ConvergeError> {
     if path.extension().is_some_and(|e| e == "bin") {
-        let snap = read_cache(path, width, height).with_context(|| {
-            format!(
-                "{} is not a cached termtrace reference of {width}x{height}",
-                path.display()
-            )
+        let snap = read_cache(path, width, height).ok_or_else(|| ConvergeError::NotCached {
+            path: path.to_path_buf(),
+            width,
+            height,
         })?;
         return Ok(Reference {
             image: snap.image(),
@@ -55,20 +54,19 @@ pub fn from_file(path: &Path, width: u32, height: u32) -> anyhow::Result<Referen
 }
 
 /// Reads a linear EXR; its size must be the render's.
-pub fn from_exr(path: &Path, width: u32, height: u32) -> anyhow::Result<Reference> {
+pub fn from_exr(path: &Path, width: u32, height: u32) -> Result<Reference, ConvergeError> {
     let img = image::open(path)
-        .with_context(|| format!("cannot read the reference {}", path.display()))?
+        .map_err(|source| ConvergeError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?
         .to_rgb32f();
     if img.dimensions() != (width, height) {
-        bail!(
-            "the reference {} is {}x{}, but the runs render {width}x{height}: \
-             render the reference at the same size, or pass --width {} --height {}",
-            path.display(),
-            img.width(),
-            img.height(),
-            img.width(),
-            img.height()
-        );
+        return Err(ConvergeError::Size {
+            path: path.to_path_buf(),
+            reference: img.dimensions(),
+            runs: (width, height),
+        });
     }
     Ok(Reference {
         image: LinearImage {
@@ -120,7 +118,7 @@ pub fn cache_key(scene: &Scene, s: &FrameSettings, spp: u32, adapter: &str) -> u
 
 const MAGIC: &[u8; 8] = b"TTREF01\0";
 
-fn write_cache(path: &Path, snap: &Snapshot) -> anyhow::Result<()> {
+fn write_cache(path: &Path, snap: &Snapshot) -> std::io::Result<()> {
     let mut bytes = MAGIC.to_vec();
     for v in [snap.width, snap.height, snap.samples, 0] {
         bytes.extend_from_slice(&v.to_le_bytes());
@@ -162,18 +160,18 @@ pub fn rendered(
     spp: u32,
     cache_dir: Option<&Path>,
     mut progress: impl FnMut(u32, u32),
-) -> anyhow::Result<Reference> {
+) -> Reference {
     let names: Vec<String> = backends.iter().map(Backend::describe).collect();
     let key = cache_key(scene, &settings, spp, &names.join(" + "));
     let path = cache_dir.map(|d| d.join(format!("reference-{key:016x}.bin")));
     if let Some(p) = &path
         && let Some(snap) = read_cache(p, settings.width, settings.height)
     {
-        return Ok(Reference {
+        return Reference {
             image: snap.image(),
             source: format!("{} spp, cached in {}", snap.samples, p.display()),
             snapshot: Some(snap),
-        });
+        };
     }
     let s = FrameSettings {
         seed: REFERENCE_SEED,
@@ -192,9 +190,9 @@ pub fn rendered(
             Err(e) => tracing::warn!("could not cache the reference in {}: {e}", p.display()),
         }
     }
-    Ok(Reference {
+    Reference {
         image: snap.image(),
         snapshot: Some(snap),
         source,
-    })
+    }
 }

@@ -23,10 +23,6 @@ pub enum GpuError {
     NoMatch { selector: String, tried: String },
     #[error("could not open a device on {adapter}: {message}")]
     Device { adapter: String, message: String },
-    #[error(
-        "--adapter {selector} names several devices where one is needed: name one adapter (`termtrace adapters` lists them); `view`, `render`, `bench` and `converge` take several"
-    )]
-    Several { selector: String },
 }
 
 const HINT: &str = "How to fix: on a machine without a GPU install Mesa's software adapters, \

@@ -21,8 +21,17 @@ fn current_source(name: &str) -> Option<Cow<'static, str>> {
     source(name).map(Cow::Borrowed)
 }
 
+/// Why the WGSL of a pipeline cannot be put together.
+#[derive(Debug, thiserror::Error)]
+pub enum ShaderError {
+    #[error("include cycle: {}", .0.join(" -> "))]
+    Cycle(Vec<String>),
+    #[error("no shader file `{name}`{}", .from.as_ref().map_or(String::new(), |s| format!(" (included from {s})")))]
+    Missing { name: String, from: Option<String> },
+}
+
 /// `name` with every file it includes (transitively) placed before it, each once.
-pub fn assemble(name: &str) -> Result<String, String> {
+pub fn assemble(name: &str) -> Result<String, ShaderError> {
     let mut done = Vec::new();
     let mut out = String::new();
     visit(name, &mut done, &mut Vec::new(), &mut out)?;
@@ -34,18 +43,18 @@ fn visit(
     done: &mut Vec<String>,
     stack: &mut Vec<String>,
     out: &mut String,
-) -> Result<(), String> {
+) -> Result<(), ShaderError> {
     if done.iter().any(|d| d == name) {
         return Ok(());
     }
     if stack.iter().any(|d| d == name) {
-        return Err(format!("include cycle: {} -> {name}", stack.join(" -> ")));
+        let mut chain = stack.clone();
+        chain.push(name.to_string());
+        return Err(ShaderError::Cycle(chain));
     }
-    let src = current_source(name).ok_or_else(|| {
-        let from = stack
-            .last()
-            .map_or(String::new(), |s| format!(" (included from {s})"));
-        format!("no shader file `{name}`{from}")
+    let src = current_source(name).ok_or_else(|| ShaderError::Missing {
+        name: name.to_string(),
+        from: stack.last().cloned(),
     })?;
     stack.push(name.to_string());
     for line in src.lines() {

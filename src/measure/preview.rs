@@ -5,7 +5,7 @@
 //! (median, worst, misses), frames/s and output bytes/s while converging, and the samples/s
 //! the status line shows.
 
-use anyhow::{Context, bail};
+use super::MeasureError;
 use portable_pty::{CommandBuilder, PtySize, native_pty_system};
 use std::io::{Read, Write};
 
@@ -237,18 +237,20 @@ impl PreviewBench {
     }
 
     /// The termtrace binary, as an absolute path (a relative one would be looked up in PATH).
-    pub fn exe_path(&self) -> anyhow::Result<std::path::PathBuf> {
-        std::fs::canonicalize(&self.exe)
-            .with_context(|| format!("no termtrace binary at {}", self.exe.display()))
+    pub fn exe_path(&self) -> Result<std::path::PathBuf, MeasureError> {
+        std::fs::canonicalize(&self.exe).map_err(MeasureError::io(format!(
+            "no termtrace binary at {}",
+            self.exe.display()
+        )))
     }
 
     /// Runs the preview, types the edit keys and measures (see the module's doc).
-    pub fn run(&self) -> anyhow::Result<PreviewReport> {
+    pub fn run(&self) -> Result<PreviewReport, MeasureError> {
         self.run_with(|probe| self.drive(probe))?
     }
 
     /// Runs the preview and hands `f` the screen and the keyboard; returns what `f` returns.
-    pub fn run_with<R>(&self, f: impl FnOnce(&Probe<'_>) -> R) -> anyhow::Result<R> {
+    pub fn run_with<R>(&self, f: impl FnOnce(&Probe<'_>) -> R) -> Result<R, MeasureError> {
         let pty = native_pty_system()
             .openpty(PtySize {
                 rows: self.rows,
@@ -256,7 +258,7 @@ impl PreviewBench {
                 pixel_width: self.cols * 10,
                 pixel_height: self.rows * 20,
             })
-            .context("cannot open a pseudo-terminal")?;
+            .map_err(MeasureError::pty("cannot open a pseudo-terminal"))?;
         let mut cmd = match &self.command {
             Some(c) => {
                 let mut cmd = CommandBuilder::new(&c[0]);
@@ -278,17 +280,25 @@ impl PreviewBench {
         }
         cmd.env("TERM", "xterm-256color");
         cmd.env("COLORTERM", "truecolor");
-        let mut child = pty.slave.spawn_command(cmd).with_context(|| {
-            format!(
-                "cannot run {:?}",
-                self.command
-                    .as_ref()
-                    .unwrap_or(&vec![self.exe.display().to_string()])
-            )
-        })?;
+        let what = format!(
+            "cannot run {:?}",
+            self.command
+                .as_ref()
+                .unwrap_or(&vec![self.exe.display().to_string()])
+        );
+        let mut child = pty
+            .slave
+            .spawn_command(cmd)
+            .map_err(MeasureError::pty(&what))?;
         drop(pty.slave);
-        let mut reader = pty.master.try_clone_reader()?;
-        let mut writer = pty.master.take_writer()?;
+        let mut reader = pty
+            .master
+            .try_clone_reader()
+            .map_err(MeasureError::pty("the pseudo-terminal's reader"))?;
+        let mut writer = pty
+            .master
+            .take_writer()
+            .map_err(MeasureError::pty("the pseudo-terminal's writer"))?;
         let shared = Arc::new(Shared {
             seen: Mutex::new(Seen::default()),
             parser: Mutex::new(None),
@@ -475,18 +485,18 @@ impl PreviewBench {
     }
 
     /// Types the keys (each reaching the program `half_rtt` after it is typed) and measures.
-    fn drive(&self, probe: &Probe<'_>) -> anyhow::Result<PreviewReport> {
+    fn drive(&self, probe: &Probe<'_>) -> Result<PreviewReport, MeasureError> {
         let shared = probe.shared;
         let type_key = |k: &[u8]| probe.type_key(k);
         let startup = Duration::from_secs(120);
         let Some((first, _)) = wait_for(shared, startup, |s| s.spp.is_some_and(|n| n >= 1)) else {
             let s = shared.seen.lock().expect("screen state").clone();
-            bail!(
+            return Err(MeasureError::Preview(format!(
                 "the preview showed no frame within {} s (exited: {}, last status {:?})",
                 startup.as_secs(),
                 s.exited,
                 s
-            );
+            )));
         };
         let mut report = PreviewReport {
             first_frame: first
@@ -499,7 +509,9 @@ impl PreviewBench {
             // A restart must be visible: at least 2 spp before the key.
             let Some((_, before)) = wait_for(shared, startup, |s| s.spp.is_some_and(|n| n >= 2))
             else {
-                bail!("the preview stopped accumulating");
+                return Err(MeasureError::Preview(
+                    "the preview stopped accumulating".into(),
+                ));
             };
             let key: &[u8] = if i % 2 == 0 { b"+" } else { b"-" };
             let spp_before = before.spp.unwrap_or(0);

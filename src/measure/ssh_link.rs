@@ -4,7 +4,7 @@
 //! checks for), reached through a throttling TCP proxy (a rate and a one-way delay in each
 //! direction), and the `ssh -tt` command that runs termtrace through it.
 
-use anyhow::{Context, bail};
+use super::MeasureError;
 use std::io::{Read, Write};
 use std::net::{Shutdown, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
@@ -21,19 +21,19 @@ pub struct SshLink {
     user: String,
 }
 
-fn free_port() -> anyhow::Result<u16> {
+fn free_port() -> Result<u16, MeasureError> {
     Ok(TcpListener::bind("127.0.0.1:0")?.local_addr()?.port())
 }
 
-fn run(cmd: &mut Command) -> anyhow::Result<String> {
+fn run(cmd: &mut Command) -> Result<String, MeasureError> {
     let out = cmd
         .output()
-        .with_context(|| format!("cannot run {cmd:?}"))?;
+        .map_err(MeasureError::io(format!("cannot run {cmd:?}")))?;
     if !out.status.success() {
-        bail!(
-            "{cmd:?} failed: {}",
-            String::from_utf8_lossy(&out.stderr).trim()
-        );
+        return Err(MeasureError::Failed {
+            command: format!("{cmd:?}"),
+            stderr: String::from_utf8_lossy(&out.stderr).trim().to_string(),
+        });
     }
     Ok(String::from_utf8_lossy(&out.stdout).trim().to_string())
 }
@@ -69,11 +69,12 @@ fn throttle(mut src: TcpStream, mut dst: TcpStream, bits_per_second: f64, delay:
 
 impl SshLink {
     /// Starts sshd and the proxy: `bits_per_second` each way and a round trip of `rtt`.
-    pub fn start(bits_per_second: f64, rtt: Duration) -> anyhow::Result<SshLink> {
-        anyhow::ensure!(
-            Path::new(SSHD).exists(),
-            "{SSHD} is missing: apt-get install openssh-server openssh-client (.ci/run does)"
-        );
+    pub fn start(bits_per_second: f64, rtt: Duration) -> Result<SshLink, MeasureError> {
+        if !Path::new(SSHD).exists() {
+            return Err(MeasureError::Link(format!(
+                "{SSHD} is missing: apt-get install openssh-server openssh-client (.ci/run does)"
+            )));
+        }
         let dir = tempfile::tempdir()?;
         let d = dir.path();
         let keygen = |name: &str| {
@@ -106,7 +107,7 @@ impl SshLink {
             .stdout(Stdio::null())
             .stderr(std::fs::File::create(d.join("sshd.log"))?)
             .spawn()
-            .context("cannot start sshd")?;
+            .map_err(MeasureError::io("cannot start sshd"))?;
         let mut link = SshLink {
             dir,
             sshd,
@@ -118,7 +119,10 @@ impl SshLink {
             if Instant::now() > deadline || link.sshd.try_wait()?.is_some() {
                 let log =
                     std::fs::read_to_string(link.dir.path().join("sshd.log")).unwrap_or_default();
-                bail!("sshd did not start on port {port}: {}", log.trim());
+                return Err(MeasureError::Link(format!(
+                    "sshd did not start on port {port}: {}",
+                    log.trim()
+                )));
             }
             std::thread::sleep(Duration::from_millis(50));
         }

@@ -77,7 +77,7 @@ pub fn check_writable(path: &Path) -> Result<(), OutputError> {
 /// Runs `encode` into a temporary file beside `path`, then renames it to `path`.
 fn atomic_write(
     path: &Path,
-    encode: impl FnOnce(&mut BufWriter<&mut std::fs::File>) -> Result<(), String>,
+    encode: impl FnOnce(&mut BufWriter<&mut std::fs::File>) -> Result<(), ::image::ImageError>,
 ) -> Result<(), OutputError> {
     let mut builder = tempfile::Builder::new();
     builder.prefix(".termtrace-").suffix(".part");
@@ -104,7 +104,9 @@ pub fn write_text(path: &Path, text: &str) -> Result<(), OutputError> {
 
 /// Writes a file of bytes (a built-in scene's map beside its edited scene).
 pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
-    atomic_write(path, |w| w.write_all(bytes).map_err(|e| e.to_string()))
+    atomic_write(path, |w| {
+        w.write_all(bytes).map_err(::image::ImageError::IoError)
+    })
 }
 
 /// Writes an 8-bit (or 16-bit) PNG encoded with `transfer`.
@@ -115,13 +117,12 @@ pub fn write_png(
     sixteen_bit: bool,
 ) -> Result<(), OutputError> {
     atomic_write(path, |w| {
-        let r = if sixteen_bit {
+        if sixteen_bit {
             img.to_rgb16(transfer)
                 .write_to(w, ::image::ImageFormat::Png)
         } else {
             img.to_rgb8(transfer).write_to(w, ::image::ImageFormat::Png)
-        };
-        r.map_err(|e| e.to_string())
+        }
     })
 }
 
@@ -134,18 +135,13 @@ pub fn write_rgb8_png(
 ) -> Result<(), OutputError> {
     let img = ::image::RgbImage::from_raw(width, height, rgb)
         .ok_or_else(|| err(path, "the pixel buffer does not match the image size"))?;
-    atomic_write(path, |w| {
-        img.write_to(w, ::image::ImageFormat::Png)
-            .map_err(|e| e.to_string())
-    })
+    atomic_write(path, |w| img.write_to(w, ::image::ImageFormat::Png))
 }
 
 /// Writes the linear radiance as 32-bit float OpenEXR.
 pub fn write_exr(path: &Path, img: &LinearImage) -> Result<(), OutputError> {
     atomic_write(path, |w| {
-        img.to_rgb32f()
-            .write_to(w, ::image::ImageFormat::OpenExr)
-            .map_err(|e| e.to_string())
+        img.to_rgb32f().write_to(w, ::image::ImageFormat::OpenExr)
     })
 }
 

@@ -6,6 +6,11 @@
 use std::cell::Cell;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 
+crate::message_error!(
+    /// A device's failure: the message of the panic that ended its work.
+    DeviceFailure
+);
+
 thread_local! {
     static CONTAINED: Cell<bool> = const { Cell::new(false) };
 }
@@ -13,7 +18,7 @@ thread_local! {
 /// Runs `f`, catching a panic as its message. While it runs, `containing()` is true on this
 /// thread, so that a panic hook leaves the process as it is (the preview's restores the
 /// terminal only for a panic that ends the program).
-pub fn contained<T>(f: impl FnOnce() -> T) -> Result<T, String> {
+pub fn contained<T>(f: impl FnOnce() -> T) -> Result<T, DeviceFailure> {
     let outer = CONTAINED.with(|c| c.replace(true));
     // The device's state is dropped with its failure; nothing that outlives `f` is left
     // half-changed but the claims, which `release` mends.
@@ -24,7 +29,7 @@ pub fn contained<T>(f: impl FnOnce() -> T) -> Result<T, String> {
             .downcast_ref::<&str>()
             .map(|s| s.to_string())
             .or_else(|| payload.downcast_ref::<String>().cloned())
-            .unwrap_or_else(|| "a panic without a message".into())
+            .map_or_else(|| "a panic without a message".into(), DeviceFailure)
     })
 }
 
@@ -40,8 +45,8 @@ mod tests {
     #[test]
     fn a_panic_is_caught_with_its_message() {
         assert_eq!(contained(|| 7), Ok(7));
-        let r: Result<(), String> = contained(|| panic!("lost {}", 3));
-        let s: Result<(), String> = contained(|| {
+        let r: Result<(), DeviceFailure> = contained(|| panic!("lost {}", 3));
+        let s: Result<(), DeviceFailure> = contained(|| {
             assert!(containing());
             panic!("gone")
         });

@@ -121,14 +121,35 @@ impl From<Arc<GpuContext>> for Backend {
     }
 }
 
+/// A scene that a GPU cannot bind: what overruns which limit ([`Backend::check_fits`]).
+#[derive(Debug, thiserror::Error)]
+#[error("{scene}: {why} ({adapter})")]
+pub struct TooLarge {
+    pub scene: String,
+    pub why: String,
+    pub adapter: String,
+}
+
+/// Why the devices a selector names could not be opened.
+#[derive(Debug, thiserror::Error)]
+pub enum OpenError {
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    #[error(
+        "adapter `{selector}` names several devices where one is needed: name one adapter \
+         (`termtrace adapters` lists them); `view`, `render`, `bench` and `converge` take several"
+    )]
+    Several { selector: String },
+}
+
 impl Backend {
     /// The backend `selector` names (`cpu-native`, or any adapter `termtrace adapters`
     /// lists), or the best one: a GPU where there is one, else the native CPU tracer (which
     /// replaces Mesa's software adapters, being many times faster than they are).
-    pub fn open(selector: Option<&str>) -> Result<Backend, GpuError> {
+    pub fn open(selector: Option<&str>) -> Result<Backend, OpenError> {
         let selector = selector.map(str::trim).filter(|s| !s.is_empty());
         if let Some(s) = selector.filter(|s| s.eq_ignore_ascii_case("all") || s.contains(',')) {
-            return Err(GpuError::Several {
+            return Err(OpenError::Several {
                 selector: s.to_string(),
             });
         }
@@ -148,7 +169,7 @@ impl Backend {
                 tracing::info!("no GPU adapter ({tried}): tracing on the CPU natively");
                 Ok(Backend::Cpu)
             }
-            Err(e) => Err(e),
+            Err(e) => Err(e.into()),
         }
     }
 
@@ -156,14 +177,14 @@ impl Backend {
     /// backend; the default backend where there is none), a comma-separated list of what
     /// [`Backend::open`] takes (`0,1`, `vulkan,cpu-native`; an adapter named twice is opened
     /// twice), or one of them.
-    pub fn open_all(selector: Option<&str>) -> Result<Vec<Backend>, GpuError> {
+    pub fn open_all(selector: Option<&str>) -> Result<Vec<Backend>, OpenError> {
         let selector = selector.map(str::trim).filter(|s| !s.is_empty());
         match selector {
             Some(s) if s.eq_ignore_ascii_case("all") => {
                 let gpus = crate::gpu::hardware_adapters();
                 if gpus.is_empty() {
                     tracing::info!(
-                        "--adapter all: no hardware GPU, tracing on the default backend"
+                        "adapter `all`: no hardware GPU, tracing on the default backend"
                     );
                     return Ok(vec![Backend::open(None)?]);
                 }
@@ -177,7 +198,8 @@ impl Backend {
                     "" => Err(GpuError::NoMatch {
                         selector: s.to_string(),
                         tried: "an empty name in the list".into(),
-                    }),
+                    }
+                    .into()),
                     one => Backend::open(Some(one)),
                 })
                 .collect(),
@@ -188,23 +210,25 @@ impl Backend {
     /// Whether `scene` fits this backend: a GPU binds each storage buffer up to a size
     /// (`max_storage_buffer_binding_size`, `max_buffer_size`); the texture words and an
     /// environment map, one buffer each, are what a real scene can overrun. The CPU tracer has no such limit.
-    pub fn check_fits(&self, scene: &Scene) -> anyhow::Result<()> {
+    pub fn check_fits(&self, scene: &Scene) -> Result<(), TooLarge> {
         let Backend::Gpu(ctx) = self else {
             return Ok(());
         };
         let l = ctx.device.limits();
         let limit = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
-        if let Some(why) = crate::common::textures::too_large(scene, limit) {
-            anyhow::bail!("{}: {why} ({})", scene.origin, ctx.adapter_name());
+        let why = crate::common::textures::too_large(scene, limit).or_else(|| {
+            scene.environment.as_ref().and_then(|e| {
+                crate::common::envmap::too_large(&e.map.distribution, &e.map.name, limit)
+            })
+        });
+        match why {
+            Some(why) => Err(TooLarge {
+                scene: scene.origin.clone(),
+                why,
+                adapter: ctx.adapter_name(),
+            }),
+            None => Ok(()),
         }
-        if let Some(why) = scene
-            .environment
-            .as_ref()
-            .and_then(|e| crate::common::envmap::too_large(&e.map.distribution, &e.map.name, limit))
-        {
-            anyhow::bail!("{}: {why} ({})", scene.origin, ctx.adapter_name());
-        }
-        Ok(())
     }
 
     /// One line naming the adapter or the CPU tracer.

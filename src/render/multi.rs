@@ -249,7 +249,7 @@ impl Team {
                         });
                         if let Err(why) = traced {
                             // Left out first, then its samples given back.
-                            *m.failed.lock().expect("failure poisoned") = Some(why.clone());
+                            *m.failed.lock().expect("failure poisoned") = Some(why.0.clone());
                             m.samples.store(0, Ordering::Relaxed);
                             m.paths.store(0, Ordering::Relaxed);
                             let given = self.claims.release(i);

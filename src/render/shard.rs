@@ -180,27 +180,33 @@ fn encode(part: &Part, version: u32) -> Vec<u8> {
     bytes
 }
 
+crate::message_error!(
+    /// Why a snapshot cannot be read or a set of them merged, naming the file.
+    ShardError
+);
+
 /// Reads a snapshot, refusing (with the file's name) anything that is not one, a version this
 /// build does not read, a header that does not parse, a size that does not match it, or
 /// bytes that do not match their checksum.
-pub fn read(path: &Path) -> Result<Part, String> {
+pub fn read(path: &Path) -> Result<Part, ShardError> {
     let name = path.display();
-    let bytes = std::fs::read(path).map_err(|e| format!("{name}: cannot read it: {e}"))?;
-    parse(&bytes).map_err(|e| format!("{name}: {e}"))
+    let bytes =
+        std::fs::read(path).map_err(|e| ShardError(format!("{name}: cannot read it: {e}")))?;
+    parse(&bytes).map_err(|e| ShardError(format!("{name}: {e}")))
 }
 
 /// [`read`] from memory.
-pub fn parse(bytes: &[u8]) -> Result<Part, String> {
+pub fn parse(bytes: &[u8]) -> Result<Part, ShardError> {
     if bytes.len() < 20 || &bytes[..8] != MAGIC {
         return Err("not a termtrace snapshot (.tta)".into());
     }
     let u32_at = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"));
     let version = u32_at(8);
     if version != 1 && version != VERSION {
-        return Err(format!(
+        return Err(ShardError(format!(
             "a snapshot of format version {version}; this termtrace reads versions 1 and \
              {VERSION}"
-        ));
+        )));
     }
     let (body, tail) = bytes.split_at(bytes.len() - 4);
     let crc = u32::from_le_bytes(tail.try_into().expect("4 bytes"));
@@ -212,7 +218,8 @@ pub fn parse(bytes: &[u8]) -> Result<Part, String> {
         .get(16..16 + len)
         .and_then(|t| std::str::from_utf8(t).ok())
         .ok_or("corrupted: its header is cut short or not text")?;
-    let header: Header = toml::from_str(text).map_err(|e| format!("its header: {e}"))?;
+    let header: Header =
+        toml::from_str(text).map_err(|e| ShardError(format!("its header: {e}")))?;
     let n = words_of(&header);
     // Bytes of both halves' words.
     let need = n.saturating_mul(8);
@@ -225,7 +232,7 @@ pub fn parse(bytes: &[u8]) -> Result<Part, String> {
     };
     let words: Vec<u32> = if version == 1 {
         if payload.len() != need {
-            return Err(sizes(payload.len()));
+            return Err(sizes(payload.len()).into());
         }
         payload
             .chunks_exact(4)
@@ -234,20 +241,20 @@ pub fn parse(bytes: &[u8]) -> Result<Part, String> {
     } else {
         use std::io::Read;
         if need > MAX_INFLATION.saturating_mul(payload.len().max(1)) {
-            return Err(format!(
+            return Err(ShardError(format!(
                 "corrupted: {} compressed bytes cannot hold the {need} of a {}×{} image's sums",
                 payload.len(),
                 header.width,
                 header.height
-            ));
+            )));
         }
         let mut planes = Vec::new();
         flate2::read::DeflateDecoder::new(payload)
             .take(need as u64 + 1)
             .read_to_end(&mut planes)
-            .map_err(|e| format!("corrupted: its sums do not inflate: {e}"))?;
+            .map_err(|e| ShardError(format!("corrupted: its sums do not inflate: {e}")))?;
         if planes.len() != need {
-            return Err(sizes(planes.len()));
+            return Err(sizes(planes.len()).into());
         }
         let count = 2 * n;
         (0..count)
@@ -272,7 +279,7 @@ pub use crate::common::accum::{Sums, add_words};
 /// Merges the parts of one render (in any order) into the whole: refused, naming the files,
 /// if a part belongs to another render (scene, settings, version), a shard is missing or
 /// given twice, or a part's range is not its shard's.
-pub fn merge(parts: &[(PathBuf, Part)]) -> Result<Part, String> {
+pub fn merge(parts: &[(PathBuf, Part)]) -> Result<Part, ShardError> {
     let Some((first_path, first)) = parts.first() else {
         return Err("no parts to merge".into());
     };
@@ -282,33 +289,37 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<Part, String> {
     for (path, p) in parts {
         let h = &p.header;
         if h.render_key() != key {
-            return Err(format!(
+            return Err(ShardError(format!(
                 "{} is not a part of the render {} belongs to: {}",
                 path.display(),
                 first_path.display(),
                 difference(&key, &h.render_key())
-            ));
+            )));
         }
         if h.shard >= k {
-            return Err(format!("{}: shard {} of {k}", path.display(), h.shard));
+            return Err(ShardError(format!(
+                "{}: shard {} of {k}",
+                path.display(),
+                h.shard
+            )));
         }
         if Header::range(h.shard, k, key.spp) != (h.first_sample, h.end_sample) {
-            return Err(format!(
+            return Err(ShardError(format!(
                 "{}: shard {} holds samples {}..{}, not its share of {} spp",
                 path.display(),
                 h.shard,
                 h.first_sample,
                 h.end_sample,
                 key.spp
-            ));
+            )));
         }
         if let Some(other) = seen[h.shard as usize] {
-            return Err(format!(
+            return Err(ShardError(format!(
                 "shard {} of {k} is given twice: {} and {}",
                 h.shard,
                 other.display(),
                 path.display()
-            ));
+            )));
         }
         seen[h.shard as usize] = Some(path);
     }
@@ -317,12 +328,12 @@ pub fn merge(parts: &[(PathBuf, Part)]) -> Result<Part, String> {
         .map(|i| i.to_string())
         .collect();
     if !missing.is_empty() {
-        return Err(format!(
+        return Err(ShardError(format!(
             "{} of the {k} shards of {} are missing: {}",
             missing.len(),
             key.scene,
             missing.join(", ")
-        ));
+        )));
     }
     let mut whole = Part {
         header: Header {

@@ -76,6 +76,21 @@ impl fmt::Display for Diagnostic {
     }
 }
 
+crate::message_error!(
+    /// What is wrong inside a model, mesh or image file, as the user reads it ("accessor 3
+    /// has no buffer view"), before the caller ties it to the file's path
+    /// ([`super::gltf::GltfError`], [`Diagnostic`]).
+    Malformed
+);
+
+/// An error reading a glTF (or OBJ) file: what went wrong, naming the part of the file.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {message}")]
+pub struct GltfError {
+    pub path: String,
+    pub message: String,
+}
+
 /// Why a scene could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
@@ -87,11 +102,14 @@ pub enum SceneError {
     },
     #[error("no scene file `{name}`, and it is not a built-in scene (built-in: {})", builtins.join(", "))]
     NotFound { name: String, builtins: Vec<String> },
-    #[error("{}", format_all(.0))]
+    #[error("invalid scene\n{}", format_all(.0))]
     Invalid(Vec<Diagnostic>),
+    /// The sky map given beside the scene (the command line's) cannot be used.
+    #[error("sky map {0}")]
+    Sky(#[from] super::envmap::EnvMapError),
     /// A glTF file that cannot be opened (what is wrong, naming the file and its part).
     #[error("invalid glTF scene: {0}")]
-    Gltf(#[from] super::gltf::GltfError),
+    Gltf(#[from] GltfError),
 }
 
 impl SceneError {

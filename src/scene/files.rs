@@ -35,7 +35,7 @@ pub fn import_model(
     if let Some(c) = camera {
         return Err(gltf::GltfError {
             path: path.display().to_string(),
-            message: format!("--camera {c}: an OBJ file has no cameras"),
+            message: format!("camera `{c}`: an OBJ file has no cameras"),
         });
     }
     obj::import(path, place)

@@ -6,6 +6,7 @@
 //! camera that frames the scene's bounds; `KHR_lights_punctual` lights become the sun
 //! (directional) or small emitting spheres of the same power (point, spot).
 
+use super::error::Malformed;
 use super::mesh::Mesh;
 use super::model::{Camera, Material, MaterialModel, Object, Shape, Sun};
 use glam::{DMat4, DVec3, Vec3};
@@ -83,13 +84,7 @@ pub fn material_key(m: &gltf::Material) -> String {
     }
 }
 
-/// An error reading a glTF file: what went wrong, naming the part of the file.
-#[derive(Debug, thiserror::Error)]
-#[error("{path}: {message}")]
-pub struct GltfError {
-    pub path: String,
-    pub message: String,
-}
+pub use super::error::GltfError;
 
 /// Imports the glTF file at `path` (its buffers beside it), placed by `place` (the TOML's
 /// transform; identity when the file is opened directly); `camera` picks a camera by name.
@@ -116,9 +111,9 @@ pub fn import_slice(
     place: DMat4,
     camera: Option<&str>,
 ) -> Result<Imported, GltfError> {
-    let err = |message: String| GltfError {
+    let err = |message: Malformed| GltfError {
         path: name.to_string(),
-        message,
+        message: message.0,
     };
     let gltf = parse(bytes).map_err(err)?;
     let buffers = read_buffers(&gltf, base).map_err(err)?;
@@ -126,10 +121,10 @@ pub fn import_slice(
     let mut skipped = Vec::new();
     for ext in doc.extensions_required() {
         if !SUPPORTED_EXTENSIONS.contains(&ext) {
-            return Err(err(format!(
+            return Err(err(Malformed(format!(
                 "it requires the extension {ext}, which termtrace does not read (it reads {})",
                 SUPPORTED_EXTENSIONS.join(", ")
-            )));
+            ))));
         }
     }
     for ext in doc.extensions_used() {
@@ -161,19 +156,19 @@ pub fn import_slice(
     let mut reached = vec![false; doc.nodes().len()];
     while let Some((node, parent)) = stack.pop() {
         if std::mem::replace(&mut reached[node.index()], true) {
-            return Err(err(format!(
+            return Err(err(Malformed(format!(
                 "nodes[{}] is reached twice in the scene's hierarchy (a cycle, or a node with \
                  two parents)",
                 node.index()
-            )));
+            ))));
         }
         let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
         let world = parent * local;
         if !world.is_finite() {
-            return Err(err(format!(
+            return Err(err(Malformed(format!(
                 "node {} has a transform that is not finite",
                 label(&node)
-            )));
+            ))));
         }
         if let Some(mesh) = node.mesh() {
             import_mesh(&mesh, world, &buffers, &materials, &mut out).map_err(err)?;
@@ -188,14 +183,14 @@ pub fn import_slice(
         stack.extend(children.into_iter().rev());
     }
     if out.objects.is_empty() {
-        return Err(err(format!(
+        return Err(err(Malformed(format!(
             "the scene has no triangles{}",
             if out.skipped.is_empty() {
                 String::new()
             } else {
                 format!(" ({})", out.skipped.join("; "))
             }
-        )));
+        ))));
     }
     out.camera = pick_camera(&cameras, camera).map_err(err)?;
     let diagonal = (out.bounds.1 - out.bounds.0).length();
@@ -212,7 +207,7 @@ const GLB_HEADER: u32 = 12;
 /// while it validates a primitive's POSITION (its mesh.rs:151), so a file whose attribute
 /// names an accessor it does not have would panic there (found by `fuzz/`): the references
 /// are checked first, and the validation runs only on a file that passes.
-fn parse(bytes: &[u8]) -> Result<gltf::Gltf, String> {
+fn parse(bytes: &[u8]) -> Result<gltf::Gltf, Malformed> {
     // The crate subtracts the header's size from the GLB's stated length unchecked (its
     // binary.rs:252, also found by `fuzz/`).
     if let Some(len) = bytes
@@ -221,38 +216,41 @@ fn parse(bytes: &[u8]) -> Result<gltf::Gltf, String> {
         .map(|l| u32::from_le_bytes([l[0], l[1], l[2], l[3]]))
         && len < GLB_HEADER
     {
-        return Err(format!(
+        return Err(Malformed(format!(
             "not a valid GLB file: its header gives a length of {len} bytes, less than the \
              header's own {GLB_HEADER}"
-        ));
+        )));
     }
     let unchecked = gltf::Gltf::from_slice_without_validation(bytes)
-        .map_err(|e| format!("not a valid glTF file: {e}"))?;
+        .map_err(|e| Malformed(format!("not a valid glTF file: {e}")))?;
     let root = unchecked.document.as_json();
     let n = root.accessors.len();
     for (mi, m) in root.meshes.iter().enumerate() {
         for (pi, p) in m.primitives.iter().enumerate() {
             let named = p.attributes.values().chain(p.indices.as_ref());
             if let Some(bad) = named.map(|a| a.value()).find(|&a| a >= n) {
-                return Err(format!(
+                return Err(Malformed(format!(
                     "meshes[{mi}].primitives[{pi}] names accessor {bad}, and the file has {n}"
-                ));
+                )));
             }
         }
     }
-    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| format!("not a valid glTF file: {e}"))?;
+    let gltf = gltf::Gltf::from_slice(bytes)
+        .map_err(|e| Malformed(format!("not a valid glTF file: {e}")))?;
     // The crate's `Image::source` unwraps a missing `uri` and a view's missing `mimeType`
     // (its image.rs:125 and :128, found by `fuzz/`), which the validation lets through.
     for (i, image) in gltf.document.as_json().images.iter().enumerate() {
         match (&image.buffer_view, &image.uri, &image.mime_type) {
             (Some(_), _, None) => {
-                return Err(format!(
+                return Err(Malformed(format!(
                     "images[{i}] is in a buffer view and has no mimeType (the specification \
                      requires one)"
-                ));
+                )));
             }
             (None, None, _) => {
-                return Err(format!("images[{i}] has neither a uri nor a bufferView"));
+                return Err(Malformed(format!(
+                    "images[{i}] has neither a uri nor a bufferView"
+                )));
             }
             _ => {}
         }
@@ -262,7 +260,10 @@ fn parse(bytes: &[u8]) -> Result<gltf::Gltf, String> {
 
 /// The file's buffers (the GLB's binary chunk, `data:` URIs, files beside it), each checked
 /// against its declared length; an error names the buffer.
-fn read_buffers(gltf: &gltf::Gltf, base: Option<&Path>) -> Result<Vec<gltf::buffer::Data>, String> {
+fn read_buffers(
+    gltf: &gltf::Gltf,
+    base: Option<&Path>,
+) -> Result<Vec<gltf::buffer::Data>, Malformed> {
     let mut blob = gltf.blob.clone();
     let mut out = Vec::new();
     for b in gltf.document.buffers() {
@@ -275,19 +276,19 @@ fn read_buffers(gltf: &gltf::Gltf, base: Option<&Path>) -> Result<Vec<gltf::buff
         let mut bytes = match b.source() {
             gltf::buffer::Source::Bin => blob
                 .take()
-                .ok_or_else(|| format!("{what}: the GLB file has no binary chunk"))?,
+                .ok_or_else(|| Malformed(format!("{what}: the GLB file has no binary chunk")))?,
             gltf::buffer::Source::Uri(uri) => super::gltf_textures::read_uri(uri, base)
-                .map_err(|e| format!("{what}: cannot read it: {e}"))?,
+                .map_err(|e| Malformed(format!("{what}: cannot read it: {e}")))?,
         };
         // Padded to whole words, as the crate's reader pads them.
         bytes.resize(bytes.len().next_multiple_of(4), 0);
         let data = gltf::buffer::Data(bytes);
         if data.len() < b.length() {
-            return Err(format!(
+            return Err(Malformed(format!(
                 "{what}: {} bytes, but it declares {}",
                 data.len(),
                 b.length()
-            ));
+            )));
         }
         out.push(data);
     }
@@ -307,7 +308,7 @@ fn import_mesh(
     buffers: &[gltf::buffer::Data],
     materials: &[Material],
     out: &mut Imported,
-) -> Result<(), String> {
+) -> Result<(), Malformed> {
     let mesh_name = mesh
         .name()
         .map_or_else(|| format!("mesh{}", mesh.index()), str::to_string);
@@ -363,14 +364,14 @@ fn import_mesh(
                 // The crate's reader assumes the element type its caller asks for (a debug
                 // assertion, found by `fuzz/`; garbage without it).
                 if a.dimensions() != dims || !types.contains(&a.data_type()) {
-                    return Err(format!(
+                    return Err(Malformed(format!(
                         "{what}: accessor {} holds {:?} of {:?}, where {dims:?} of {types:?} belong",
                         a.index(),
                         a.dimensions(),
                         a.data_type()
-                    ));
+                    )));
                 }
-                accessor_fits(&a, buffers).map_err(|e| format!("{what}: {e}"))?;
+                accessor_fits(&a, buffers).map_err(|e| Malformed(format!("{what}: {e}")))?;
             }
         }
         let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
@@ -433,11 +434,11 @@ fn import_mesh(
         for t in triangles {
             let v = t.map(|i| points.get(i as usize).copied());
             let [Some(a), Some(b), Some(c)] = v else {
-                return Err(format!(
+                return Err(Malformed(format!(
                     "{what}: an index refers to vertex {} of {}",
                     t.iter().max().unwrap_or(&0),
                     points.len()
-                ));
+                )));
             };
             let area = (b - a).cross(c - a).length();
             if area > 0.0 && area.is_finite() {
@@ -506,22 +507,26 @@ fn import_mesh(
 
 /// Checks that `a`'s elements lie inside its buffer's data: the crate's reader slices without
 /// checking, so a view or accessor that overruns its buffer would otherwise panic.
-fn accessor_fits(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(), String> {
+fn accessor_fits(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(), Malformed> {
     let name = format!("accessor {}", a.index());
     // The specification's minimum; the crate's reader computes `count - 1` unchecked (its
     // accessor/util.rs:384, found by `fuzz/`).
     if a.count() == 0 {
-        return Err(format!("{name} has a count of 0 (at least 1 is required)"));
+        return Err(Malformed(format!(
+            "{name} has a count of 0 (at least 1 is required)"
+        )));
     }
     if a.sparse().is_some() {
-        return Err(format!("{name} is sparse, which termtrace does not read"));
+        return Err(Malformed(format!(
+            "{name} is sparse, which termtrace does not read"
+        )));
     }
     let Some(view) = a.view() else {
-        return Err(format!("{name} has no buffer view"));
+        return Err(Malformed(format!("{name} has no buffer view")));
     };
     let data = buffers
         .get(view.buffer().index())
-        .ok_or_else(|| format!("{name}: no buffer {}", view.buffer().index()))?;
+        .ok_or_else(|| Malformed(format!("{name}: no buffer {}", view.buffer().index())))?;
     let elem = a.size();
     let stride = view.stride().unwrap_or(elem).max(elem);
     let span = match a.count() {
@@ -534,10 +539,10 @@ fn accessor_fits(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(
     let view_end = view.offset().checked_add(view.length());
     match (span, view_end) {
         (Some(span), Some(end)) if span <= view.length() && end <= data.len() => Ok(()),
-        _ => Err(format!(
+        _ => Err(Malformed(format!(
             "{name} reaches past the end of its buffer view or buffer ({} bytes)",
             data.len()
-        )),
+        ))),
     }
 }
 
@@ -626,7 +631,7 @@ pub fn pbr_material(p: &Pbr) -> Material {
 fn pick_camera(
     cameras: &[(gltf::Camera, DMat4)],
     name: Option<&str>,
-) -> Result<Option<Camera>, String> {
+) -> Result<Option<Camera>, Malformed> {
     let found = match name {
         Some(n) => Some(
             cameras
@@ -652,10 +657,10 @@ fn pick_camera(
         return Ok(None);
     };
     let gltf::camera::Projection::Perspective(p) = cam.projection() else {
-        return Err(format!(
+        return Err(Malformed(format!(
             "camera `{}` is orthographic; the model's camera is a perspective one",
             cam.name().unwrap_or("(unnamed)")
-        ));
+        )));
     };
     let from = world.transform_point3(DVec3::ZERO);
     let forward = world.transform_vector3(DVec3::NEG_Z).normalize_or_zero();

@@ -2,6 +2,7 @@
 //! JPEG through `image`) into the model's RGBA8 textures with their samplers' wrap modes, and
 //! each textured material as the model's [`Textured`].
 
+use super::error::Malformed;
 use super::texture::{AlphaMode, IDENTITY_TRANSFORM, Texture, Textured, TexturedRef, Wrap};
 use base64::Engine;
 use rayon::prelude::*;
@@ -17,7 +18,7 @@ pub fn decode(
     doc: &gltf::Document,
     base: Option<&Path>,
     buffers: &[gltf::buffer::Data],
-) -> Result<Textures, String> {
+) -> Result<Textures, Malformed> {
     let mut used = vec![false; doc.textures().len()];
     for m in doc.materials() {
         let pbr = m.pbr_metallic_roughness();
@@ -43,7 +44,7 @@ pub fn decode(
     images.sort_unstable();
     images.dedup();
     // Each image: its pixels and how messages name it.
-    type Decoded = Result<(Arc<image::RgbaImage>, String), String>;
+    type Decoded = Result<(Arc<image::RgbaImage>, String), Malformed>;
     let decoded: Vec<(usize, Decoded)> = images
         .par_iter()
         .map(|&i| {
@@ -57,10 +58,11 @@ pub fn decode(
             };
             let pixels = encoded(&image, base, buffers)
                 .and_then(|bytes| {
-                    image::load_from_memory(&bytes).map_err(|e| format!("cannot decode it: {e}"))
+                    image::load_from_memory(&bytes)
+                        .map_err(|e| Malformed(format!("cannot decode it: {e}")))
                 })
                 .map(|img| Arc::new(img.to_rgba8()))
-                .map_err(|e| format!("{what}: {e}"));
+                .map_err(|e| Malformed(format!("{what}: {e}")));
             (i, pixels.map(|p| (p, what)))
         })
         .collect();
@@ -95,7 +97,7 @@ fn encoded(
     image: &gltf::Image,
     base: Option<&Path>,
     buffers: &[gltf::buffer::Data],
-) -> Result<Vec<u8>, String> {
+) -> Result<Vec<u8>, Malformed> {
     match image.source() {
         gltf::image::Source::View { view, .. } => {
             let data = buffers
@@ -114,18 +116,18 @@ fn encoded(
 /// The bytes a URI names: a `data:` URI's (base64), or a file's beside the glTF file (its
 /// `%XX` escapes decoded; not the crate's reader, which panics on an escape that is not
 /// UTF-8, as `fuzz/` found).
-pub(super) fn read_uri(uri: &str, base: Option<&Path>) -> Result<Vec<u8>, String> {
+pub(super) fn read_uri(uri: &str, base: Option<&Path>) -> Result<Vec<u8>, Malformed> {
     if let Some(rest) = uri.strip_prefix("data:") {
         let (_, b64) = rest
             .split_once(";base64,")
             .ok_or("a data URI that is not base64")?;
         return base64::engine::general_purpose::STANDARD
             .decode(b64)
-            .map_err(|e| format!("its data URI is not valid base64: {e}"));
+            .map_err(|e| Malformed(format!("its data URI is not valid base64: {e}")));
     }
     let base = base.ok_or("data in another file, and no folder to read it from")?;
     let path = base.join(percent_decode(uri.strip_prefix("file://").unwrap_or(uri)));
-    std::fs::read(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))
+    std::fs::read(&path).map_err(|e| Malformed(format!("cannot read {}: {e}", path.display())))
 }
 
 /// A relative URI's `%XX` escapes decoded (glTF URIs are percent-encoded: `my%20file.png`).

@@ -1,6 +1,7 @@
 //! Triangle meshes from Wavefront OBJ files (via `tobj`), and the OBJ files the project
 //! generates itself (a torus, a subdivided icosahedron).
 
+use super::error::Malformed;
 use glam::DVec3;
 use std::fmt::Write;
 
@@ -23,7 +24,7 @@ pub struct Mesh {
 }
 
 /// Parses OBJ text (faces triangulated; materials, normals and texture coordinates ignored).
-pub fn parse_obj(text: &str) -> Result<Mesh, String> {
+pub fn parse_obj(text: &str) -> Result<Mesh, Malformed> {
     let opts = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
@@ -32,7 +33,7 @@ pub fn parse_obj(text: &str) -> Result<Mesh, String> {
     let (models, _) = tobj::load_obj_buf(&mut text.as_bytes(), &opts, |_| {
         Err(tobj::LoadError::OpenFileFailed)
     })
-    .map_err(|e| format!("not a valid OBJ file: {e}"))?;
+    .map_err(|e| Malformed(format!("not a valid OBJ file: {e}")))?;
     let mut mesh = Mesh {
         triangles: Vec::new(),
         skipped: 0,
@@ -52,10 +53,10 @@ pub fn parse_obj(text: &str) -> Result<Mesh, String> {
         };
         for f in m.mesh.indices.chunks_exact(3) {
             let (Some(a), Some(b), Some(c)) = (vertex(f[0]), vertex(f[1]), vertex(f[2])) else {
-                return Err(format!(
+                return Err(Malformed(format!(
                     "a face refers to vertex {} which does not exist",
                     f.iter().max().unwrap_or(&0) + 1
-                ));
+                )));
             };
             let area = (b - a).cross(c - a).length();
             if area > 0.0 && area.is_finite() {

@@ -58,8 +58,8 @@ impl Scene {
             return Err(SceneError::Gltf(gltf::GltfError {
                 path: name.to_string(),
                 message: format!(
-                    "--camera {c} chooses a camera of a glTF file; in a TOML scene write \
-                     `camera = \"{c}\"` in its [[gltf]] table"
+                    "camera `{c}`: only a glTF file is opened with a camera chosen; in a TOML \
+                     scene write `camera = \"{c}\"` in its [[gltf]] table"
                 ),
             }));
         }
@@ -133,14 +133,15 @@ impl Scene {
     }
 }
 
-/// A scene by built-in name or file path, with an error message for the command line (an
+/// A scene by built-in name or file path, lit by the map at `sky` when one is given (an
 /// invalid scene lists every problem, each with its file, line and key). Below both the
 /// commands and the preview, which load scenes the same way.
-pub fn load_scene(name: &str, camera: Option<&str>, sky: Option<&Path>) -> anyhow::Result<Scene> {
-    let mut scene = Scene::load_with_camera(name, camera).map_err(|e| match e {
-        SceneError::Invalid(_) => anyhow::anyhow!("invalid scene\n{e}"),
-        other => other.into(),
-    })?;
+pub fn load_scene(
+    name: &str,
+    camera: Option<&str>,
+    sky: Option<&Path>,
+) -> Result<Scene, SceneError> {
+    let mut scene = Scene::load_with_camera(name, camera)?;
     if let Some(path) = sky {
         scene.set_sky_map(path)?;
     }
@@ -148,15 +149,15 @@ pub fn load_scene(name: &str, camera: Option<&str>, sky: Option<&Path>) -> anyho
 }
 
 impl Scene {
-    /// Lights the scene with the map at `path` (`--sky FILE`): it replaces the scene's map,
+    /// Lights the scene with the map at `path` (the command line's sky): it replaces the scene's map,
     /// keeping its intensity, rotation and visibility, or adds one with the defaults. The
     /// file is kept by its absolute path, so that a scene written back anywhere finds it.
-    pub fn set_sky_map(&mut self, path: &Path) -> anyhow::Result<()> {
+    pub fn set_sky_map(&mut self, path: &Path) -> Result<(), SceneError> {
         let file = std::path::absolute(path)
             .unwrap_or_else(|_| path.to_path_buf())
             .display()
             .to_string();
-        let mut env = Environment::load(&file, path).map_err(|e| anyhow::anyhow!("--sky {e}"))?;
+        let mut env = Environment::load(&file, path)?;
         if let Some(old) = &self.environment {
             env.intensity = old.intensity;
             env.rotation = old.rotation;

@@ -135,7 +135,7 @@ impl PartialEq for Environment {
 impl Environment {
     /// The map of `file` (as written) at `path`, with the defaults: intensity 1, no rotation,
     /// visible.
-    pub fn load(file: &str, path: &Path) -> Result<Environment, String> {
+    pub fn load(file: &str, path: &Path) -> Result<Environment, super::envmap::EnvMapError> {
         Ok(Self::with_defaults(
             file,
             super::envmap::EnvMap::load(path)?,
@@ -154,11 +154,11 @@ impl Environment {
     }
 
     /// A built-in scene's map, from the binary (`BUILTIN_MAPS`).
-    pub fn builtin(file: &str) -> Result<Environment, String> {
+    pub fn builtin(file: &str) -> Result<Environment, super::envmap::EnvMapError> {
         let (_, bytes) = super::BUILTIN_MAPS
             .iter()
             .find(|(n, _)| *n == file)
-            .ok_or_else(|| format!("no built-in map `{file}`"))?;
+            .ok_or_else(|| super::envmap::EnvMapError::NoBuiltin(file.to_string()))?;
         Ok(Self::with_defaults(
             file,
             super::envmap::EnvMap::from_bytes(bytes, file)?,

@@ -4,6 +4,7 @@
 //! and `map_Ke` images textures (docs/MODEL-NOTES.md, "OBJ materials"). The MTL format:
 //! Paul Bourke's "MTL material format (Lightwave, OBJ)", paulbourke.net/dataformats/mtl/.
 
+use super::error::Malformed;
 use super::gltf::{GltfError, Imported, Pbr, pbr_material};
 use super::mesh::Mesh;
 use super::model::{Material, Object, Shape};
@@ -27,7 +28,7 @@ pub const DEFAULT_MATERIAL: &str = "default";
 pub(super) fn load(
     text: &str,
     mtl: impl Fn(&Path) -> tobj::MTLLoadResult,
-) -> Result<(Vec<tobj::Model>, Vec<tobj::Material>), String> {
+) -> Result<(Vec<tobj::Model>, Vec<tobj::Material>), Malformed> {
     let opts = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
@@ -38,7 +39,7 @@ pub(super) fn load(
         Ok((models, materials)) => Ok((models, materials.unwrap_or_default())),
         Err(e) => {
             let (n, line) = failing_line(text, |t| parse(t).is_err());
-            Err(format!("line {n}: {e} (`{line}`)"))
+            Err(Malformed(format!("line {n}: {e} (`{line}`)")))
         }
     }
 }
@@ -70,7 +71,7 @@ pub type Reader<'a> = &'a (dyn Fn(&Path) -> std::io::Result<Vec<u8>> + Sync);
 /// The MTL text with every colour statement (`Ka`, `Kd`, `Ks`, `Ke`) of one number written
 /// as three: the format allows `Kd r` for grey (g and b default to r), and tobj 4.0.5 panics
 /// on fewer than three numbers (found by `fuzz/`). Two numbers, or none, are refused by line.
-fn colours_of_three(text: &str) -> Result<String, String> {
+fn colours_of_three(text: &str) -> Result<String, Malformed> {
     let mut out = String::with_capacity(text.len() + 16);
     for (n, line) in text.split_inclusive('\n').enumerate() {
         let mut words = line.split_whitespace();
@@ -85,11 +86,11 @@ fn colours_of_three(text: &str) -> Result<String, String> {
                     continue;
                 }
                 0 | 2 => {
-                    return Err(format!(
+                    return Err(Malformed(format!(
                         "line {}: `{key}` needs one number (grey) or three (`{}`)",
                         n + 1,
                         line.trim()
-                    ));
+                    )));
                 }
                 _ => {}
             }
@@ -126,9 +127,9 @@ pub fn import_from(
     read: Reader,
     place: DMat4,
 ) -> Result<Imported, GltfError> {
-    let err = |message: String| GltfError {
+    let err = |message: Malformed| GltfError {
         path: name.to_string(),
-        message,
+        message: message.0,
     };
     // Each MTL file read, with its text (to name the lines of its statements), and the first
     // that could not be read or parsed.
@@ -137,7 +138,7 @@ pub fn import_from(
     let (models, mtl) = load(text, |lib: &Path| {
         let file = base.join(lib);
         let result = read(&file)
-            .map_err(|e| format!("cannot read it: {e}"))
+            .map_err(|e| Malformed(format!("cannot read it: {e}")))
             .and_then(|b| {
                 let t = String::from_utf8_lossy(&b).into_owned();
                 let parsed = colours_of_three(&t).and_then(|fixed| {
@@ -145,7 +146,7 @@ pub fn import_from(
                         let (n, line) = failing_line(&fixed, |p| {
                             tobj::load_mtl_buf(&mut p.as_bytes()).is_err()
                         });
-                        format!("line {n}: {e} (`{line}`)")
+                        Malformed(format!("line {n}: {e} (`{line}`)"))
                     })
                 });
                 libraries.borrow_mut().push((file.clone(), t));
@@ -160,7 +161,7 @@ pub fn import_from(
     })
     .map_err(err)?;
     if let Some(e) = failed.into_inner() {
-        return Err(err(e));
+        return Err(err(Malformed(e)));
     }
     let libraries = libraries.into_inner();
     let mut skipped = Vec::new();
@@ -214,11 +215,11 @@ pub fn import_from(
         };
         for f in m.indices.chunks_exact(3) {
             let [Some(a), Some(b), Some(c)] = [f[0], f[1], f[2]].map(point) else {
-                return Err(err(format!(
+                return Err(err(Malformed(format!(
                     "group `{}`: a face refers to vertex {} which does not exist",
                     model.name,
                     f.iter().max().unwrap_or(&0) + 1
-                )));
+                ))));
             };
             let area = (b - a).cross(c - a).length();
             if !(area > 0.0 && area.is_finite()) {
@@ -369,7 +370,7 @@ pub struct TextureSpec {
 /// Parses a texture statement's arguments: options (the MTL format's `-blendu`, `-blendv`,
 /// `-bm`, `-boost`, `-cc`, `-clamp`, `-imfchan`, `-mm`, `-o`, `-s`, `-t`, `-texres`, `-type`)
 /// and then the file name, which may hold spaces.
-pub fn texture_spec(args: &str) -> Result<TextureSpec, String> {
+pub fn texture_spec(args: &str) -> Result<TextureSpec, Malformed> {
     let mut spec = TextureSpec {
         file: String::new(),
         offset: [0.0; 2],
@@ -411,7 +412,7 @@ pub fn texture_spec(args: &str) -> Result<TextureSpec, String> {
             "-bm" | "-boost" | "-texres" => {
                 let v = numbers(&mut rest, 1);
                 let Some(&x) = v.first() else {
-                    return Err(format!("{option} needs a number"));
+                    return Err(Malformed(format!("{option} needs a number")));
                 };
                 if option == "-bm" {
                     spec.bump = Some(x);
@@ -423,7 +424,7 @@ pub fn texture_spec(args: &str) -> Result<TextureSpec, String> {
             "-o" | "-s" | "-t" => {
                 let v = numbers(&mut rest, 3);
                 if v.is_empty() {
-                    return Err(format!("{option} needs numbers"));
+                    return Err(Malformed(format!("{option} needs numbers")));
                 }
                 let pair = [
                     v[0],
@@ -435,7 +436,7 @@ pub fn texture_spec(args: &str) -> Result<TextureSpec, String> {
                     _ => {}
                 }
             }
-            other => return Err(format!("unknown option `{other}`")),
+            other => return Err(Malformed(format!("unknown option `{other}`"))),
         }
         rest = rest.trim_start();
     }
@@ -475,7 +476,7 @@ fn map_materials(
     libraries: &[(PathBuf, String)],
     read: Reader,
     skipped: &mut Vec<String>,
-) -> Result<Vec<Material>, String> {
+) -> Result<Vec<Material>, Malformed> {
     // Every (material, statement, arguments) whose image is read.
     let mut wanted: Vec<(usize, &str, &str)> = Vec::new();
     for (i, m) in mtl.iter().enumerate() {
@@ -529,7 +530,7 @@ fn map_materials(
     let mut files: Vec<(PathBuf, String, String)> = Vec::new();
     for &(i, key, args) in &wanted {
         let what = locate(libraries, &mtl[i].name, key);
-        let spec = texture_spec(args).map_err(|e| format!("{what}: {e}"))?;
+        let spec = texture_spec(args).map_err(|e| Malformed(format!("{what}: {e}")))?;
         let folder = base(i);
         let source = match files
             .iter()
@@ -544,12 +545,13 @@ fn map_materials(
         specs.push((source, spec));
     }
     // Each file read and decoded once, in parallel.
-    let decoded: Vec<Result<Arc<image::RgbaImage>, String>> = files
+    let decoded: Vec<Result<Arc<image::RgbaImage>, Malformed>> = files
         .par_iter()
         .map(|(folder, file, what)| {
-            let bytes = find_image(folder, file, read).map_err(|e| format!("{what}: {e}"))?;
-            let image =
-                image::load_from_memory(&bytes).map_err(|e| format!("{what}: `{file}`: {e}"))?;
+            let bytes =
+                find_image(folder, file, read).map_err(|e| Malformed(format!("{what}: {e}")))?;
+            let image = image::load_from_memory(&bytes)
+                .map_err(|e| Malformed(format!("{what}: `{file}`: {e}")))?;
             Ok(Arc::new(image.to_rgba8()))
         })
         .collect();
@@ -587,7 +589,7 @@ fn map_materials(
 
 /// The bytes of the image a map names: its path beside the library, else (a path written
 /// on another machine, `C:\\textures\\wood.png`) its file name there.
-fn find_image(base: &Path, file: &str, read: Reader) -> Result<Vec<u8>, String> {
+fn find_image(base: &Path, file: &str, read: Reader) -> Result<Vec<u8>, Malformed> {
     let as_written = base.join(file.replace('\\', "/"));
     let first = match read(&as_written) {
         Ok(b) => return Ok(b),
@@ -600,11 +602,11 @@ fn find_image(base: &Path, file: &str, read: Reader) -> Result<Vec<u8>, String> 
     {
         return Ok(b);
     }
-    Err(format!(
+    Err(Malformed(format!(
         "`{file}` is not there (looked for {} and {}: {first})",
         as_written.display(),
         beside.display()
-    ))
+    )))
 }
 
 /// An MTL material's factors in glTF's terms (docs/MODEL-NOTES.md, "OBJ materials"):

@@ -1,5 +1,6 @@
 //! The scene file grammar of MODEL.md ("A scene file, spelled out"): TOML → [`Scene`].
 
+use super::error::Malformed;
 use super::error::SceneError;
 use super::model::*;
 use super::params::{self, Param};
@@ -271,7 +272,7 @@ fn read_environment(t: &Table, origin: &str) -> Option<Environment> {
             Some(env)
         }
         Err(e) => {
-            t.error("map", e, None);
+            t.error("map", e.to_string(), None);
             None
         }
     }
@@ -494,19 +495,20 @@ fn read_box(t: &Table) -> Option<Shape> {
 
 /// The text of a mesh file: beside the scene file, or among the built-in files for a
 /// built-in scene.
-fn mesh_source(file: &str, origin: &str) -> Result<String, String> {
+fn mesh_source(file: &str, origin: &str) -> Result<String, Malformed> {
     if origin.starts_with("builtin:") {
         return super::BUILTIN_FILES
             .iter()
             .find(|(n, _)| *n == file)
             .map(|(_, s)| s.to_string())
-            .ok_or_else(|| format!("no built-in file `{file}`"));
+            .ok_or_else(|| Malformed(format!("no built-in file `{file}`")));
     }
     let base = std::path::Path::new(origin)
         .parent()
         .unwrap_or(std::path::Path::new("."));
     let path = base.join(file);
-    std::fs::read_to_string(&path).map_err(|e| format!("cannot read {}: {e}", path.display()))
+    std::fs::read_to_string(&path)
+        .map_err(|e| Malformed(format!("cannot read {}: {e}", path.display())))
 }
 
 fn read_mesh(t: &Table, origin: &str) -> Option<Shape> {

@@ -134,8 +134,25 @@ pub fn ask(_timeout: Duration) -> Answers {
     Answers::default()
 }
 
+/// Why the preview draws cells instead of an image.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum NoGraphics {
+    #[error("the terminal did not answer")]
+    Unanswered,
+    #[error("no graphics in the terminal's answers")]
+    NoneOffered,
+    #[error("tmux: set allow-passthrough on for graphics")]
+    TmuxPassthrough,
+    /// Inside tmux, whose outer terminal cannot be asked (its name, when tmux knows it).
+    #[error(
+        "tmux in {}: cannot ask it for graphics (--graphics sixel|kitty|iterm)",
+        .0.as_deref().unwrap_or("an unknown terminal")
+    )]
+    TmuxOuter(Option<String>),
+}
+
 /// The protocol `auto` picks from the answers and the environment, or why none.
-pub fn choose(a: &Answers, term_program: Option<&str>) -> Result<Protocol, String> {
+pub fn choose(a: &Answers, term_program: Option<&str>) -> Result<Protocol, NoGraphics> {
     if a.kitty {
         return Ok(Protocol::Kitty);
     }
@@ -146,9 +163,9 @@ pub fn choose(a: &Answers, term_program: Option<&str>) -> Result<Protocol, Strin
         return Ok(Protocol::Iterm);
     }
     Err(if a.complete {
-        "no graphics in the terminal's answers".into()
+        NoGraphics::NoneOffered
     } else {
-        "the terminal did not answer".into()
+        NoGraphics::Unanswered
     })
 }
 
@@ -202,6 +219,6 @@ mod tests {
         // Keys typed meanwhile and a failed XTSMGRAPHICS do no harm; no DA1: incomplete.
         let q = parse(b"abc\x1b[?1;3;0S\x1b[A");
         assert_eq!(q, Answers::default());
-        assert_eq!(choose(&q, None), Err("the terminal did not answer".into()));
+        assert_eq!(choose(&q, None), Err(NoGraphics::Unanswered));
     }
 }

@@ -30,7 +30,7 @@ pub enum Event {
         done: u32,
         total: u32,
     },
-    Saved(Result<String, String>),
+    Saved(Result<String, super::save::SaveError>),
     /// Another device of the preview failed (what to tell the user); the others go on.
     DeviceLost(String),
     /// SIGTERM, SIGHUP or SIGINT from outside.

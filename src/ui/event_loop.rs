@@ -38,7 +38,7 @@ impl Ui {
         terminal: &mut Term,
         rx: &Receiver<Event>,
         bytes: &AtomicU64,
-    ) -> anyhow::Result<History> {
+    ) -> Result<History, super::error::ViewError> {
         let mut area = Rect::from((
             (0, 0).into(),
             terminal
@@ -225,7 +225,11 @@ impl Ui {
     }
 
     /// Draws one frame as one synchronized update; returns the area drawn.
-    pub(super) fn draw(&mut self, terminal: &mut Term, area: Rect) -> anyhow::Result<Rect> {
+    pub(super) fn draw(
+        &mut self,
+        terminal: &mut Term,
+        area: Rect,
+    ) -> Result<Rect, super::error::ViewError> {
         self.image_due.clear();
         self.encode(area);
         let graphics_frame = self.graphics.filter(|_| !self.image_due.is_empty());
@@ -277,14 +281,14 @@ pub(super) fn image_sequences(
     due: &[graphics::Band],
     (w, mut h): (u32, u32),
     k: u32,
-) -> anyhow::Result<(String, f64)> {
+) -> Result<(String, f64), std::fmt::Error> {
     if g.protocol == graphics::Protocol::Sixel {
         h = graphics::sixel_height(h);
     }
     // The bands are separate images: encoded (sRGB, compression) on every core at once.
     let parts = due
         .par_iter()
-        .map(|&(index, band)| -> anyhow::Result<(String, f64)> {
+        .map(|&(index, band)| -> Result<(String, f64), std::fmt::Error> {
             // The band's rows of the traced image, at the size to send.
             let rows = graphics::band_pixels(img.height, image.height, band);
             let part;
@@ -315,7 +319,7 @@ pub(super) fn image_sequences(
             seq.push_str(&g.band(sent, image.width, band.1, index));
             Ok((seq, sent.width as f64 * sent.height as f64))
         })
-        .collect::<anyhow::Result<Vec<_>>>()?;
+        .collect::<Result<Vec<_>, _>>()?;
     let sent_pixels = parts.iter().map(|p| p.1).sum();
     let seq = parts.into_iter().map(|p| p.0).collect();
     Ok((seq, sent_pixels))

@@ -104,7 +104,7 @@ impl Helpers {
                             None => run(backend, options, every, rx, to_run),
                         });
                         if let Err(why) = ran {
-                            fail(&shared, why);
+                            fail(&shared, why.0);
                         }
                     })
                     .expect("spawn a helper thread");

@@ -5,6 +5,7 @@
 
 pub mod app;
 pub mod detect;
+mod error;
 mod event;
 mod event_loop;
 pub mod flow;
@@ -24,6 +25,7 @@ pub use save::{edited_scene_path, free_png_path, write_scene};
 pub use setup::{Graphics, ViewOptions};
 
 use app::App;
+pub use error::ViewError;
 use event::spawn_input;
 use event_loop::print_stats;
 use ratatui::Terminal;
@@ -37,7 +39,7 @@ use view::Grid;
 use worker::WorkerOptions;
 
 /// Opens the preview; returns when the user quits.
-pub fn run(opts: ViewOptions) -> anyhow::Result<ExitCode> {
+pub fn run(opts: ViewOptions) -> Result<ExitCode, ViewError> {
     let setup = setup(&opts)?;
     let (tx, rx) = std::sync::mpsc::channel::<Event>();
     let signal_tx = tx.clone();

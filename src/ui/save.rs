@@ -25,8 +25,13 @@ pub fn free_png_path(scene: &Scene) -> PathBuf {
         .expect("some name is free")
 }
 
+crate::message_error!(
+    /// Why the preview could not save (a scene or an image), naming the file.
+    SaveError
+);
+
 /// Writes the edited scene; an existing file of that name is kept as `….bak` first.
-pub fn write_scene(scene: &Scene) -> Result<String, String> {
+pub fn write_scene(scene: &Scene) -> Result<String, SaveError> {
     let path = edited_scene_path(scene);
     let mut note = String::new();
     if path.exists() {
@@ -36,7 +41,7 @@ pub fn write_scene(scene: &Scene) -> Result<String, String> {
         note = format!(" (the previous one is now {})", backup.display());
     }
     crate::output::write::write_text(&path, &crate::scene::to_toml(scene))
-        .map_err(|e| e.to_string())?;
+        .map_err(|e| SaveError(e.to_string()))?;
     // A built-in scene's meshes live in the binary: write them beside the scene, so that the
     // file loads on its own.
     if scene.origin.starts_with("builtin:") {
@@ -50,7 +55,8 @@ pub fn write_scene(scene: &Scene) -> Result<String, String> {
                     if let Some(d) = target.parent() {
                         std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
                     }
-                    crate::output::write::write_text(&target, text).map_err(|e| e.to_string())?;
+                    crate::output::write::write_text(&target, text)
+                        .map_err(|e| SaveError(e.to_string()))?;
                     note.push_str(&format!(" and {}", target.display()));
                 }
             }
@@ -65,7 +71,8 @@ pub fn write_scene(scene: &Scene) -> Result<String, String> {
                 if let Some(d) = target.parent() {
                     std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
                 }
-                crate::output::write::write_bytes(&target, bytes).map_err(|e| e.to_string())?;
+                crate::output::write::write_bytes(&target, bytes)
+                    .map_err(|e| SaveError(e.to_string()))?;
                 note.push_str(&format!(" and {}", target.display()));
             }
         }

@@ -95,15 +95,10 @@ pub(super) fn choose_graphics(
     }
     let protocol = match forced {
         Some(p) => Ok(p),
-        None if tmux && !passthrough => {
-            Err("tmux: set allow-passthrough on for graphics".to_string())
-        }
+        None if tmux && !passthrough => Err(detect::NoGraphics::TmuxPassthrough),
         None if tmux => match outer.as_deref() {
             Some("xterm-kitty") => Ok(Protocol::Kitty),
-            other => Err(format!(
-                "tmux in {}: cannot ask it for graphics (--graphics sixel|kitty|iterm)",
-                other.unwrap_or("an unknown terminal")
-            )),
+            other => Err(detect::NoGraphics::TmuxOuter(other.map(str::to_string))),
         },
         None => detect::choose(&answers, std::env::var("TERM_PROGRAM").ok().as_deref()),
     };
@@ -130,7 +125,7 @@ pub(super) fn choose_graphics(
             tracing::info!("graphics: cells ({why})");
             // A terminal without graphics is the common case: only the log says why. Inside
             // tmux, or where the terminal did not answer, the start-up message says it too.
-            let told = (tmux || !answers.complete).then_some(why);
+            let told = (tmux || !answers.complete).then(|| why.to_string());
             (None, "cells".to_string(), told)
         }
     }
@@ -212,7 +207,7 @@ pub(super) struct Setup {
     pub(super) cells: CellMode,
 }
 
-pub(super) fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
+pub(super) fn setup(opts: &ViewOptions) -> Result<Setup, super::error::ViewError> {
     // The scene loads while the adapter opens (each can take a few hundred milliseconds).
     let (scene, backend) = std::thread::scope(|s| {
         let opening = s.spawn(|| Backend::open_all(opts.adapter.as_deref()));
@@ -232,12 +227,11 @@ pub(super) fn setup(opts: &ViewOptions) -> anyhow::Result<Setup> {
         (scene, backend)
     });
     let scene = scene?;
-    anyhow::ensure!(
-        std::io::stdout().is_terminal() && std::io::stdin().is_terminal(),
-        "the live preview needs a terminal on stdin and stdout; \
-         for files use `termtrace render {} -o out.png`",
-        opts.scene.as_deref().unwrap_or("SCENE")
-    );
+    if !(std::io::stdout().is_terminal() && std::io::stdin().is_terminal()) {
+        return Err(super::error::ViewError::NoTerminal {
+            scene: opts.scene.clone().unwrap_or_else(|| "SCENE".into()),
+        });
+    }
     let backends = backend?;
     for b in &backends {
         b.check_fits(&scene)?;

@@ -18,6 +18,7 @@
 use super::app::Stats;
 use super::event::{Event, Frame};
 use super::helpers::Helpers;
+use super::save::SaveError;
 use crate::common::FrameSettings;
 use crate::common::Resolved;
 use crate::output::{Transfer, write_png};
@@ -183,7 +184,8 @@ fn spawn_failing(
                 if w.save.take().is_some() {
                     let _ = events.send(Event::Saved(Err(format!(
                         "the save in progress was lost with {lost}; save again"
-                    ))));
+                    )
+                    .into())));
                 }
                 go_on = w.requested.take();
                 // Its helpers end with it; the next worker starts them again.
@@ -644,7 +646,7 @@ impl Worker {
             std::thread::spawn(move || {
                 let result = write_png(&job.path, &image, Transfer::Srgb, false)
                     .map(|()| format!("saved {} ({} spp)", job.path.display(), job.total))
-                    .map_err(|e| e.to_string());
+                    .map_err(|e| SaveError(e.to_string()));
                 let _ = events.send(Event::Saved(result));
             });
         }
@@ -666,7 +668,7 @@ impl Worker {
                     job.total
                 )
             })
-            .map_err(|e| e.to_string());
+            .map_err(|e| SaveError(e.to_string()));
         let _ = self.events.send(Event::Saved(result));
     }
 }
