@@ -11,7 +11,7 @@ use std::process::Command;
 use std::sync::Arc;
 use termtrace::common::accum::Sums;
 use termtrace::gpu::GpuContext;
-use termtrace::render::multi::Team;
+use termtrace::render::team::Team;
 use termtrace::render::{Backend, RenderOptions, Renderer};
 use termtrace::scene::Scene;
 

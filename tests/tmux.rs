@@ -187,7 +187,7 @@ fn cornell_at_64_spp(args: &str, tag: &str) -> String {
 #[test]
 fn the_preview_on_two_devices_shows_one_devices_image_in_tmux() {
     // `--adapter cpu-native,cpu-native`: two CPU tracers share the preview's samples
-    // (src/ui/helpers.rs); they compute alike, so at 64 spp the cells' colours are those of
+    // (src/render/team/live.rs); they compute alike, so at 64 spp the cells' colours are those of
     // one CPU tracer's preview, escape for escape.
     let one = cornell_at_64_spp("--adapter cpu-native", "one");
     let two = cornell_at_64_spp("--adapter cpu-native,cpu-native", "two");

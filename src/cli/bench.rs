@@ -6,7 +6,7 @@ use super::args::GlobalArgs;
 use super::render::rate_text;
 use crate::render::Backend;
 use crate::render::RenderOptions;
-use crate::render::multi::Team;
+use crate::render::team::Team;
 use crate::scene::load_scene;
 use clap::Args;
 use std::process::ExitCode;

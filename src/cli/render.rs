@@ -6,7 +6,7 @@ use crate::common::FrameSettings;
 use crate::output::{ImageFile, LinearImage, check_writable, write_exr, write_png};
 use crate::render::Backend;
 use crate::render::RenderOptions;
-use crate::render::multi::Team;
+use crate::render::team::Team;
 use crate::scene::load_scene;
 use anyhow::Context;
 use clap::Args;

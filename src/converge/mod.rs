@@ -8,7 +8,7 @@ pub mod reference;
 
 use crate::common::FrameSettings;
 use crate::render::Backend;
-use crate::render::multi::Team;
+use crate::render::team::Team;
 use crate::render::{RenderOptions, Snapshot};
 use crate::scene::Scene;
 use metrics::{Errors, errors_against_noisy, log_log_fit, time_to};
@@ -109,7 +109,7 @@ pub struct Run {
 
 /// What every run of a measurement shares.
 pub struct Setup<'a> {
-    /// The devices that share each run (`render::multi`).
+    /// The devices that share each run (`render::team`).
     pub backends: &'a [Backend],
     pub scene: &'a Scene,
     pub settings: FrameSettings,

@@ -6,7 +6,7 @@ use crate::common::AccumData;
 use crate::common::FrameSettings;
 use crate::output::LinearImage;
 use crate::render::Backend;
-use crate::render::multi::Team;
+use crate::render::team::Team;
 use crate::render::{RenderOptions, Snapshot};
 use crate::scene::Scene;
 use std::hash::{Hash, Hasher};

@@ -14,7 +14,7 @@
 pub mod claims;
 pub mod failure;
 pub mod frames;
-pub mod multi;
+pub mod team;
 mod schedule;
 pub mod shard;
 mod snapshot;

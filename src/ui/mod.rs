@@ -10,7 +10,6 @@ mod event;
 mod event_loop;
 pub mod flow;
 pub mod graphics;
-mod helpers;
 pub mod input;
 pub mod keys;
 mod save;

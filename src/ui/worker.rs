@@ -17,7 +17,7 @@
 
 use super::app::Stats;
 use super::event::{Event, Frame};
-use super::helpers::Helpers;
+use crate::render::team::live::Helpers;
 use super::save::SaveError;
 use crate::common::FrameSettings;
 use crate::common::Resolved;

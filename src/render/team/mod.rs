@@ -1,16 +1,22 @@
-//! One render on several devices (`--adapter all`, `--adapter 0,1`): each device claims the
-//! next samples of every pixel when it is ready, sized by its own measured rate, and their
-//! exact fixed-point sums are added. Every sample index is traced once, by whichever device
-//! claimed it, with its own random stream, so on devices that compute alike the image is
-//! the one a single device makes, bit for bit (the sums do not depend on the order).
+//! The multi-device team: one render on several devices (every GPU of a host, or a list of
+//! adapters). Each device claims the next samples of every pixel when it is ready, sized by
+//! its own measured rate, and their exact fixed-point sums are added. Every sample index is
+//! traced once, by whichever device claimed it, with its own random stream, so on devices
+//! that compute alike the image is the one a single device makes, bit for bit (the sums do
+//! not depend on the order).
 //!
-//! How much each device claims: `claims`. A device that fails (its driver lost, a panic on
-//! its thread) gives back every sample it claimed and its sums are left out; the others trace
-//! those samples again (`failure`), so the image is still every sample's, once.
+//! Two ways to run one: [`Team`] renders to a sample count or a time (`render`, `bench`,
+//! `converge`); [`live::Helpers`] keeps the preview's other devices tracing while its first
+//! device makes the frames and restarts on every edit. How much each device claims:
+//! `claims`. A device that fails (its driver lost, a panic on its thread) gives back every
+//! sample it claimed and its sums are left out ([`give_back`]); the others trace those
+//! samples again (`failure`), so the image is still every sample's, once.
 
-use super::claims::Claims;
-use super::failure::contained;
-use super::{Backend, RenderOptions, Renderer, Snapshot};
+pub mod live;
+
+use crate::render::claims::Claims;
+use crate::render::failure::{DeviceFailure, contained};
+use crate::render::{Backend, RenderOptions, Renderer, Snapshot};
 use crate::common::FrameSettings;
 use crate::common::accum::Sums;
 use crate::common::accum::{AccumData, decode};
@@ -19,6 +25,14 @@ use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
+
+/// Device `device` of `claims`, named `name`, failed with `why`: every sample it claimed goes
+/// back to the others (how many per pixel is returned, and logged).
+pub fn give_back(claims: &Claims, device: usize, name: &str, why: &DeviceFailure) -> u32 {
+    let given = claims.release(device);
+    tracing::warn!("{name} failed ({why}); its {given} samples per pixel go to the other devices");
+    given
+}
 
 /// One device of a team: its renderer and what it has done.
 struct Member {
@@ -32,11 +46,11 @@ struct Member {
     /// Samples per pixel of its completed rounds.
     samples: AtomicU64,
     /// Why it failed, once it has: it traces no more and its sums are left out.
-    failed: Mutex<Option<String>>,
+    failed: Mutex<Option<DeviceFailure>>,
 }
 
 impl Member {
-    fn failure(&self) -> Option<String> {
+    fn failure(&self) -> Option<DeviceFailure> {
         self.failed.lock().expect("failure poisoned").clone()
     }
 
@@ -249,15 +263,10 @@ impl Team {
                         });
                         if let Err(why) = traced {
                             // Left out first, then its samples given back.
-                            *m.failed.lock().expect("failure poisoned") = Some(why.0.clone());
+                            *m.failed.lock().expect("failure poisoned") = Some(why.clone());
                             m.samples.store(0, Ordering::Relaxed);
                             m.paths.store(0, Ordering::Relaxed);
-                            let given = self.claims.release(i);
-                            tracing::warn!(
-                                "{} failed ({why}); its {given} samples per pixel go to the \
-                                 other devices",
-                                m.name
-                            );
+                            give_back(&self.claims, i, &m.name, &why);
                         }
                         done.fetch_add(1, Ordering::Relaxed);
                     });
@@ -278,7 +287,7 @@ impl Team {
             }
         }
         if self.live().next().is_none() {
-            let why: Vec<String> = self.members.iter().filter_map(Member::failure).collect();
+            let why: Vec<String> = self.members.iter().filter_map(|m| Some(m.failure()?.0)).collect();
             panic!("every device failed: {}", why.join("; "));
         }
     }
@@ -337,7 +346,7 @@ impl Team {
                 seconds: m.micros.load(Ordering::Relaxed) as f64 * 1e-6,
                 samples: m.samples.load(Ordering::Relaxed),
                 ranges,
-                failed: m.failure(),
+                failed: m.failure().map(|f| f.0),
             })
             .collect()
     }

@@ -1,8 +1,8 @@
-//! The preview's other devices (`--adapter 0,1`, `--adapter all`): each traces, on its own
-//! thread, the samples it claims of the preview's accumulation (`render::claims`, shared
-//! with the render thread's device), and publishes its exact sums about every frame
-//! interval and when its claims run out; the render thread adds them to its own device's
-//! for the frames (`worker`). Every sample
+//! The team live: the preview's other devices, each tracing, on its own thread, the samples
+//! it claims of the preview's accumulation (`render::claims`, shared with the render
+//! thread's device), and publishing its exact sums about every frame interval and when its
+//! claims run out; the render thread adds them to its own device's for the frames
+//! (`ui::worker`). Every sample
 //! index is traced once, so the preview shows what one device would have traced. A helper
 //! whose device fails (a panic on its thread: `render::failure`) gives back every sample it
 //! claimed, publishes why, and ends; the render thread takes it out and the others trace
@@ -11,7 +11,7 @@
 use crate::common::FrameSettings;
 use crate::common::accum::Sums;
 use crate::render::claims::Claims;
-use crate::render::failure::contained;
+use crate::render::failure::{DeviceFailure, contained};
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::Scene;
 use std::sync::mpsc::{Receiver, Sender, TryRecvError};
@@ -48,7 +48,7 @@ struct Published {
     /// The claims it takes from, and as which device (given back if it fails).
     claims: Option<(Arc<Claims>, usize)>,
     /// Why its device failed: it traces no more.
-    failed: Option<String>,
+    failed: Option<DeviceFailure>,
 }
 
 struct Helper {
@@ -95,6 +95,7 @@ impl Helpers {
                     })
                     .flatten();
                 let name = backend.describe();
+                let name_of_thread = name.clone();
                 let thread = std::thread::Builder::new()
                     .name(format!("render helper {}", i + 1))
                     .spawn(move || {
@@ -104,7 +105,7 @@ impl Helpers {
                             None => run(backend, options, every, rx, to_run),
                         });
                         if let Err(why) = ran {
-                            fail(&shared, why.0);
+                            fail(&shared, &name_of_thread, why);
                         }
                     })
                     .expect("spawn a helper thread");
@@ -123,9 +124,13 @@ impl Helpers {
         self.helpers.len()
     }
 
+    pub fn is_empty(&self) -> bool {
+        self.helpers.is_empty()
+    }
+
     /// The helpers whose device failed, taken out (their threads have ended): each one's
     /// device and why. The samples each had claimed are back in its claims.
-    pub fn take_failed(&mut self) -> Vec<(String, String)> {
+    pub fn take_failed(&mut self) -> Vec<(String, DeviceFailure)> {
         let mut failed = Vec::new();
         let mut i = 0;
         while i < self.helpers.len() {
@@ -214,13 +219,12 @@ impl Drop for Helpers {
     }
 }
 
-/// A helper's device failed with `why`: it gives back the samples it claimed and publishes
-/// nothing more but why.
-fn fail(published: &Mutex<Published>, why: String) {
+/// A helper's device, `name`, failed with `why`: it gives back the samples it claimed and
+/// publishes nothing more but why.
+fn fail(published: &Mutex<Published>, name: &str, why: DeviceFailure) {
     let mut p = published.lock().unwrap_or_else(|e| e.into_inner());
     if let Some((claims, device)) = p.claims.take() {
-        let given = claims.release(device);
-        tracing::warn!("a helper's device failed ({why}); its {given} spp go to the others");
+        super::give_back(&claims, device, name, &why);
     }
     *p = Published {
         epoch: p.epoch,
