@@ -143,7 +143,40 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         settings.height,
         devices.join(" + ")
     );
+    let reference = obtain_reference(&a, &backends, &scene, settings)?;
+    let reference_variance = reference
+        .snapshot
+        .as_ref()
+        .map(converge::metrics::mean_variance);
+    let setup = converge::Setup {
+        reference_variance: reference_variance.as_deref(),
+        backends: &backends,
+        scene: &scene,
+        settings,
+        reference: &reference.image,
+        denoise: a.denoise,
+    };
+    let (all, summaries, finals) = run_variants(&a, &setup, &variants);
+    let rows: Vec<&converge::Checkpoint> =
+        all.iter().flatten().flat_map(|r| &r.checkpoints).collect();
+    print_results(&all, &rows, &summaries);
+    write_outputs(&a, &scene, settings, &rows, &summaries, &finals)?;
+    let biased = a.bias_check && bias_check(&a, &variants, &finals, &reference);
+    Ok(if biased {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    })
+}
 
+/// The reference the runs are measured against: the file given, else rendered (or taken
+/// from the cache) and written beside the results.
+fn obtain_reference(
+    a: &ConvergeArgs,
+    backends: &[Backend],
+    scene: &crate::scene::Scene,
+    settings: crate::common::FrameSettings,
+) -> anyhow::Result<reference::Reference> {
     let reference = match &a.reference {
         Some(p) => reference::from_file(p, settings.width, settings.height)?,
         None => {
@@ -166,8 +199,8 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
                 ..settings
             };
             let r = reference::rendered(
-                &backends,
-                &scene,
+                backends,
+                scene,
                 ref_settings,
                 a.reference_spp,
                 cache.as_deref(),
@@ -187,23 +220,25 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         ))
     );
 
+    Ok(reference)
+}
+
+/// Every variant's runs (and, with the denoiser, their denoised images as a variant of
+/// their own), each variant's summary, and the last snapshot of each variant's first run.
+fn run_variants(
+    a: &ConvergeArgs,
+    setup: &converge::Setup<'_>,
+    variants: &[Variant],
+) -> (
+    Vec<Vec<converge::Run>>,
+    Vec<converge::Summary>,
+    Vec<crate::render::Snapshot>,
+) {
     let time = Duration::from_secs_f64(a.time);
-    let reference_variance = reference
-        .snapshot
-        .as_ref()
-        .map(converge::metrics::mean_variance);
-    let setup = converge::Setup {
-        reference_variance: reference_variance.as_deref(),
-        backends: &backends,
-        scene: &scene,
-        settings,
-        reference: &reference.image,
-        denoise: a.denoise,
-    };
     let mut all = Vec::new();
     let mut summaries = Vec::new();
     let mut finals = Vec::new();
-    for v in &variants {
+    for v in variants {
         let mut runs = Vec::new();
         for run in 0..a.runs {
             let pb = bar(
@@ -216,7 +251,7 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
                     a.runs
                 ),
             );
-            let r = converge::run_once(&setup, v, run, time, |secs, spp| {
+            let r = converge::run_once(setup, v, run, time, |secs, spp| {
                 pb.set_position((secs * 1000.0) as u64);
                 pb.set_message(format!("{spp} spp"));
             });
@@ -259,8 +294,18 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         }
     }
 
+    (all, summaries, finals)
+}
+
+/// The time to each variant's first sample, the table of checkpoints and each variant's
+/// slope and times to 5% and 1%.
+fn print_results(
+    all: &[Vec<converge::Run>],
+    rows: &[&converge::Checkpoint],
+    summaries: &[converge::Summary],
+) {
     // The time to a first sample (pipeline build, upload) once, not as error rows.
-    for runs in &all {
+    for runs in all {
         if let Some(c) = runs.iter().find_map(|r| r.checkpoints.first()) {
             let firsts: Vec<String> = runs
                 .iter()
@@ -279,9 +324,7 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         "{:<16} {:>4} {:>9} {:>7} {:>11} {:>11} {:>9} {:>11} {:>9}",
         "variant", "run", "seconds", "spp", "RMSE", "relMSE", "rel RMSE", "MAE", "estimate"
     );
-    let rows: Vec<&converge::Checkpoint> =
-        all.iter().flatten().flat_map(|r| &r.checkpoints).collect();
-    for c in &rows {
+    for c in rows {
         println!(
             "{:<16} {:>4} {:>9.3} {:>7} {:>11.4e} {:>11.4e} {:>8.3}% {:>11.4e} {:>8}",
             c.label,
@@ -297,7 +340,7 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         );
     }
     println!();
-    for s in &summaries {
+    for s in summaries {
         println!(
             "{}: slope {} (log-log fit of relative RMSE against time, spp ≥ {}, from {}% of the run); 5% in {}, 1% in {}",
             s.label,
@@ -308,7 +351,18 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
             converge::fmt_time_to(s.to_1)
         );
     }
-    converge::write_csv(&a.out.join("convergence.csv"), &rows)
+}
+
+/// The CSV, the plot and the final image.
+fn write_outputs(
+    a: &ConvergeArgs,
+    scene: &crate::scene::Scene,
+    settings: crate::common::FrameSettings,
+    rows: &[&converge::Checkpoint],
+    summaries: &[converge::Summary],
+    finals: &[crate::render::Snapshot],
+) -> anyhow::Result<()> {
+    converge::write_csv(&a.out.join("convergence.csv"), rows)
         .with_context(|| format!("cannot write {}", a.out.join("convergence.csv").display()))?;
     let curves: Vec<plot::Curve> = summaries
         .iter()
@@ -344,50 +398,55 @@ pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         }
     );
 
+    Ok(())
+}
+
+/// Compares each variant's last image with the reference tile by tile; whether any tile
+/// differs significantly.
+fn bias_check(
+    a: &ConvergeArgs,
+    variants: &[Variant],
+    finals: &[crate::render::Snapshot],
+    reference: &reference::Reference,
+) -> bool {
     let mut biased = false;
-    if a.bias_check {
-        let exact = reference.snapshot.is_none();
-        let ref_snap = match &reference.snapshot {
-            Some(s) => s.clone(),
-            None => pseudo_snapshot(&reference.image),
-        };
-        for (v, last) in variants.iter().zip(&finals) {
-            let r = metrics::bias_check(last, &ref_snap, exact, a.tile, a.alpha);
-            if r.significant.is_empty() {
+    let exact = reference.snapshot.is_none();
+    let ref_snap = match &reference.snapshot {
+        Some(s) => s.clone(),
+        None => pseudo_snapshot(&reference.image),
+    };
+    for (v, last) in variants.iter().zip(finals) {
+        let r = metrics::bias_check(last, &ref_snap, exact, a.tile, a.alpha);
+        if r.significant.is_empty() {
+            println!(
+                "bias check {}: no tile of {} differs from the reference (alpha {} over {} tiles; smallest p {:.2e})",
+                v.label, r.tiles, r.alpha, r.tiles, r.min_p
+            );
+        } else {
+            biased = true;
+            println!(
+                "bias check {}: {} of {} tiles differ significantly from the reference (p < {:.1e}):",
+                v.label,
+                r.significant.len(),
+                r.tiles,
+                r.alpha / r.tiles as f64
+            );
+            for t in r.significant.iter().take(20) {
                 println!(
-                    "bias check {}: no tile of {} differs from the reference (alpha {} over {} tiles; smallest p {:.2e})",
-                    v.label, r.tiles, r.alpha, r.tiles, r.min_p
+                    "  tile ({}, {}) at pixels ({}, {}): mean {:.5} vs reference {:.5}, t = {:.1}, p = {:.1e}",
+                    t.x,
+                    t.y,
+                    t.x * a.tile,
+                    t.y * a.tile,
+                    t.mean,
+                    t.reference,
+                    t.t,
+                    t.p
                 );
-            } else {
-                biased = true;
-                println!(
-                    "bias check {}: {} of {} tiles differ significantly from the reference (p < {:.1e}):",
-                    v.label,
-                    r.significant.len(),
-                    r.tiles,
-                    r.alpha / r.tiles as f64
-                );
-                for t in r.significant.iter().take(20) {
-                    println!(
-                        "  tile ({}, {}) at pixels ({}, {}): mean {:.5} vs reference {:.5}, t = {:.1}, p = {:.1e}",
-                        t.x,
-                        t.y,
-                        t.x * a.tile,
-                        t.y * a.tile,
-                        t.mean,
-                        t.reference,
-                        t.t,
-                        t.p
-                    );
-                }
             }
         }
     }
-    Ok(if biased {
-        ExitCode::FAILURE
-    } else {
-        ExitCode::SUCCESS
-    })
+    biased
 }
 
 /// A snapshot holding an exact image (a reference read from a file), for the bias check:

@@ -126,29 +126,108 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let team = Team::new(&backends, &scene, settings, options, 0..spp);
     install_ctrlc();
     if !a.quiet {
-        let until = a
-            .target_error
-            .map(|e| format!("until the estimated error is below {}%", e * 100.0));
-        let what = match (a.time, spp, until) {
-            (None, u32::MAX, Some(u)) => u,
-            (Some(t), _, u) => format!(
-                "for {t} s{}",
-                u.map_or(String::new(), |u| format!(" or {u}"))
-            ),
-            (None, n, u) => format!(
-                "to {n} spp{}",
-                u.map_or(String::new(), |u| format!(" or {u}"))
-            ),
-        };
-        eprintln!(
-            "rendering {} at {}x{} {what} on {} (Ctrl-C stops and saves)",
-            scene.origin,
-            settings.width,
-            settings.height,
-            team.describe()
+        announce(&a, &scene, settings, spp, &team);
+    }
+    let start = Instant::now();
+    let ended = accumulate(&a, &scene, settings, spp, &team, start);
+    let elapsed = start.elapsed();
+    let paths = team.paths();
+    let snap = team.snapshot();
+    let mut image = snap.image();
+    let estimate = snap.noise_estimate();
+    let (mut extra, mut denoised_text) = (Vec::new(), String::new());
+    if a.denoise {
+        (image, extra, denoised_text) = denoised(&out, &team, &snap, image)?;
+    }
+    let written = match kind {
+        ImageFile::Png => save(&out, &image, |p| {
+            write_png(p, &image, a.image.transfer, a.image.png16)
+        })?,
+        ImageFile::Exr => save(&out, &image, |p| write_exr(p, &image))?,
+    };
+    let mut outputs = vec![written.display().to_string()];
+    outputs.extend(extra);
+    if let Some(exr) = &a.image.exr {
+        outputs.push(
+            save(exr, &image, |p| write_exr(p, &image))?
+                .display()
+                .to_string(),
         );
     }
+    let rate = paths as f64 / elapsed.as_secs_f64().max(1e-9);
+    eprintln!(
+        "{}{} ({}x{}, {} spp, {:.1} s, {} on {}, estimated error {}{denoised_text}, {} invalid samples)",
+        match ended {
+            Ended::Interrupted => "interrupted; wrote ",
+            Ended::Reached => "target error reached; wrote ",
+            Ended::Done => "wrote ",
+        },
+        outputs.join(" and "),
+        settings.width,
+        settings.height,
+        snap.min_samples(),
+        elapsed.as_secs_f64(),
+        rate_text(rate),
+        team.describe(),
+        pct(estimate),
+        snap.invalid_samples(),
+    );
+    report_shares(&team);
+    Ok(ExitCode::SUCCESS)
+}
 
+/// Why a render stopped.
+enum Ended {
+    /// Its samples or its time were done.
+    Done,
+    /// The estimated error reached the target.
+    Reached,
+    /// Ctrl-C.
+    Interrupted,
+}
+
+/// The line that says what is rendered, how far and on what.
+fn announce(
+    a: &RenderArgs,
+    scene: &crate::scene::Scene,
+    settings: FrameSettings,
+    spp: u32,
+    team: &Team,
+) {
+    let until = a
+        .target_error
+        .map(|e| format!("until the estimated error is below {}%", e * 100.0));
+    let what = match (a.time, spp, until) {
+        (None, u32::MAX, Some(u)) => u,
+        (Some(t), _, u) => format!(
+            "for {t} s{}",
+            u.map_or(String::new(), |u| format!(" or {u}"))
+        ),
+        (None, n, u) => format!(
+            "to {n} spp{}",
+            u.map_or(String::new(), |u| format!(" or {u}"))
+        ),
+    };
+    eprintln!(
+        "rendering {} at {}x{} {what} on {} (Ctrl-C stops and saves)",
+        scene.origin,
+        settings.width,
+        settings.height,
+        team.describe()
+    );
+}
+
+/// Traces until the samples, the time or the target error are reached, or Ctrl-C, showing
+/// progress and the estimated error.
+fn accumulate(
+    a: &RenderArgs,
+    scene: &crate::scene::Scene,
+    settings: FrameSettings,
+    spp: u32,
+    team: &Team,
+    start: Instant,
+) -> Ended {
+    let time_limit = a.time.map(Duration::from_secs_f64);
     let pb = progress_bar(
         a.quiet,
         time_limit.or((spp == u32::MAX).then_some(Duration::ZERO)),
@@ -160,7 +239,6 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         settings.width,
         settings.height
     ));
-    let start = Instant::now();
     let mut interrupted = false;
     let mut noise: Option<f64> = None;
     let mut reached = false;
@@ -204,82 +282,54 @@ pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         },
     );
     pb.finish_and_clear();
-    let elapsed = start.elapsed();
-    let paths = team.paths();
-    let snap = team.snapshot();
-    let mut image = snap.image();
-    let estimate = snap.noise_estimate();
-    let mut extra = Vec::new();
-    let mut denoised_text = String::new();
-    if a.denoise {
-        let guides = team.first().guides().clone();
-        let d = crate::denoise::denoise(&snap.data.even, &snap.data.odd, &guides);
-        let side = |suffix: &str| {
-            let stem = out.file_stem().unwrap_or_default().to_string_lossy();
-            out.with_file_name(format!("{stem}-{suffix}.exr"))
-        };
-        let as_image = |pixels: Vec<[f32; 3]>| LinearImage {
-            width: settings.width,
-            height: settings.height,
-            pixels,
-        };
-        let n = d.tiles.iter().filter(|&&t| t).count();
-        denoised_text = format!(
-            ", denoised {} in {n} of {} tiles",
-            d.shown_estimate().text(),
-            d.tiles.len()
-        );
-        for (suffix, img) in [
-            ("raw", image.clone()),
-            ("albedo", as_image(guides.albedo.clone())),
-            ("normal", as_image(guides.normal.clone())),
-        ] {
-            let path = side(suffix);
-            extra.push(
-                save(&path, &img, |p| write_exr(p, &img))?
-                    .display()
-                    .to_string(),
-            );
-        }
-        image = as_image(d.shown());
+    if interrupted {
+        Ended::Interrupted
+    } else if reached {
+        Ended::Reached
+    } else {
+        Ended::Done
     }
-    let written = match kind {
-        ImageFile::Png => save(&out, &image, |p| {
-            write_png(p, &image, a.image.transfer, a.image.png16)
-        })?,
-        ImageFile::Exr => save(&out, &image, |p| write_exr(p, &image))?,
+}
+
+/// The denoised image, the side images written beside `out` (raw, albedo, normal) and the
+/// words that report the denoiser.
+fn denoised(
+    out: &std::path::Path,
+    team: &Team,
+    snap: &crate::render::Snapshot,
+    image: LinearImage,
+) -> anyhow::Result<(LinearImage, Vec<String>, String)> {
+    let guides = team.first().guides().clone();
+    let d = crate::denoise::denoise(&snap.data.even, &snap.data.odd, &guides);
+    let side = |suffix: &str| {
+        let stem = out.file_stem().unwrap_or_default().to_string_lossy();
+        out.with_file_name(format!("{stem}-{suffix}.exr"))
     };
-    let mut outputs = vec![written.display().to_string()];
-    outputs.extend(extra);
-    if let Some(exr) = &a.image.exr {
-        outputs.push(
-            save(exr, &image, |p| write_exr(p, &image))?
+    let as_image = |pixels: Vec<[f32; 3]>| LinearImage {
+        width: snap.width,
+        height: snap.height,
+        pixels,
+    };
+    let n = d.tiles.iter().filter(|&&t| t).count();
+    let denoised_text = format!(
+        ", denoised {} in {n} of {} tiles",
+        d.shown_estimate().text(),
+        d.tiles.len()
+    );
+    let mut extra = Vec::new();
+    for (suffix, img) in [
+        ("raw", image),
+        ("albedo", as_image(guides.albedo.clone())),
+        ("normal", as_image(guides.normal.clone())),
+    ] {
+        let path = side(suffix);
+        extra.push(
+            save(&path, &img, |p| write_exr(p, &img))?
                 .display()
                 .to_string(),
         );
     }
-    let rate = paths as f64 / elapsed.as_secs_f64().max(1e-9);
-    eprintln!(
-        "{}{} ({}x{}, {} spp, {:.1} s, {} on {}, estimated error {}{denoised_text}, {} invalid samples)",
-        if interrupted {
-            "interrupted; wrote "
-        } else if reached {
-            "target error reached; wrote "
-        } else {
-            "wrote "
-        },
-        outputs.join(" and "),
-        settings.width,
-        settings.height,
-        snap.min_samples(),
-        elapsed.as_secs_f64(),
-        rate_text(rate),
-        team.describe(),
-        pct(estimate),
-        snap.invalid_samples(),
-    );
-    report_shares(&team);
-    Ok(ExitCode::SUCCESS)
+    Ok((as_image(d.shown()), extra, denoised_text))
 }
 
 /// With several devices, what each traced: its share of the samples and its rate.

@@ -7,6 +7,7 @@
 
 pub mod accum;
 pub mod arrays;
+pub mod engine;
 pub mod envmap;
 pub mod features;
 pub mod guides;

@@ -29,6 +29,7 @@ pub mod trace;
 
 use crate::common::Resolved;
 use crate::common::accum::{ACCUM_WORDS, AccumData, Sums, decode};
+use crate::common::engine::Engine;
 use crate::common::guides::{GUIDE_SEED, GUIDE_WORDS, Guides};
 use crate::common::layout::DispatchUniforms;
 use crate::common::{Features, FrameSettings};
@@ -202,31 +203,6 @@ impl CpuEngine {
         }
     }
 
-    /// Replaces the scene and settings (the BVH kept where the geometry is unchanged).
-    pub fn set_scene(&mut self, scene: &Scene, s: &FrameSettings) {
-        self.scene.update(scene, s);
-        if (s.width, s.height) != (self.width, self.height) {
-            let words = s.width as usize * s.height as usize * ACCUM_WORDS;
-            self.even = vec![0; words];
-            self.odd = vec![0; words];
-            (self.width, self.height) = (s.width, s.height);
-        }
-    }
-
-    /// Nodes of the (four-wide) BVH and the seconds its build and collapse took.
-    pub fn bvh_stats(&self) -> (usize, f64) {
-        (self.scene.node_count, self.scene.build_seconds)
-    }
-
-    /// Bytes the accumulation holds.
-    pub fn bytes(&self) -> u64 {
-        4 * (self.even.len() + self.odd.len()) as u64
-    }
-
-    pub fn reset_counters(&mut self) {
-        self.counters = Counters::default();
-    }
-
     /// Traces one submission (as `fn trace` in trace.wgsl with one lane) on every core, and
     /// returns when it is done.
     pub fn run(&mut self, d: &DispatchUniforms, f: Features) {
@@ -361,9 +337,37 @@ impl CpuEngine {
             });
         words
     }
+}
+
+/// The CPU tracer's side of the renderer's seam.
+impl Engine for CpuEngine {
+    /// Replaces the scene and settings (the BVH kept where the geometry is unchanged).
+    fn set_scene(&mut self, scene: &Scene, s: &FrameSettings, _: Features) {
+        self.scene.update(scene, s);
+        if (s.width, s.height) != (self.width, self.height) {
+            let words = s.width as usize * s.height as usize * ACCUM_WORDS;
+            self.even = vec![0; words];
+            self.odd = vec![0; words];
+            (self.width, self.height) = (s.width, s.height);
+        }
+    }
+
+    /// Nodes of the (four-wide) BVH and the seconds its build and collapse took.
+    fn bvh_stats(&self) -> (usize, f64) {
+        (self.scene.node_count, self.scene.build_seconds)
+    }
+
+    /// Bytes the accumulation holds.
+    fn bytes(&self) -> u64 {
+        4 * (self.even.len() + self.odd.len()) as u64
+    }
+
+    fn reset_counters(&mut self) {
+        self.counters = Counters::default();
+    }
 
     /// The exact sums (even, odd) and the invalid samples.
-    pub fn exact_sums(&self) -> Sums {
+    fn exact_sums(&self) -> Sums {
         Sums {
             even: self.even.clone(),
             odd: self.odd.clone(),
@@ -372,7 +376,7 @@ impl CpuEngine {
     }
 
     /// The sums on the host, as the GPU's readback gives them.
-    pub fn read(&self) -> AccumData {
+    fn read(&self) -> AccumData {
         AccumData {
             invalid: self.counters.invalid,
             segments: self.counters.segments,
@@ -383,14 +387,54 @@ impl CpuEngine {
     }
 
     /// The preview's frame: resolve.wgsl's terms computed on the host (`Resolved::from_sums`).
-    pub fn resolve(&self, factor: u32) -> Resolved {
-        Resolved::from_sums(
+    fn resolve_on_host(&self, factor: u32) -> Option<Resolved> {
+        Some(Resolved::from_sums(
             &self.even,
             &self.odd,
             (self.width, self.height),
             factor,
             self.counters.invalid,
-        )
+        ))
+    }
+
+    /// No pipelines: the tracer is compiled into the binary.
+    fn ready(&mut self, _: Features, _: bool, _: bool) -> bool {
+        true
+    }
+
+    fn scratch_slots(&self) -> u64 {
+        0
+    }
+
+    /// Traces on every core before it returns.
+    fn dispatch(
+        &mut self,
+        features: Features,
+        d: DispatchUniforms,
+        _: u32,
+    ) -> Option<std::time::Duration> {
+        let start = std::time::Instant::now();
+        self.run(&d, features);
+        Some(start.elapsed())
+    }
+
+    fn finish_oldest(&mut self) {}
+
+    fn timed_seconds(&self) -> Option<f64> {
+        None
+    }
+
+    fn make_guides(
+        &mut self,
+        features: Features,
+        _: (u32, u32),
+        samples: std::ops::Range<u32>,
+    ) -> Option<Vec<u32>> {
+        Some(self.guides(features, samples))
+    }
+
+    fn read_guides(&self) -> Vec<u32> {
+        Vec::new()
     }
 }
 

@@ -5,6 +5,7 @@
 pub mod accum;
 pub mod context;
 pub mod denoise;
+pub mod engine;
 pub mod guides;
 pub mod reduce;
 pub mod resolve;
@@ -17,6 +18,7 @@ pub use accum::Accumulation;
 pub use context::{
     GpuContext, GpuError, describe, hardware_adapters, list_adapters, select_adapter,
 };
+pub use engine::{GpuEngine, GpuEngineOptions};
 pub use scene_buffers::SceneBuffers;
 pub use trace::TracePass;
 

@@ -14,10 +14,10 @@
 pub mod claims;
 pub mod failure;
 pub mod frames;
-pub mod team;
 mod schedule;
 pub mod shard;
 mod snapshot;
+pub mod team;
 pub mod tune;
 
 pub use schedule::Schedule;
@@ -25,24 +25,18 @@ pub use snapshot::{ErrorEstimate, Snapshot};
 
 use crate::common::Resolved;
 use crate::common::accum::Sums;
+use crate::common::engine::Engine as TracerEngine;
 use crate::common::guides::{GUIDE_SAMPLES, Guides};
 use crate::common::layout::DispatchUniforms;
 use crate::common::{Features, FrameSettings};
 use crate::cpu::CpuEngine;
-use crate::gpu::guides::GuidePass;
-use crate::gpu::reduce::ReducePass;
-use crate::gpu::timer::GpuTimer;
-use crate::gpu::trace::TraceDispatch;
-use crate::gpu::{Accumulation, GpuContext, GpuError, SceneBuffers, TracePass};
+use crate::gpu::{Accumulation, GpuContext, GpuEngine, GpuEngineOptions, GpuError};
 use crate::scene::Scene;
 use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// Invocations a dispatch should have to fill a large GPU: an H100/H200 holds about 270 000
-/// resident threads (132 SMs × 2048); twice that evens out the paths' unequal lengths.
-/// Lanes are added until a submission has about this many.
-pub const LANE_INVOCATIONS: u64 = 1 << 19;
+pub use crate::gpu::engine::LANE_INVOCATIONS;
 
 /// How a renderer specializes and sizes its work.
 #[derive(Clone, Copy, Debug)]
@@ -269,23 +263,35 @@ impl Backend {
     }
 }
 
-/// The GPU's passes and buffers for one scene.
-struct GpuEngine {
-    ctx: Arc<GpuContext>,
-    trace: TracePass,
-    scene: SceneBuffers,
-    accum: Accumulation,
-    bind_group: wgpu::BindGroup,
-    reduce: ReducePass,
-    reduce_bind_group: wgpu::BindGroup,
-    timer: Option<GpuTimer>,
-    /// Made on the first denoised frame.
-    guides: Option<GuidePass>,
-}
-
+/// The renderer's engine: either backend's, driven through the one surface
+/// ([`common::engine::Engine`](crate::common::engine::Engine)); the GPU's also hands its
+/// buffers to the passes that read them on the device (the preview's resolve, the denoiser).
 enum Engine {
     Gpu(Box<GpuEngine>),
     Cpu(Box<CpuEngine>),
+}
+
+impl Engine {
+    fn get(&self) -> &dyn TracerEngine {
+        match self {
+            Engine::Gpu(g) => g.as_ref(),
+            Engine::Cpu(c) => c.as_ref(),
+        }
+    }
+
+    fn get_mut(&mut self) -> &mut dyn TracerEngine {
+        match self {
+            Engine::Gpu(g) => g.as_mut(),
+            Engine::Cpu(c) => c.as_mut(),
+        }
+    }
+
+    fn gpu(&self) -> Option<&GpuEngine> {
+        match self {
+            Engine::Gpu(g) => Some(g),
+            Engine::Cpu(_) => None,
+        }
+    }
 }
 
 /// What one call of [`Renderer::step`] did.
@@ -325,8 +331,8 @@ struct Trial {
 
 /// A submission the GPU has not finished (the CPU's finish before `submit` returns).
 struct InFlight {
-    /// `None` on the CPU, where `took` is known at once.
-    index: Option<wgpu::SubmissionIndex>,
+    /// Known at once where the engine traced before returning (the CPU); else measured
+    /// when it is waited on.
     took: Option<Duration>,
     features: Features,
     paths: u64,
@@ -380,7 +386,16 @@ impl Renderer {
         let features = Self::features_for(scene, &options, &settings);
         let engine = match backend.into() {
             Backend::Gpu(ctx) => Engine::Gpu(Box::new(GpuEngine::new(
-                ctx, scene, &settings, &options, features,
+                ctx,
+                scene,
+                &settings,
+                GpuEngineOptions {
+                    compile_in_background: options.compile_in_background,
+                    generic: options.generic_features(),
+                    gpu_timing: options.gpu_timing,
+                    lanes: options.lanes,
+                },
+                features,
             ))),
             Backend::Cpu => Engine::Cpu(Box::new(CpuEngine::new(scene, &settings))),
         };
@@ -443,24 +458,14 @@ impl Renderer {
         Some((t.chosen()?, t.measured()))
     }
 
-    /// Lane-pixels of scratch: none where one lane per pixel is all a dispatch needs.
-    fn scratch_slots(ctx: &GpuContext, o: &RenderOptions, s: &FrameSettings) -> u64 {
-        let pixels = s.width as u64 * s.height as u64;
-        match o.lanes {
-            Some(n) if n > 1 => pixels * n as u64,
-            Some(_) => 0,
-            None if ctx.is_software() || 2 * pixels > LANE_INVOCATIONS => 0,
-            None => LANE_INVOCATIONS,
-        }
-    }
-
     /// Lanes per pixel of a submission of `rows` rows at `k` samples per pixel.
     fn lanes(&self, rows: u32, k: u32) -> u32 {
-        let Engine::Gpu(g) = &self.engine else {
+        let slots = self.engine.get().scratch_slots();
+        if slots == 0 {
             return 1;
-        };
+        }
         let pixels = self.settings.width as u64 * rows as u64;
-        let fit = g.accum.scratch_slots / pixels.max(1);
+        let fit = slots / pixels.max(1);
         let wanted = match self.options.lanes {
             Some(n) => n as u64,
             None => LANE_INVOCATIONS.div_ceil(pixels.max(1)),
@@ -503,23 +508,17 @@ impl Renderer {
     }
     /// Whether passes are timed on the GPU.
     pub fn gpu_timed(&self) -> bool {
-        matches!(&self.engine, Engine::Gpu(g) if g.timer.is_some())
+        self.engine.gpu().is_some_and(GpuEngine::timed)
     }
 
     /// Nodes in the BVH and the seconds its last build took.
     pub fn bvh_stats(&self) -> (usize, f64) {
-        match &self.engine {
-            Engine::Gpu(g) => (g.scene.node_count, g.scene.build_seconds),
-            Engine::Cpu(c) => c.bvh_stats(),
-        }
+        self.engine.get().bvh_stats()
     }
 
     /// Memory held by the accumulation (on the GPU, or the host's).
     pub fn accumulation_bytes(&self) -> u64 {
-        match &self.engine {
-            Engine::Gpu(g) => g.accum.gpu_bytes(),
-            Engine::Cpu(c) => c.bytes(),
-        }
+        self.engine.get().bytes()
     }
 
     /// Takes each round's samples from `claims` from now on (and restarts the accumulation):
@@ -599,10 +598,7 @@ impl Renderer {
         self.samples = 0;
         self.round = None;
         self.fresh = true;
-        match &mut self.engine {
-            Engine::Gpu(g) => g.accum.reset_counters(&g.ctx.queue),
-            Engine::Cpu(c) => c.reset_counters(),
-        }
+        self.engine.get_mut().reset_counters();
     }
 
     /// The generic pipeline with this renderer's own switches (segment counting, BVH).
@@ -616,21 +612,19 @@ impl Renderer {
     /// image); else compiled now.
     fn pipeline_features(&mut self, want: Features) -> Features {
         let generic = self.generic_features();
-        let Engine::Gpu(g) = &mut self.engine else {
-            return want;
-        };
-        if g.trace.ready(want) {
+        let e = self.engine.get_mut();
+        if e.ready(want, false, false) {
             return want;
         }
         if self.options.compile_in_background {
-            g.trace.prepare_in_background(&g.ctx.device, want);
+            e.ready(want, false, true);
             for f in [self.features, generic] {
-                if g.trace.ready(f) {
+                if e.ready(f, false, false) {
                     return f;
                 }
             }
         }
-        g.trace.prepare(&g.ctx.device, want);
+        e.ready(want, true, false);
         want
     }
 
@@ -641,14 +635,9 @@ impl Renderer {
             self.features = features;
             self.retune();
         }
-        match &mut self.engine {
-            Engine::Gpu(g) => {
-                let resize = (settings.width, settings.height)
-                    != (self.settings.width, self.settings.height);
-                g.set_scene(scene, &settings, &self.options, self.features, resize)
-            }
-            Engine::Cpu(c) => c.set_scene(scene, &settings),
-        }
+        self.engine
+            .get_mut()
+            .set_scene(scene, &settings, self.features);
         self.settings = settings;
         self.guides_made = false;
         self.guides = None;
@@ -666,24 +655,8 @@ impl Renderer {
         let (w, h) = (self.settings.width, self.settings.height);
         let samples = 0..GUIDE_SAMPLES;
         let features = self.features;
-        match &mut self.engine {
-            Engine::Gpu(g) => {
-                let pass = g
-                    .guides
-                    .get_or_insert_with(|| GuidePass::new(&g.ctx.device, g.trace.layout()));
-                pass.run(
-                    &g.ctx,
-                    g.trace.module(),
-                    &g.bind_group,
-                    g.trace.dispatch_buffer(),
-                    features,
-                    (w, h),
-                    samples,
-                );
-            }
-            Engine::Cpu(c) => {
-                self.guides = Some(Guides::decode(w, h, &c.guides(features, samples)));
-            }
+        if let Some(words) = self.engine.get_mut().make_guides(features, (w, h), samples) {
+            self.guides = Some(Guides::decode(w, h, &words));
         }
         self.guides_made = true;
     }
@@ -694,19 +667,14 @@ impl Renderer {
         if !self.guides_made {
             return None;
         }
-        match &self.engine {
-            Engine::Gpu(g) => g.guides.as_ref().and_then(|p| p.sums()),
-            Engine::Cpu(_) => None,
-        }
+        self.engine.gpu()?.guide_buffer()
     }
 
     /// The denoiser's guides on the host (made if needed; read back from a GPU once).
     pub fn guides(&mut self) -> &Guides {
         self.make_guides();
-        if self.guides.is_none()
-            && let Engine::Gpu(g) = &self.engine
-        {
-            let words = g.guides.as_ref().map_or(Vec::new(), |p| p.read(&g.ctx));
+        if self.guides.is_none() {
+            let words = self.engine.get().read_guides();
             let (w, h) = (self.settings.width, self.settings.height);
             self.guides = Some(Guides::decode(w, h, &words));
         }
@@ -760,21 +728,13 @@ impl Renderer {
             _pad: 0,
         };
         let paths = w as u64 * rows as u64 * round.k as u64;
-        let (index, took) = match &mut self.engine {
-            Engine::Gpu(g) => (Some(g.encode(features, d, w)), None),
-            Engine::Cpu(c) => {
-                let start = Instant::now();
-                c.run(&d, features);
-                (None, Some(start.elapsed()))
-            }
-        };
+        let took = self.engine.get_mut().dispatch(features, d, w);
         let (next_row, end) = if round.stride > 1 {
             (round.next_row + 1, round.stride.min(h))
         } else {
             (round.next_row + rows, h)
         };
         self.in_flight.push_back(InFlight {
-            index,
             took,
             features,
             paths,
@@ -798,14 +758,8 @@ impl Renderer {
     pub fn wait(&mut self, keep: usize) {
         while self.in_flight.len() > keep {
             let f = self.in_flight.pop_front().expect("a submission in flight");
-            if let (Engine::Gpu(g), Some(index)) = (&self.engine, f.index.clone()) {
-                g.ctx
-                    .device
-                    .poll(wgpu::PollType::Wait {
-                        submission_index: Some(index),
-                        timeout: None,
-                    })
-                    .expect("the GPU stopped answering");
+            if f.took.is_none() {
+                self.engine.get_mut().finish_oldest();
             }
             let now = Instant::now();
             let took = f
@@ -841,11 +795,7 @@ impl Renderer {
             if self.gpu_timed() {
                 // One query set: read each submission's time before the next.
                 self.wait(0);
-                if let Engine::Gpu(g) = &self.engine
-                    && let Some(t) = &g.timer
-                {
-                    stats.gpu_seconds += t.read_seconds(&g.ctx);
-                }
+                stats.gpu_seconds += self.engine.get().timed_seconds().unwrap_or(0.0);
             } else {
                 self.wait(1);
             }
@@ -868,28 +818,19 @@ impl Renderer {
     /// The accumulation on the GPU (for passes that read it, such as the preview's
     /// resolve); `None` on the CPU.
     pub fn accumulation(&self) -> Option<&Accumulation> {
-        match &self.engine {
-            Engine::Gpu(g) => Some(&g.accum),
-            Engine::Cpu(_) => None,
-        }
+        Some(&self.engine.gpu()?.accum)
     }
 
     /// The preview's frame made on the host (the CPU tracer's counterpart of the resolve
     /// pass); `None` on a GPU, whose frames the resolve pass makes.
     pub fn resolve_on_host(&self, factor: u32) -> Option<Resolved> {
-        match &self.engine {
-            Engine::Gpu(_) => None,
-            Engine::Cpu(c) => Some(c.resolve(factor)),
-        }
+        self.engine.get().resolve_on_host(factor)
     }
 
     /// The exact sums (`ACCUM_WORDS` words per pixel, even then odd half) and the samples
     /// discarded as invalid, as the tracer holds them: what a shard writes (`render::shard`).
     pub fn exact_sums(&self) -> Sums {
-        match &self.engine {
-            Engine::Gpu(g) => g.accum.read_words(&g.ctx),
-            Engine::Cpu(c) => c.exact_sums(),
-        }
+        self.engine.get().exact_sums()
     }
 
     /// Reads the accumulation back.
@@ -897,134 +838,8 @@ impl Renderer {
         Snapshot {
             width: self.settings.width,
             height: self.settings.height,
-            data: match &self.engine {
-                Engine::Gpu(g) => g.accum.read(&g.ctx),
-                Engine::Cpu(c) => c.read(),
-            },
+            data: self.engine.get().read(),
             samples: self.samples,
         }
-    }
-}
-
-impl GpuEngine {
-    fn new(
-        ctx: Arc<GpuContext>,
-        scene: &Scene,
-        settings: &FrameSettings,
-        options: &RenderOptions,
-        features: Features,
-    ) -> GpuEngine {
-        let device = &ctx.device;
-        let trace = TracePass::new(device);
-        if options.compile_in_background {
-            // The fallback for the feature sets edits will introduce.
-            trace.prepare_in_background(device, options.generic_features());
-        }
-        // The scene's pipeline compiles while its buffers (the BVH) are made: on a large mesh
-        // each takes a large part of the time to the first frame.
-        let buffers = std::thread::scope(|s| {
-            let compiling = s.spawn(|| trace.prepare(device, features));
-            let buffers = SceneBuffers::new(device, scene, settings);
-            if let Err(panic) = compiling.join() {
-                std::panic::resume_unwind(panic);
-            }
-            buffers
-        });
-        let accum = Accumulation::new(
-            device,
-            settings.width,
-            settings.height,
-            Renderer::scratch_slots(&ctx, options, settings),
-        );
-        let bind_group = trace.bind_group(device, &buffers, &accum);
-        let reduce = ReducePass::new(device);
-        let reduce_bind_group =
-            reduce.bind_group(device, &buffers, trace.dispatch_buffer(), &accum);
-        accum.reset_counters(&ctx.queue);
-        let timer = if options.gpu_timing {
-            GpuTimer::new(&ctx)
-        } else {
-            None
-        };
-        GpuEngine {
-            ctx,
-            trace,
-            scene: buffers,
-            accum,
-            bind_group,
-            reduce,
-            reduce_bind_group,
-            timer,
-            guides: None,
-        }
-    }
-
-    fn set_scene(
-        &mut self,
-        scene: &Scene,
-        settings: &FrameSettings,
-        options: &RenderOptions,
-        features: Features,
-        resize: bool,
-    ) {
-        let device = &self.ctx.device;
-        if options.compile_in_background {
-            self.trace.prepare_in_background(device, features);
-        } else {
-            self.trace.prepare(device, features);
-        }
-        let mut rebind = self.scene.update(device, &self.ctx.queue, scene, settings);
-        if resize {
-            self.accum = Accumulation::new(
-                device,
-                settings.width,
-                settings.height,
-                Renderer::scratch_slots(&self.ctx, options, settings),
-            );
-            rebind = true;
-        }
-        if rebind {
-            self.bind_group = self.trace.bind_group(device, &self.scene, &self.accum);
-            self.reduce_bind_group = self.reduce.bind_group(
-                device,
-                &self.scene,
-                self.trace.dispatch_buffer(),
-                &self.accum,
-            );
-        }
-    }
-
-    /// Encodes and submits one dispatch (and the reduce of its lanes).
-    fn encode(
-        &mut self,
-        features: Features,
-        d: DispatchUniforms,
-        width: u32,
-    ) -> wgpu::SubmissionIndex {
-        let mut enc = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("trace.submission"),
-            });
-        self.trace.encode(
-            &self.ctx.queue,
-            &mut enc,
-            &TraceDispatch {
-                features,
-                bind_group: &self.bind_group,
-                width,
-                uniforms: d,
-                timer: self.timer.as_ref(),
-            },
-        );
-        if d.lanes > 1 {
-            self.reduce
-                .encode(&mut enc, &self.reduce_bind_group, width * d.row_count);
-        }
-        if let Some(t) = &self.timer {
-            t.resolve(&mut enc);
-        }
-        self.ctx.queue.submit([enc.finish()])
     }
 }

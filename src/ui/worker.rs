@@ -17,7 +17,6 @@
 
 use super::app::Stats;
 use super::event::{Event, Frame};
-use crate::render::team::live::Helpers;
 use super::save::SaveError;
 use crate::common::FrameSettings;
 use crate::common::Resolved;
@@ -25,6 +24,7 @@ use crate::output::{Transfer, write_png};
 use crate::render::claims::{Claims, Fail};
 use crate::render::failure::contained;
 use crate::render::frames::Frames;
+use crate::render::team::live::Helpers;
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::Scene;
 use std::path::PathBuf;

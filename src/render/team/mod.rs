@@ -14,12 +14,12 @@
 
 pub mod live;
 
-use crate::render::claims::Claims;
-use crate::render::failure::{DeviceFailure, contained};
-use crate::render::{Backend, RenderOptions, Renderer, Snapshot};
 use crate::common::FrameSettings;
 use crate::common::accum::Sums;
 use crate::common::accum::{AccumData, decode};
+use crate::render::claims::Claims;
+use crate::render::failure::{DeviceFailure, contained};
+use crate::render::{Backend, RenderOptions, Renderer, Snapshot};
 use crate::scene::Scene;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -287,7 +287,11 @@ impl Team {
             }
         }
         if self.live().next().is_none() {
-            let why: Vec<String> = self.members.iter().filter_map(|m| Some(m.failure()?.0)).collect();
+            let why: Vec<String> = self
+                .members
+                .iter()
+                .filter_map(|m| Some(m.failure()?.0))
+                .collect();
             panic!("every device failed: {}", why.join("; "));
         }
     }
