@@ -259,27 +259,7 @@ impl PreviewBench {
                 pixel_height: self.rows * 20,
             })
             .map_err(MeasureError::pty("cannot open a pseudo-terminal"))?;
-        let mut cmd = match &self.command {
-            Some(c) => {
-                let mut cmd = CommandBuilder::new(&c[0]);
-                cmd.args(&c[1..]);
-                cmd
-            }
-            None => {
-                let mut cmd = CommandBuilder::new(self.exe_path()?);
-                cmd.arg("view");
-                cmd.arg(&self.scene);
-                cmd.args(&self.args);
-                cmd
-            }
-        };
-        // portable-pty starts the program in the home directory unless told: a scene named
-        // relative to where the bench runs must be found.
-        if let Ok(dir) = std::env::current_dir() {
-            cmd.cwd(dir);
-        }
-        cmd.env("TERM", "xterm-256color");
-        cmd.env("COLORTERM", "truecolor");
+        let cmd = self.command()?;
         let what = format!(
             "cannot run {:?}",
             self.command
@@ -291,11 +271,11 @@ impl PreviewBench {
             .spawn_command(cmd)
             .map_err(MeasureError::pty(&what))?;
         drop(pty.slave);
-        let mut reader = pty
+        let reader = pty
             .master
             .try_clone_reader()
             .map_err(MeasureError::pty("the pseudo-terminal's reader"))?;
-        let mut writer = pty
+        let writer = pty
             .master
             .take_writer()
             .map_err(MeasureError::pty("the pseudo-terminal's writer"))?;
@@ -313,149 +293,24 @@ impl PreviewBench {
         let half_rtt = link.rtt / 2;
         // To the program: keys and answers, each due half a round trip after it was sent.
         let (to_program, due) = std::sync::mpsc::channel::<(Instant, Vec<u8>)>();
-        let writer_thread = std::thread::spawn(move || {
-            for (at, bytes) in due {
-                std::thread::sleep(at.saturating_duration_since(Instant::now()));
-                if writer
-                    .write_all(&bytes)
-                    .and_then(|()| writer.flush())
-                    .is_err()
-                {
-                    break;
-                }
-            }
-        });
+        let writer_thread = std::thread::spawn(move || write_due(writer, due));
         // From the program: read eagerly into the window; past it the program blocks.
         let pipe = Arc::new(Pipe {
             bytes: Mutex::new((std::collections::VecDeque::new(), false)),
             cond: Condvar::new(),
         });
-        let p = pipe.clone();
-        let window = link.window;
-        let reader_thread = std::thread::spawn(move || {
-            let mut buf = vec![0u8; 1 << 16];
-            loop {
-                {
-                    let mut q = p.bytes.lock().expect("pipe");
-                    while q.0.len() >= window {
-                        q = p.cond.wait(q).expect("pipe");
-                    }
-                }
-                let n = match reader.read(&mut buf) {
-                    Ok(0) | Err(_) => break,
-                    Ok(n) => n,
-                };
-                let mut q = p.bytes.lock().expect("pipe");
-                q.0.extend(&buf[..n]);
-                p.cond.notify_all();
-            }
-            p.bytes.lock().expect("pipe").1 = true;
-            p.cond.notify_all();
-        });
+        let (p, window) = (pipe.clone(), link.window);
+        let reader_thread = std::thread::spawn(move || read_into(reader, &p, window));
         // The link and the far terminal.
-        let (rows, cols) = (self.rows, self.cols);
-        let (sh, p, answers) = (shared.clone(), pipe.clone(), to_program.clone());
-        let gate = self.answer_gate.clone();
-        let far_thread = std::thread::spawn(move || {
-            let nz = |n: u16| std::num::NonZeroU16::new(n.max(1)).expect("at least 1");
-            *sh.parser.lock().expect("screen") = Some(vt100::Parser::new(nz(rows), nz(cols), 0));
-            let (mut frame_tail, mut query_tail, mut da1_tail) =
-                (Vec::new(), Vec::new(), Vec::new());
-            let mut image_tails = [Vec::new(), Vec::new(), Vec::new()];
-            let mut on_wire: std::collections::VecDeque<(Instant, Vec<u8>)> = Default::default();
-            let mut link_free = Instant::now();
-            // Queries read and not yet answered (see `answer_gate`).
-            let mut held = 0u64;
-            loop {
-                // Take one from the gate, if it holds any.
-                let take = |g: &std::sync::atomic::AtomicI64| {
-                    use std::sync::atomic::Ordering::SeqCst;
-                    g.fetch_update(SeqCst, SeqCst, |v| (v > 0).then(|| v - 1))
-                        .is_ok()
-                };
-                while held > 0 && gate.as_deref().is_none_or(take) {
-                    held -= 1;
-                    let _ = answers.send((Instant::now() + half_rtt, ANSWER.to_vec()));
-                }
-                // Put what the link can take now on the wire.
-                let mut ended = false;
-                {
-                    let mut q = p.bytes.lock().expect("pipe");
-                    let now = Instant::now();
-                    while link_free <= now && !q.0.is_empty() {
-                        let n = q.0.len().min(PIECE);
-                        let piece: Vec<u8> = q.0.drain(..n).collect();
-                        let depart = link_free.max(now);
-                        link_free =
-                            depart + Duration::from_secs_f64(n as f64 * 8.0 / link.bits_per_second);
-                        on_wire.push_back((link_free + half_rtt, piece));
-                    }
-                    p.cond.notify_all();
-                    let backlog = q.0.len() + on_wire.iter().map(|w| w.1.len()).sum::<usize>();
-                    let mut s = sh.seen.lock().expect("screen state");
-                    s.deepest_backlog = s.deepest_backlog.max(backlog as u64);
-                    if q.0.is_empty() && on_wire.is_empty() {
-                        if q.1 {
-                            ended = true;
-                        } else {
-                            drop(s);
-                            let _ = p.cond.wait_timeout(q, Duration::from_millis(50));
-                            continue;
-                        }
-                    }
-                }
-                if ended {
-                    break;
-                }
-                // Deliver what has arrived.
-                let now = Instant::now();
-                while on_wire.front().is_some_and(|w| w.0 <= now) {
-                    let (_, piece) = on_wire.pop_front().expect("a piece");
-                    let parse_start = Instant::now();
-                    let mut guard = sh.parser.lock().expect("screen");
-                    let parser = guard.as_mut().expect("a parser");
-                    parser.process(&piece);
-                    let frames = count_split(&mut frame_tail, &piece, SYNC_BEGIN);
-                    let queries = count_split(&mut query_tail, &piece, QUERY);
-                    for _ in 0..count_split(&mut da1_tail, &piece, DA1) {
-                        let _ = answers.send((Instant::now() + half_rtt, DA1_ANSWER.to_vec()));
-                    }
-                    let mut s = sh.seen.lock().expect("screen state");
-                    let before = (s.spp, s.params.clone());
-                    read_status(parser.screen(), &mut s);
-                    drop(guard);
-                    s.parse += parse_start.elapsed();
-                    s.bytes += piece.len() as u64;
-                    s.frames += frames;
-                    for (tail, start) in image_tails.iter_mut().zip(IMAGE_STARTS) {
-                        s.images += count_split(tail, &piece, start);
-                    }
-                    held += queries;
-                    if (s.spp, s.params.clone()) != before {
-                        let change = Change {
-                            at: Instant::now(),
-                            spp: s.spp,
-                            params: s.params.clone(),
-                            elapsed: s.elapsed,
-                            bytes: s.bytes,
-                            parse: s.parse,
-                        };
-                        s.history.push(change);
-                    }
-                    sh.cond.notify_all();
-                }
-                // Sleep until the next arrival or until the link is free again.
-                let next = on_wire.front().map(|w| w.0).into_iter().chain([link_free]);
-                let until = next.min().unwrap_or(now + Duration::from_millis(1));
-                let nap = until
-                    .saturating_duration_since(Instant::now())
-                    .min(Duration::from_millis(1));
-                std::thread::sleep(nap.max(Duration::from_micros(100)));
-            }
-            let mut s = sh.seen.lock().expect("screen state");
-            s.exited = true;
-            sh.cond.notify_all();
-        });
+        let far = FarEnd {
+            shared: shared.clone(),
+            pipe: pipe.clone(),
+            answers: to_program.clone(),
+            gate: self.answer_gate.clone(),
+            link,
+            size: (self.rows, self.cols),
+        };
+        let far_thread = std::thread::spawn(move || far.run());
 
         let result = f(&Probe {
             shared: &shared,
@@ -482,6 +337,33 @@ impl PreviewBench {
         let _ = far_thread.join();
         let _ = writer_thread.join();
         Ok(result)
+    }
+
+    /// The program to run in the pseudo-terminal: the command given, else `termtrace view`
+    /// of the scene, started in the current folder with a truecolor xterm's environment.
+    fn command(&self) -> Result<CommandBuilder, MeasureError> {
+        let mut cmd = match &self.command {
+            Some(c) => {
+                let mut cmd = CommandBuilder::new(&c[0]);
+                cmd.args(&c[1..]);
+                cmd
+            }
+            None => {
+                let mut cmd = CommandBuilder::new(self.exe_path()?);
+                cmd.arg("view");
+                cmd.arg(&self.scene);
+                cmd.args(&self.args);
+                cmd
+            }
+        };
+        // portable-pty starts the program in the home directory unless told: a scene named
+        // relative to where the bench runs must be found.
+        if let Ok(dir) = std::env::current_dir() {
+            cmd.cwd(dir);
+        }
+        cmd.env("TERM", "xterm-256color");
+        cmd.env("COLORTERM", "truecolor");
+        Ok(cmd)
     }
 
     /// Types the keys (each reaching the program `half_rtt` after it is typed) and measures.
@@ -776,5 +658,184 @@ pub fn print(b: &PreviewBench, r: &PreviewReport) {
             r.images.1 / 1e3,
             r.images.2
         );
+    }
+}
+
+/// The writer's thread: each key or answer written when it is due.
+fn write_due(
+    mut writer: Box<dyn Write + Send>,
+    due: std::sync::mpsc::Receiver<(Instant, Vec<u8>)>,
+) {
+    for (at, bytes) in due {
+        std::thread::sleep(at.saturating_duration_since(Instant::now()));
+        if writer
+            .write_all(&bytes)
+            .and_then(|()| writer.flush())
+            .is_err()
+        {
+            break;
+        }
+    }
+}
+
+/// The reader's thread: the program's output read into `pipe` while it holds less than
+/// `window` bytes (past it the program blocks, as over SSH); marks the end.
+fn read_into(mut reader: Box<dyn Read + Send>, p: &Pipe, window: usize) {
+    let mut buf = vec![0u8; 1 << 16];
+    loop {
+        {
+            let mut q = p.bytes.lock().expect("pipe");
+            while q.0.len() >= window {
+                q = p.cond.wait(q).expect("pipe");
+            }
+        }
+        let n = match reader.read(&mut buf) {
+            Ok(0) | Err(_) => break,
+            Ok(n) => n,
+        };
+        let mut q = p.bytes.lock().expect("pipe");
+        q.0.extend(&buf[..n]);
+        p.cond.notify_all();
+    }
+    p.bytes.lock().expect("pipe").1 = true;
+    p.cond.notify_all();
+}
+
+/// The link and the far terminal: the program's output crosses the link at its rate and
+/// delay into a terminal emulator, which answers the program's queries over it.
+struct FarEnd {
+    shared: Arc<Shared>,
+    pipe: Arc<Pipe>,
+    answers: std::sync::mpsc::Sender<(Instant, Vec<u8>)>,
+    /// Holds the answers to frame queries back (see `answer_gate`).
+    gate: Option<Arc<std::sync::atomic::AtomicI64>>,
+    link: Link,
+    size: (u16, u16),
+}
+
+/// The far terminal's count of what crossed the link, across pieces.
+#[derive(Default)]
+struct Tails {
+    frame: Vec<u8>,
+    query: Vec<u8>,
+    da1: Vec<u8>,
+    images: [Vec<u8>; 3],
+    /// Queries read and not yet answered.
+    held: u64,
+}
+
+impl FarEnd {
+    fn run(self) {
+        let (sh, p, answers, gate, link) = (
+            &self.shared,
+            &self.pipe,
+            &self.answers,
+            &self.gate,
+            self.link,
+        );
+        let (rows, cols) = self.size;
+        let half_rtt = link.rtt / 2;
+        let nz = |n: u16| std::num::NonZeroU16::new(n.max(1)).expect("at least 1");
+        *sh.parser.lock().expect("screen") = Some(vt100::Parser::new(nz(rows), nz(cols), 0));
+        let mut tails = Tails::default();
+        let mut on_wire: std::collections::VecDeque<(Instant, Vec<u8>)> = Default::default();
+        let mut link_free = Instant::now();
+        loop {
+            // Take one from the gate, if it holds any.
+            let take = |g: &std::sync::atomic::AtomicI64| {
+                use std::sync::atomic::Ordering::SeqCst;
+                g.fetch_update(SeqCst, SeqCst, |v| (v > 0).then(|| v - 1))
+                    .is_ok()
+            };
+            while tails.held > 0 && gate.as_deref().is_none_or(take) {
+                tails.held -= 1;
+                let _ = answers.send((Instant::now() + half_rtt, ANSWER.to_vec()));
+            }
+            // Put what the link can take now on the wire.
+            let mut ended = false;
+            {
+                let mut q = p.bytes.lock().expect("pipe");
+                let now = Instant::now();
+                while link_free <= now && !q.0.is_empty() {
+                    let n = q.0.len().min(PIECE);
+                    let piece: Vec<u8> = q.0.drain(..n).collect();
+                    let depart = link_free.max(now);
+                    link_free =
+                        depart + Duration::from_secs_f64(n as f64 * 8.0 / link.bits_per_second);
+                    on_wire.push_back((link_free + half_rtt, piece));
+                }
+                p.cond.notify_all();
+                let backlog = q.0.len() + on_wire.iter().map(|w| w.1.len()).sum::<usize>();
+                let mut s = sh.seen.lock().expect("screen state");
+                s.deepest_backlog = s.deepest_backlog.max(backlog as u64);
+                if q.0.is_empty() && on_wire.is_empty() {
+                    if q.1 {
+                        ended = true;
+                    } else {
+                        drop(s);
+                        let _ = p.cond.wait_timeout(q, Duration::from_millis(50));
+                        continue;
+                    }
+                }
+            }
+            if ended {
+                break;
+            }
+            // Deliver what has arrived.
+            let now = Instant::now();
+            while on_wire.front().is_some_and(|w| w.0 <= now) {
+                let (_, piece) = on_wire.pop_front().expect("a piece");
+                self.deliver(&piece, &mut tails);
+            }
+            // Sleep until the next arrival or until the link is free again.
+            let next = on_wire.front().map(|w| w.0).into_iter().chain([link_free]);
+            let until = next.min().unwrap_or(now + Duration::from_millis(1));
+            let nap = until
+                .saturating_duration_since(Instant::now())
+                .min(Duration::from_millis(1));
+            std::thread::sleep(nap.max(Duration::from_micros(100)));
+        }
+        let mut s = sh.seen.lock().expect("screen state");
+        s.exited = true;
+        sh.cond.notify_all();
+    }
+
+    /// A piece of output arrives: the screen, the frames and images in it, the queries to
+    /// answer, and the status line's change, noted with when it was seen.
+    fn deliver(&self, piece: &[u8], t: &mut Tails) {
+        let (sh, answers) = (&self.shared, &self.answers);
+        let half_rtt = self.link.rtt / 2;
+        let parse_start = Instant::now();
+        let mut guard = sh.parser.lock().expect("screen");
+        let parser = guard.as_mut().expect("a parser");
+        parser.process(piece);
+        let frames = count_split(&mut t.frame, piece, SYNC_BEGIN);
+        let queries = count_split(&mut t.query, piece, QUERY);
+        for _ in 0..count_split(&mut t.da1, piece, DA1) {
+            let _ = answers.send((Instant::now() + half_rtt, DA1_ANSWER.to_vec()));
+        }
+        let mut s = sh.seen.lock().expect("screen state");
+        let before = (s.spp, s.params.clone());
+        read_status(parser.screen(), &mut s);
+        drop(guard);
+        s.parse += parse_start.elapsed();
+        s.bytes += piece.len() as u64;
+        s.frames += frames;
+        for (tail, start) in t.images.iter_mut().zip(IMAGE_STARTS) {
+            s.images += count_split(tail, piece, start);
+        }
+        t.held += queries;
+        if (s.spp, s.params.clone()) != before {
+            let change = Change {
+                at: Instant::now(),
+                spp: s.spp,
+                params: s.params.clone(),
+                elapsed: s.elapsed,
+                bytes: s.bytes,
+                parse: s.parse,
+            };
+            s.history.push(change);
+        }
+        sh.cond.notify_all();
     }
 }
