@@ -25,6 +25,8 @@ override HAS_SUN: bool = true;
 override HAS_TEXTURES: bool = true;
 override HAS_CUTOUTS: bool = true;
 override HAS_NORMAL_MAPS: bool = true;
+// Meshes with the file's normals, interpolated across each triangle (smooth shading).
+override HAS_SMOOTH_NORMALS: bool = true;
 // An HDR environment map (common/envmap.wgsl): looked up by escaping rays, sampled with HAS_NEE.
 override HAS_ENV_MAP: bool = true;
 override HAS_PBR: bool = true;
@@ -338,11 +340,21 @@ fn material_at(hit: Hit, surf: Surface) -> Shading {
     return s;
 }
 
-// The shading normal on the side of n: a normal map's where the hit has one
-// (docs/MODEL-NOTES.md, "Normal maps"), else n (src/cpu/trace.rs's `shading_normal_at`).
-fn shading_normal_at(s: Shading, hit: Hit, n_out: vec3f, n: vec3f) -> vec3f {
+// The shading normal on the side of n at point p: a normal map's where the hit has one
+// (docs/MODEL-NOTES.md, "Normal maps"), else the file's normals interpolated where its mesh
+// has them ("Smooth shading"), else n (src/cpu/trace.rs's `shading_normal_at`).
+fn shading_normal_at(s: Shading, hit: Hit, p: vec3f, n_out: vec3f, n: vec3f) -> vec3f {
     if HAS_NORMAL_MAPS && hit.kind == KIND_TRIANGLE && tex_has_normal_map(s.rec) {
         let ns = tex_shading_normal(s.rec, hit.index, s.bary, s.uv, n_out);
+        return select(-ns, ns, dot(ns, n) >= 0.0);
+    }
+    if HAS_SMOOTH_NORMALS && hit.kind == KIND_TRIANGLE && tex_has_frames() {
+        var b = s.bary;
+        if s.rec == TEX_NONE {
+            let tri = triangles[hit.index];
+            b = triangle_barycentrics(tri, p - tri.v0);
+        }
+        let ns = tex_smooth_normal(hit.index, b, n_out);
         return select(-ns, ns, dot(ns, n) >= 0.0);
     }
     return n;
@@ -597,7 +609,7 @@ fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, stat
         material = q.material;
     }
     let cos_s = dot(n, dir);
-    if cos_s <= 0.0 || (HAS_NORMAL_MAPS && dot(n_geo, dir) <= 0.0) {
+    if cos_s <= 0.0 || ((HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && dot(n_geo, dir) <= 0.0) {
         return vec3f(0.0);
     }
     // Visible if nothing but the light lies between p and the light's own hit along dir (no
@@ -634,7 +646,7 @@ fn env_pick() -> f32 {
 fn sample_env(p: vec3f, n: vec3f, n_geo: vec3f, pe: f32, pbr: bool, lobe: PbrLobe, state: ptr<function, Rng>) -> vec3f {
     let s = env_sample(rand2(state), scene.env_rotation);
     let cos_s = dot(n, s.dir);
-    if s.pdf <= 0.0 || cos_s <= 0.0 || (HAS_NORMAL_MAPS && dot(n_geo, s.dir) <= 0.0) {
+    if s.pdf <= 0.0 || cos_s <= 0.0 || ((HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && dot(n_geo, s.dir) <= 0.0) {
         return vec3f(0.0);
     }
     if occluded(Ray(offset_ray(p, n_geo), s.dir), T_FAR, EMPTY_SLOT) {
@@ -725,7 +737,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         // A certain lobe takes no draw.
         let is_spec = !pbr && (m.specular >= 1.0 || (m.specular > 0.0 && rand(state) < m.specular));
         let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);
-        let ns = shading_normal_at(sh, hit, n_out, n);
+        let ns = shading_normal_at(sh, hit, surf.point.position, n_out, n);
         var lobe = PbrLobe();
         // A lobe with a density light sampling can weigh: the Lambertian one, the lecture's
         // specular one at smoothness 0 (the same distribution, its own tint), or glTF's but
@@ -750,7 +762,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         }
         // A direction that the shading normal allows but that enters the surface ends the
         // path (the light a normal map cannot send there is lost, not leaked).
-        if HAS_NORMAL_MAPS && dot(sc.dir, n) <= 0.0 {
+        if (HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && dot(sc.dir, n) <= 0.0 {
             sc.absorbed = true;
         }
         if pbr {
@@ -968,7 +980,7 @@ fn guide_of(primary: Ray) -> Guide {
             ray = Ray(offset_ray(surf.point.position, side), dir);
             continue;
         }
-        let ns = shading_normal_at(sh, hit, n_out, n);
+        let ns = shading_normal_at(sh, hit, surf.point.position, n_out, n);
         if m.specular >= 1.0 && m.smoothness >= 1.0 && m.absorption == 0.0 && !last {
             // A perfect mirror.
             tint *= m.specular_color;

@@ -6,7 +6,8 @@
 // Textures (src/common/textures.rs lays out the words, src/cpu/texture.rs reads them the same
 // way): glTF's base colour, metallic-roughness and emissive maps, sampled bilinearly with
 // their wrap modes, mapped onto the model's material at each hit; tangent-space normal maps;
-// and alpha cut-outs. Every function here is called only under HAS_TEXTURES or HAS_CUTOUTS.
+// alpha cut-outs; and the files' normals for smooth shading. Every function here is called
+// only under HAS_TEXTURES, HAS_CUTOUTS, HAS_NORMAL_MAPS or HAS_SMOOTH_NORMALS.
 
 // The texture words (one word when the scene has none); the trace pass binds them.
 @group(0) @binding(14) var<storage, read> tex: array<u32>;
@@ -211,6 +212,21 @@ fn tex_cut_out(tri: Triangle, index: u32, ray: Ray, t: f32) -> bool {
 
 fn tex_vec3(at: u32) -> vec3f {
     return vec3f(tex_f32(at), tex_f32(at + 1u), tex_f32(at + 2u));
+}
+
+// Whether the words hold the triangles' shading frames (a scene with neither textures nor
+// normals binds one word: the generic pipeline asks before it reads).
+fn tex_has_frames() -> bool {
+    return arrayLength(&tex) > TEX_MATERIALS && tex[TEX_FRAMES] != 0u;
+}
+
+// The file's normals of triangle `index` interpolated at barycentrics `b` (smooth shading,
+// docs/MODEL-NOTES.md "Smooth shading"); the geometric normal `n_geo` where the mesh has none
+// or they cancel. The caller turns the result to the side it needs.
+fn tex_smooth_normal(index: u32, b: vec2f, n_geo: vec3f) -> vec3f {
+    let at = tex[TEX_FRAMES] + TEX_FRAME_WORDS * index;
+    let n0 = tex_vec3(at);
+    return normalize_or(n0 + b.x * (tex_vec3(at + 3u) - n0) + b.y * (tex_vec3(at + 6u) - n0), n_geo);
 }
 
 // Whether the material of record `rec` has a normal map.

@@ -11,7 +11,8 @@ use crate::scene::{Scene, Shape, Sky};
 #[derive(Debug, thiserror::Error)]
 #[error(
     "unknown feature `{0}` (expected spheres, quads, boxes, triangles, dielectrics, emitters, \
-     nee, dof, sun, textures, cutouts, normal_maps, env_map, pbr or lecture)"
+     nee, dof, sun, textures, cutouts, normal_maps, smooth_normals, env_map, pbr or \
+     lecture)"
 )]
 pub struct UnknownFeature(pub String);
 
@@ -35,6 +36,9 @@ pub struct Features {
     pub cutouts: bool,
     /// Tangent-space normal maps (shading normals).
     pub normal_maps: bool,
+    /// Meshes with the file's normals (glTF `NORMAL`, OBJ `vn`), interpolated across each
+    /// triangle: smooth shading.
+    pub smooth_normals: bool,
     /// An HDR environment map: looked up where rays leave the scene, and sampled by
     /// next-event estimation (with `nee`).
     pub env_map: bool,
@@ -66,6 +70,7 @@ impl Features {
             textures: true,
             cutouts: true,
             normal_maps: true,
+            smooth_normals: true,
             env_map: true,
             pbr: true,
             lecture: true,
@@ -89,6 +94,7 @@ impl Features {
             textures: false,
             cutouts: false,
             normal_maps: false,
+            smooth_normals: false,
             env_map: false,
             pbr: false,
             lecture: false,
@@ -115,6 +121,7 @@ impl Features {
                 "textures" => &mut f.textures,
                 "cutouts" => &mut f.cutouts,
                 "normal_maps" => &mut f.normal_maps,
+                "smooth_normals" => &mut f.smooth_normals,
                 "env_map" => &mut f.env_map,
                 "pbr" => &mut f.pbr,
                 "lecture" => &mut f.lecture,
@@ -136,11 +143,15 @@ impl Features {
             ..Features::none()
         };
         for o in &scene.objects {
-            match o.shape {
+            match &o.shape {
                 Shape::Sphere { .. } => f.spheres = true,
                 Shape::Quad { .. } => f.quads = true,
                 Shape::Box { .. } => f.boxes = true,
-                Shape::Mesh { .. } => f.triangles = true,
+                Shape::Mesh { mesh, .. } => {
+                    f.triangles = true;
+                    // Glass refracts about the geometric normal: only surfaces shade smooth.
+                    f.smooth_normals |= !mesh.normals.is_empty() && !o.material.is_dielectric();
+                }
             }
             f.dielectrics |= o.material.is_dielectric();
             // An emissive pbr material still needs the BRDF where its emissive map is dark.
@@ -179,6 +190,7 @@ impl Features {
             textures: self.textures | other.textures,
             cutouts: self.cutouts | other.cutouts,
             normal_maps: self.normal_maps | other.normal_maps,
+            smooth_normals: self.smooth_normals | other.smooth_normals,
             env_map: self.env_map | other.env_map,
             pbr: self.pbr | other.pbr,
             lecture: self.lecture | other.lecture,
@@ -208,6 +220,7 @@ impl Features {
             ("HAS_TEXTURES", b(self.textures)),
             ("HAS_CUTOUTS", b(self.cutouts)),
             ("HAS_NORMAL_MAPS", b(self.normal_maps)),
+            ("HAS_SMOOTH_NORMALS", b(self.smooth_normals)),
             ("HAS_ENV_MAP", b(self.env_map)),
             ("HAS_PBR", b(self.pbr)),
             ("HAS_LECTURE", b(self.lecture)),
@@ -231,6 +244,7 @@ impl Features {
             (self.textures, "textures"),
             (self.cutouts, "cutouts"),
             (self.normal_maps, "normal_maps"),
+            (self.smooth_normals, "smooth_normals"),
             (self.env_map, "env_map"),
             (self.pbr, "pbr"),
         ];

@@ -1,10 +1,12 @@
 //! The texture words both tracers read (`shaders/common/texture.wgsl`, `cpu::texture`): one
-//! array of u32 holding the sRGB decoding table, each triangle's texture coordinates (and,
-//! where a normal map needs them, its shading frames), a record per textured material (its
-//! maps and glTF factors) and the texels, RGBA8. One
+//! array of u32 holding the sRGB decoding table, each triangle's texture coordinates (where a
+//! material has maps) and shading frames (where a normal map or smooth shading needs them), a
+//! record per textured material (its maps and glTF factors) and the texels, RGBA8. One
 //! storage buffer, so that every adapter binds it (lavapipe and llvmpipe included); a scene
-//! without textures uploads one word and compiles none of the code that reads them.
+//! with neither textures nor the files' normals uploads one word and compiles none of the
+//! code that reads them.
 
+use super::Features;
 use crate::scene::gltf::DIELECTRIC_F0;
 use crate::scene::texture::{AlphaMode, Texture, Textured};
 use crate::scene::{Material, Scene, Shape, euler_xyz};
@@ -17,8 +19,8 @@ pub const SRGB_LUT: usize = 0;
 /// (u, v at each corner), in `Primitives::triangles` order.
 pub const UV_BASE: usize = 256;
 /// The word holding where the triangles' shading frames start (0: the scene has no normal
-/// map): [`FRAME_WORDS`] f32 per triangle, the corners' normals (3 × 3) then tangents
-/// (3 × 4, `w` the bitangent's sign), zero where unknown.
+/// map and no mesh with normals): [`FRAME_WORDS`] f32 per triangle, the corners' normals
+/// (3 × 3) then tangents (3 × 4, `w` the bitangent's sign), zero where unknown.
 pub const FRAMES: usize = 257;
 pub const FRAME_WORDS: usize = 21;
 /// The word holding the number of materials; the next words hold each material's record
@@ -57,7 +59,7 @@ pub fn srgb_decode(v: u8) -> f32 {
     }) as f32
 }
 
-/// Where things go in the words of a scene with textures.
+/// Where things go in the words of a scene with textures or shading frames.
 struct Layout<'a> {
     /// Each distinct textured material, with the first object's material that uses it (the
     /// preview edits a glTF material as one, so every object using it has the same).
@@ -66,6 +68,8 @@ struct Layout<'a> {
     headers_at: usize,
     records_at: usize,
     texels_at: usize,
+    /// The triangles' shading frames are written: a normal map or a mesh with normals.
+    frames: bool,
 }
 
 fn textured(m: &Material) -> Option<&Arc<Textured>> {
@@ -96,13 +100,16 @@ impl<'a> Layout<'a> {
                 }
             }
         }
-        if records.is_empty() {
+        let smooth = Features::of(scene).smooth_normals;
+        if records.is_empty() && !smooth {
             return None;
         }
+        let frames = smooth || records.iter().any(|(t, _)| t.normal.is_some());
         let headers_at = MATERIALS + 1 + scene.objects.len();
         let records_at = headers_at + TEXTURE_WORDS * textures.len();
         Some(Layout {
             texels_at: records_at + RECORD_WORDS * records.len(),
+            frames,
             records,
             textures,
             headers_at,
@@ -204,9 +211,10 @@ pub fn record_words(scene: &Scene) -> Option<(usize, Vec<u32>)> {
     Some((l.records_at, l.records()))
 }
 
-/// The scene's texture words, or `None` when no material has maps or a cut-out. Layout:
-/// the sRGB table, `UV_BASE`, the material count and record offsets, the texture headers,
-/// the records, the texels, and the triangles' texture coordinates.
+/// The scene's texture words, or `None` when no material has maps or a cut-out and no mesh
+/// has normals. Layout: the sRGB table, `UV_BASE`, `FRAMES`, the material count and record
+/// offsets, the texture headers, the records, the texels, the triangles' texture coordinates
+/// (where there are records) and their shading frames (where needed).
 pub fn words(scene: &Scene) -> Option<Vec<u32>> {
     let l = Layout::of(scene)?;
     let mut w: Vec<u32> = (0..=255u8).map(|v| srgb_decode(v).to_bits()).collect();
@@ -243,15 +251,18 @@ pub fn words(scene: &Scene) -> Option<Vec<u32>> {
         w.extend_from_slice(&tex.texels);
     }
     w[UV_BASE] = w.len() as u32;
-    for o in &scene.objects {
-        if let Shape::Mesh { mesh, .. } = &o.shape {
-            for k in 0..mesh.triangles.len() {
-                let uv = mesh.uvs.get(k).copied().unwrap_or([[0.0; 2]; 3]);
-                w.extend(uv.iter().flatten().map(|x| x.to_bits()));
+    // Read only at a textured material's hits.
+    if !l.records.is_empty() {
+        for o in &scene.objects {
+            if let Shape::Mesh { mesh, .. } = &o.shape {
+                for k in 0..mesh.triangles.len() {
+                    let uv = mesh.uvs.get(k).copied().unwrap_or([[0.0; 2]; 3]);
+                    w.extend(uv.iter().flatten().map(|x| x.to_bits()));
+                }
             }
         }
     }
-    if l.records.iter().any(|(t, _)| t.normal.is_some()) {
+    if l.frames {
         w[FRAMES] = w.len() as u32;
         for o in &scene.objects {
             frames(&o.shape, &mut w);
@@ -282,10 +293,9 @@ fn frames(shape: &Shape, w: &mut Vec<u32>) {
     let unit = |v: DVec3| v.normalize_or_zero().as_vec3().to_array();
     let identity = *rotation == DVec3::ZERO && *scale == DVec3::ONE;
     for k in 0..mesh.triangles.len() {
-        let (n, t) = match (mesh.normals.get(k), mesh.tangents.get(k)) {
-            (Some(n), Some(t)) => (*n, *t),
-            _ => ([[0.0; 3]; 3], [[0.0; 4]; 3]),
-        };
+        // A smooth-shaded mesh has normals without tangents (no normal map needs them).
+        let n = mesh.normals.get(k).copied().unwrap_or([[0.0; 3]; 3]);
+        let t = mesh.tangents.get(k).copied().unwrap_or([[0.0; 4]; 3]);
         for c in n {
             let c = if identity {
                 c
@@ -330,10 +340,10 @@ pub fn word_count(scene: &Scene) -> usize {
             _ => 0,
         })
         .sum();
-    let frames = l.records.iter().any(|(t, _)| t.normal.is_some());
+    let uvs = if l.records.is_empty() { 0 } else { 6 };
     l.texels_at
         + l.textures.iter().map(|t| t.texels.len()).sum::<usize>()
-        + triangles * (6 + if frames { FRAME_WORDS } else { 0 })
+        + triangles * (uvs + if l.frames { FRAME_WORDS } else { 0 })
 }
 
 /// Why `scene`'s texture words cannot be bound where one storage buffer holds at most

@@ -128,6 +128,8 @@ pub struct CpuScene {
     pub cutouts: bool,
     /// Some material has a normal map (the shading-normal code runs).
     pub normal_maps: bool,
+    /// Some mesh has the file's normals (smooth shading; texture.wgsl's HAS_SMOOTH_NORMALS).
+    pub smooth_normals: bool,
     /// The environment map, where the scene has one (its CDFs and texels as the GPU's).
     pub env: Option<Arc<EnvMap>>,
     tex_key: Vec<usize>,
@@ -162,6 +164,7 @@ impl CpuScene {
             tex: Vec::new(),
             cutouts: false,
             normal_maps: false,
+            smooth_normals: false,
             env: scene.environment.as_ref().map(|e| e.map.clone()),
             tex_key: Vec::new(),
             bvh,
@@ -178,6 +181,13 @@ impl CpuScene {
         c
     }
 
+    /// Whether shading normals can differ from the geometric one (a normal map or smooth
+    /// shading): then a direction below the geometric surface is refused.
+    #[inline(always)]
+    pub fn shading_normals(&self) -> bool {
+        self.normal_maps || self.smooth_normals
+    }
+
     /// The texture words, as the GPU gets them.
     fn take_textures(&mut self, scene: &Scene) {
         self.tex = crate::common::textures::words(scene).unwrap_or_default();
@@ -185,6 +195,7 @@ impl CpuScene {
         let f = crate::common::Features::of(scene);
         self.cutouts = f.cutouts;
         self.normal_maps = f.normal_maps;
+        self.smooth_normals = f.smooth_normals;
     }
 
     /// Brings the scene up to date; the BVH is kept when the geometry is unchanged (as the

@@ -231,6 +231,21 @@ pub fn cut_out(tex: &[u32], tri: &Triangle, index: u32, ray: &Ray, t: f32) -> bo
     super::rng::unit(h) >= alpha
 }
 
+/// Whether the words hold the triangles' shading frames (texture.wgsl: tex_has_frames).
+#[inline(always)]
+pub fn has_frames(tex: &[u32]) -> bool {
+    tex.len() > MATERIALS && tex[FRAMES] != 0
+}
+
+/// The file's normals of triangle `index` interpolated at barycentrics `(b1, b2)`, or `n_geo`
+/// where there are none (texture.wgsl: tex_smooth_normal, term for term).
+pub fn smooth_normal(tex: &[u32], index: u32, (b1, b2): (f32, f32), n_geo: Vec3A) -> Vec3A {
+    let at = tex[FRAMES] + FRAME_WORDS as u32 * index;
+    let v3 = |k: u32| Vec3A::new(f(tex, at + k), f(tex, at + k + 1), f(tex, at + k + 2));
+    let n0 = v3(0);
+    normalize_or(n0 + b1 * (v3(3) - n0) + b2 * (v3(6) - n0), n_geo)
+}
+
 /// Whether the material of record `rec` has a normal map.
 #[inline(always)]
 pub fn has_normal_map(tex: &[u32], rec: u32) -> bool {

@@ -261,17 +261,44 @@ impl<'a> Tracer<'a> {
         )
     }
 
-    /// The shading normal on the side of `n`: a normal map's where the hit has one
-    /// (docs/MODEL-NOTES.md, "Normal maps"), else `n` (trace.wgsl's `shading_normal_at`).
+    /// The shading normal on the side of `n` at `p`: a normal map's where the hit has one
+    /// (docs/MODEL-NOTES.md, "Normal maps"), else the file's normals interpolated where its
+    /// mesh has them ("Smooth shading"), else `n` (trace.wgsl's `shading_normal_at`).
     #[inline(always)]
-    fn shading_normal_at(&self, hit: Hit, mapped: Option<Mapped>, n_out: Vec3A, n: Vec3A) -> Vec3A {
+    fn shading_normal_at(
+        &self,
+        hit: Hit,
+        mapped: Option<Mapped>,
+        p: Vec3A,
+        n_out: Vec3A,
+        n: Vec3A,
+    ) -> Vec3A {
+        let i = hit.r & INDEX;
+        let toward = |ns: Vec3A| if ns.dot(n) < 0.0 { -ns } else { ns };
         if self.s.normal_maps
             && let Some(Mapped { rec, bary, uv }) = mapped
             && super::texture::has_normal_map(&self.s.tex, rec)
         {
-            let i = hit.r & INDEX;
-            let ns = super::texture::shading_normal(&self.s.tex, rec, i, bary, uv, n_out);
-            if ns.dot(n) < 0.0 { -ns } else { ns }
+            toward(super::texture::shading_normal(
+                &self.s.tex,
+                rec,
+                i,
+                bary,
+                uv,
+                n_out,
+            ))
+        } else if self.s.smooth_normals
+            && hit.r >> 30 == 3
+            && super::texture::has_frames(&self.s.tex)
+        {
+            let bary = match mapped {
+                Some(m) => m.bary,
+                None => {
+                    let tri = &self.s.triangles[i as usize];
+                    triangle_barycentrics(tri, p - tri.v0)
+                }
+            };
+            toward(super::texture::smooth_normal(&self.s.tex, i, bary, n_out))
         } else {
             n
         }
@@ -363,7 +390,7 @@ impl<'a> Tracer<'a> {
         let s = map.distribution.sample(u1, u2, u.env_rotation);
         let dir = Vec3A::from(s.dir);
         let cos_s = n.dot(dir);
-        if s.pdf <= 0.0 || cos_s <= 0.0 || (self.s.normal_maps && n_geo.dot(dir) <= 0.0) {
+        if s.pdf <= 0.0 || cos_s <= 0.0 || (self.s.shading_normals() && n_geo.dot(dir) <= 0.0) {
             return Vec3A::ZERO;
         }
         let radiance = Vec3A::from_array(map.radiance_at(s.uv.0, s.uv.1)) * u.env_intensity;
@@ -570,7 +597,7 @@ impl<'a> Tracer<'a> {
             material = q.material;
         }
         let cos_s = n.dot(dir);
-        if cos_s <= 0.0 || (self.s.normal_maps && n_geo.dot(dir) <= 0.0) {
+        if cos_s <= 0.0 || (self.s.shading_normals() && n_geo.dot(dir) <= 0.0) {
             return Vec3A::ZERO;
         }
         let shadow = Ray {
@@ -665,7 +692,7 @@ impl<'a> Tracer<'a> {
                 let front = ray.dir.dot(n_out) < 0.0;
                 let n = if front { n_out } else { -n_out };
                 // The shading normal, on the side of n.
-                let ns = self.shading_normal_at(hit, mapped, n_out, n);
+                let ns = self.shading_normal_at(hit, mapped, point.position, n_out, n);
                 let lobe = pbr.then(|| pbr::lobe(m, -ray.dir, ns));
                 // A lobe with a density light sampling can weigh: the Lambertian one, the
                 // lecture's specular one at smoothness 0, or glTF's but for its mirror.
@@ -700,7 +727,7 @@ impl<'a> Tracer<'a> {
                 };
                 // A direction the shading normal allows but that enters the surface ends the
                 // path.
-                if self.s.normal_maps && sc.dir.dot(n) <= 0.0 {
+                if self.s.shading_normals() && sc.dir.dot(n) <= 0.0 {
                     sc.absorbed = true;
                 }
                 if pbr {
@@ -778,7 +805,7 @@ impl Tracer<'_> {
                 };
                 tint *= m.color;
             } else {
-                let ns = self.shading_normal_at(hit, mapped, n_out, n);
+                let ns = self.shading_normal_at(hit, mapped, point.position, n_out, n);
                 if !(m.specular >= 1.0 && m.smoothness >= 1.0 && m.absorption == 0.0) || last {
                     let s = m.specular.clamp(0.0, 1.0);
                     let albedo = tint * m.color.lerp(m.specular_color, s);

@@ -332,16 +332,21 @@ fn import_mesh(
             .textured
             .as_ref()
             .and_then(|_| prim.get(&gltf::Semantic::TexCoords(0)));
-        // A normal map needs the shading frames: the file's normals and tangents, if any.
+        // A normal map needs the shading frames: the file's normals and tangents, if any;
+        // any other surface the normals alone (smooth shading), where the file has them.
         let normal_mapped = mapped
             .textured
             .as_ref()
             .is_some_and(|t| t.0.normal.is_some());
-        let frame_accessor = |s| normal_mapped.then(|| prim.get(&s)).flatten();
-        let (normal_accessor, tangent_accessor) = (
-            frame_accessor(gltf::Semantic::Normals),
-            frame_accessor(gltf::Semantic::Tangents),
-        );
+        // (Smooth shading reads float normals alone; other kinds are a normal map's error.)
+        let normal_accessor = prim.get(&gltf::Semantic::Normals).filter(|a| {
+            normal_mapped
+                || (a.dimensions() == gltf::accessor::Dimensions::Vec3
+                    && a.data_type() == gltf::accessor::DataType::F32)
+        });
+        let tangent_accessor = normal_mapped
+            .then(|| prim.get(&gltf::Semantic::Tangents))
+            .flatten();
         {
             use gltf::accessor::{DataType as T, Dimensions as D};
             let checks = std::iter::once((pos, D::Vec3, &[T::F32][..]))
@@ -462,11 +467,12 @@ fn import_mesh(
             out.skipped.push(format!("{what}: no triangle with area"));
             continue;
         }
+        // Likewise read only where checked.
+        let normals: Vec<[f32; 3]> = normal_accessor
+            .as_ref()
+            .and_then(|_| reader.read_normals())
+            .map_or_else(Vec::new, |n| n.collect());
         if normal_mapped {
-            // Likewise read only where checked.
-            let normals: Vec<[f32; 3]> = normal_accessor
-                .and_then(|_| reader.read_normals())
-                .map_or_else(Vec::new, |n| n.collect());
             let tangents: Vec<[f32; 4]> = tangent_accessor
                 .and_then(|_| reader.read_tangents())
                 .map_or_else(Vec::new, |t| t.collect());
@@ -479,6 +485,12 @@ fn import_mesh(
                 m.tangents
                     .push(if mirrored { [t[0], t[2], t[1]] } else { t });
             }
+        } else if !mapped.is_dielectric() {
+            let linear = glam::DMat3::from_mat4(world);
+            m.normals = super::gltf_frames::normals_only(&kept, &normals, linear)
+                .into_iter()
+                .map(|n| if mirrored { [n[0], n[2], n[1]] } else { n })
+                .collect();
         }
         let key = material_key(&gm);
         let mapped = mapped.clone();

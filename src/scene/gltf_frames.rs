@@ -1,7 +1,8 @@
-//! The shading frames of a normal-mapped glTF primitive: each kept triangle's corner normals
-//! (the file's `NORMAL`, or none: the tracers then use the flat normal, as glTF asks) and
-//! tangents (the file's `TANGENT`, else generated with MikkTSpace, as glTF requires, through
-//! `bevy_mikktspace`), brought from the file's coordinates into world space.
+//! The shading frames of a glTF (or OBJ) primitive: each kept triangle's corner normals (the
+//! file's `NORMAL`, or none: the tracers then use the flat normal, as glTF asks) and, for a
+//! normal-mapped one, tangents (the file's `TANGENT`, else generated with MikkTSpace, as glTF
+//! requires, through `bevy_mikktspace`), brought from the file's coordinates into world
+//! space. A primitive without a normal map takes the normals alone: smooth shading.
 
 use glam::{DMat3, DVec3};
 
@@ -77,6 +78,28 @@ pub fn frames(
                     ]
                 }),
             )
+        })
+        .collect()
+}
+
+/// The corner normals of the triangles `tris` alone (smooth shading without a normal map),
+/// in world space as [`frames`] makes them; empty where the file has no normals.
+pub fn normals_only(tris: &[[u32; 3]], normals: &[[f32; 3]], world: DMat3) -> Vec<[[f32; 3]; 3]> {
+    if normals.is_empty() {
+        return Vec::new();
+    }
+    let normal_m = world.inverse().transpose();
+    tris.iter()
+        .map(|t| {
+            t.map(|i| {
+                let n = normals.get(i as usize).copied().unwrap_or([0.0; 3]);
+                if n.iter().all(|x| x.is_finite()) {
+                    let u = (normal_m * DVec3::from(n.map(f64::from))).normalize_or_zero();
+                    [u.x as f32, u.y as f32, u.z as f32]
+                } else {
+                    [0.0; 3]
+                }
+            })
         })
         .collect()
 }

@@ -249,18 +249,18 @@ pub fn import_from(
                 .push(format!("group `{}`: no triangle with area", model.name));
             continue;
         }
+        let chunks3 = |v: &[f32]| -> Vec<[f32; 3]> {
+            v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
+        };
+        let normals = if m.normals.len() == m.positions.len() {
+            chunks3(&m.normals)
+        } else {
+            Vec::new()
+        };
         if normal_mapped {
             // The shading frames, as glTF's: the file's normals (`vn`), MikkTSpace tangents
             // on the flipped coordinates (the tracers' v, glTF's).
-            let chunks3 = |v: &[f32]| -> Vec<[f32; 3]> {
-                v.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
-            };
             let positions = chunks3(&m.positions);
-            let normals = if m.normals.len() == m.positions.len() {
-                chunks3(&m.normals)
-            } else {
-                Vec::new()
-            };
             let uvs: Vec<[f32; 2]> = (0..positions.len() as u32).map(uv).collect();
             let linear = glam::DMat3::from_mat4(place);
             for (n, t) in super::gltf_frames::frames(&kept, &positions, &normals, &[], &uvs, linear)
@@ -270,6 +270,13 @@ pub fn import_from(
                 mesh.tangents
                     .push(if mirrored { [t[0], t[2], t[1]] } else { t });
             }
+        } else if !material.is_dielectric() {
+            // Smooth shading from the file's normals alone.
+            let linear = glam::DMat3::from_mat4(place);
+            mesh.normals = super::gltf_frames::normals_only(&kept, &normals, linear)
+                .into_iter()
+                .map(|n| if mirrored { [n[0], n[2], n[1]] } else { n })
+                .collect();
         }
         if !out.materials.iter().any(|(k, _)| *k == key) {
             out.materials.push((key.clone(), material.clone()));
