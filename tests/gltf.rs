@@ -558,6 +558,31 @@ fn missing_files_and_required_extensions_are_named() {
         "{:?}",
         imp.skipped
     );
+    // … named once by the scene (for `check`) whether opened alone or placed by a TOML scene,
+    // and `check` lists it.
+    let path = dir.path().join("optional.gltf");
+    std::fs::write(&path, &optional).unwrap();
+    let toml = dir.path().join("placed.toml");
+    std::fs::write(&toml, "[[gltf]]\nfile = \"optional.gltf\"\n").unwrap();
+    for opened in [&path, &toml] {
+        let s = Scene::load(opened.to_str().unwrap()).unwrap();
+        let named: Vec<_> = s.gltf[0]
+            .left_out
+            .iter()
+            .filter(|l| l.contains("EXT_example"))
+            .collect();
+        assert_eq!(named.len(), 1, "{:?}", s.gltf[0].left_out);
+    }
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_termtrace"))
+        .args(["check", path.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let shown = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{shown}");
+    assert!(
+        shown.contains("left out   optional.gltf: the extension EXT_example"),
+        "{shown}"
+    );
     // The element of a broken accessor is named by its JSON path.
     let nodes = r#"[{"mesh":0}]"#;
     let e = import(&gltf(&TRIANGLE, Some(&[0, 1, 9]), 4, nodes, PLAIN, "")).unwrap_err();

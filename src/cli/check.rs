@@ -108,8 +108,13 @@ pub fn summary(s: &Scene) -> String {
         .enumerate()
         .map(|(i, g)| {
             let objects = s.objects.iter().filter(|o| o.gltf == Some(i)).count();
+            let left_out: String = g
+                .left_out
+                .iter()
+                .map(|l| format!("\n  left out   {}: {l}", g.file))
+                .collect();
             format!(
-                "\n  model      {}: {objects} objects, {} materials",
+                "\n  model      {}: {objects} objects, {} materials{left_out}",
                 g.file,
                 g.materials.len()
             )

@@ -62,6 +62,13 @@ pub struct Imported {
 
 impl Imported {
     /// Nothing imported yet, with what was already left out; empty bounds.
+    /// Logs each thing left out of `file`, once.
+    pub fn log_left_out(&self, file: &str) {
+        for s in &self.skipped {
+            tracing::warn!("{file}: left out: {s}");
+        }
+    }
+
     pub fn new(skipped: Vec<String>) -> Imported {
         Imported {
             objects: Vec::new(),

@@ -92,9 +92,7 @@ impl Scene {
     /// render settings.
     pub fn from_model(path: &Path, camera: Option<&str>) -> Result<Scene, SceneError> {
         let imported = import_model(path, glam::DMat4::IDENTITY, camera)?;
-        for s in &imported.skipped {
-            tracing::warn!("{}: left out: {s}", path.display());
-        }
+        imported.log_left_out(&path.display().to_string());
         let file = path.file_name().map_or_else(
             || path.display().to_string(),
             |f| f.to_string_lossy().into_owned(),
@@ -123,6 +121,7 @@ impl Scene {
                 rotation: glam::DVec3::ZERO,
                 scale: glam::DVec3::ONE,
                 materials: imported.materials,
+                left_out: imported.skipped,
             }],
         })
     }

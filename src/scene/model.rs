@@ -340,6 +340,10 @@ pub struct GltfPlacement {
     /// as the file gives it, before the scene's overrides: writing back writes each material
     /// whose objects differ from this as an override.
     pub materials: Vec<(String, Material)>,
+    /// What of the file is not rendered, each once ("the extension KHR_materials_clearcoat
+    /// (optional; not read)", a primitive without triangles): logged when it is read, and
+    /// listed by `check`.
+    pub left_out: Vec<String>,
 }
 
 impl Object {

@@ -573,6 +573,7 @@ fn read_gltf(
             return None;
         }
     };
+    imported.log_left_out(&path.display().to_string());
     let overrides = t.named_tables("materials", &material_keys());
     let keys: Vec<&str> = imported.materials.iter().map(|(k, _)| k.as_str()).collect();
     // Each override read once, so that a bad value is reported once (not once per object).
@@ -625,6 +626,7 @@ fn read_gltf(
             rotation,
             scale,
             materials: imported.materials,
+            left_out: imported.skipped,
         },
         objects,
         camera,
