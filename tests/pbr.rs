@@ -179,3 +179,58 @@ fn gltf_files_open_as_pbr_materials() {
     let weekend = termtrace::common::Features::of(&Scene::load("weekend").unwrap());
     assert!(weekend.lecture && !weekend.pbr);
 }
+
+#[test]
+fn the_wgsl_sampler_draws_from_the_density_it_reports() {
+    // The chi-square test of the CPU sampler (src/cpu/pbr.rs) on the WGSL one: the same six
+    // lobes, 400 000 draws each from pbr_probe.wgsl (common/pbr.wgsl's pbr_lobe and
+    // pbr_sample, the tracer's random streams), binned against the density the CPU twin
+    // evaluates from the same formulas; each case must pass at 1e-3 / cases. And each draw's
+    // reported density is that density at its direction (relative 1e-3: two compilers' f32).
+    use termtrace::common::layout::{GpuMaterial, MODEL_PBR};
+    use termtrace::cpu::scene::Material;
+    use termtrace::stability::chi2::{self, PBR_CASES, PBR_DRAWS};
+    use termtrace::stability::probe::{GpuPbrProbeInput, PbrProbePass};
+    let ctx = ctx();
+    let pass = PbrProbePass::new(&ctx.device);
+    for (metallic, roughness, cos_theta) in PBR_CASES {
+        let m = GpuMaterial {
+            color: [0.8, 0.4, 0.2],
+            specular_color: [1.0; 3],
+            specular: 1.0,
+            ior: 1.5,
+            metallic,
+            roughness,
+            model: MODEL_PBR,
+            ..Default::default()
+        };
+        let s = (1.0 - cos_theta * cos_theta).sqrt();
+        let wo = glam::Vec3A::new(s, 0.0, cos_theta);
+        let input = GpuPbrProbeInput {
+            material: m,
+            wo: wo.to_array(),
+            seed: 3,
+            n: [0.0, 0.0, 1.0],
+            _pad0: 0,
+        };
+        let drawn = pass.run(&ctx, input, PBR_DRAWS as usize);
+        let lobe = termtrace::cpu::pbr::lobe(&Material::of(&m), wo, glam::Vec3A::Z);
+        let pdf = |d: [f32; 3]| termtrace::cpu::pbr::eval(&lobe, glam::Vec3A::from(d)).1;
+        for o in drawn.iter().filter(|o| o.ok != 0) {
+            let want = pdf(o.dir);
+            assert!(
+                (o.pdf - want).abs() <= 1e-3 * want.max(1e-3),
+                "metallic {metallic} roughness {roughness}: pdf {} at {:?}, the CPU's {want}",
+                o.pdf,
+                o.dir
+            );
+        }
+        let r = chi2::test(drawn.iter().map(|o| (o.ok != 0).then_some(o.dir)), |d| {
+            pdf(d) as f64
+        });
+        assert!(
+            r.p > 1e-3 / PBR_CASES.len() as f64,
+            "metallic {metallic} roughness {roughness} cos {cos_theta}: {r:?}"
+        );
+    }
+}

@@ -5,6 +5,10 @@
 pub const SOURCES: &[(&str, &str)] = &[
     ("trace.wgsl", include_str!("../../shaders/trace.wgsl")),
     ("probe.wgsl", include_str!("../../shaders/probe.wgsl")),
+    (
+        "pbr_probe.wgsl",
+        include_str!("../../shaders/pbr_probe.wgsl"),
+    ),
     ("reduce.wgsl", include_str!("../../shaders/reduce.wgsl")),
     ("resolve.wgsl", include_str!("../../shaders/resolve.wgsl")),
     ("denoise.wgsl", include_str!("../../shaders/denoise.wgsl")),

@@ -187,7 +187,6 @@ fn reflect(d: Vec3A, n: Vec3A) -> Vec3A {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use statrs::distribution::{ChiSquared, ContinuousCDF};
 
     fn material(base: f32, metallic: f32, roughness: f32) -> Material {
         Material {
@@ -280,71 +279,20 @@ mod tests {
 
     #[test]
     fn the_sampler_draws_from_the_density_it_reports() {
-        // Pearson's chi-square (Mitsuba 3's chi2 tests are the model): the directions drawn,
-        // binned in (μ, φ), against the counts the reported density integrates to per bin;
-        // bins expecting fewer than 5 pooled. Each case must pass at 1e-3 / cases.
-        let cases = [
-            (0.0, 0.3, 0.5),
-            (0.0, 0.8, 0.9),
-            (0.5, 0.5, 0.3),
-            (1.0, 0.3, 0.7),
-            (1.0, 0.6, 0.15),
-            (1.0, 1.0, 0.5),
-        ];
-        let (nm, np, sub) = (16usize, 32usize, 12usize);
-        let draws = 400_000u32;
-        for (metallic, roughness, cos_theta) in cases {
+        use crate::stability::chi2::{PBR_CASES, PBR_DRAWS};
+        // Pearson's chi-square (`stability::chi2`): the directions drawn against the density
+        // the sampler reports. Each case must pass at 1e-3 / cases. tests/pbr.rs runs the
+        // same cases on the WGSL sampler.
+        for (metallic, roughness, cos_theta) in PBR_CASES {
             let l = lobe_at(&material(0.8, metallic, roughness), cos_theta);
-            let mut observed = vec![0f64; nm * np];
-            for i in 0..draws {
-                let mut rng = Rng::new(5, i, 3);
-                let s = sample(&l, &mut rng);
-                if !s.ok {
-                    continue;
-                }
-                let mu = s.dir.z.clamp(0.0, 0.999_999);
-                let phi = s.dir.y.atan2(s.dir.x).rem_euclid(2.0 * PI);
-                let (bi, bj) = (
-                    (mu * nm as f32) as usize,
-                    (phi / (2.0 * PI) * np as f32) as usize,
-                );
-                observed[bi.min(nm - 1) * np + bj.min(np - 1)] += 1.0;
-            }
-            let mut expected = vec![0f64; nm * np];
-            for (b, e) in expected.iter_mut().enumerate() {
-                let (bi, bj) = (b / np, b % np);
-                let mut sum = 0.0;
-                for si in 0..sub {
-                    for sj in 0..sub {
-                        let mu = (bi as f32 + (si as f32 + 0.5) / sub as f32) / nm as f32;
-                        let phi =
-                            2.0 * PI * (bj as f32 + (sj as f32 + 0.5) / sub as f32) / np as f32;
-                        sum += eval(&l, dir(mu, phi)).1 as f64;
-                    }
-                }
-                let dw =
-                    (1.0 / (nm * sub) as f64) * (2.0 * std::f64::consts::PI / (np * sub) as f64);
-                *e = sum * dw * draws as f64;
-            }
-            let (mut chi2, mut dof, mut pool_o, mut pool_e) = (0.0, 0usize, 0.0, 0.0);
-            for (o, e) in observed.iter().zip(&expected) {
-                if *e < 5.0 {
-                    pool_o += o;
-                    pool_e += e;
-                } else {
-                    chi2 += (o - e).powi(2) / e;
-                    dof += 1;
-                }
-            }
-            if pool_e >= 5.0 {
-                chi2 += (pool_o - pool_e).powi(2) / pool_e;
-                dof += 1;
-            }
-            let p = 1.0 - ChiSquared::new((dof - 1) as f64).unwrap().cdf(chi2);
+            let draws = (0..PBR_DRAWS).map(|i| {
+                let s = sample(&l, &mut Rng::new(5, i, 3));
+                s.ok.then(|| s.dir.to_array())
+            });
+            let r = crate::stability::chi2::test(draws, |d| eval(&l, Vec3A::from(d)).1 as f64);
             assert!(
-                p > 1e-3 / cases.len() as f64,
-                "metallic {metallic} roughness {roughness} cos {cos_theta}: chi² {chi2:.1} \
-                 over {dof} bins, p = {p:.2e}"
+                r.p > 1e-3 / PBR_CASES.len() as f64,
+                "metallic {metallic} roughness {roughness} cos {cos_theta}: {r:?}"
             );
         }
     }

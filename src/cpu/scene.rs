@@ -94,19 +94,22 @@ impl Uniforms {
     }
 }
 
-fn material(m: &GpuMaterial) -> Material {
-    Material {
-        color: v(m.color),
-        specular_color: v(m.specular_color),
-        smoothness: m.smoothness,
-        absorption: m.absorption,
-        specular: m.specular,
-        light: m.light,
-        ior: m.ior,
-        light_slot: m.light_slot,
-        metallic: m.metallic,
-        roughness: m.roughness,
-        pbr: m.model == MODEL_PBR,
+impl Material {
+    /// The material as the CPU tracer reads it, from the GPU's mirror.
+    pub fn of(m: &GpuMaterial) -> Material {
+        Material {
+            color: v(m.color),
+            specular_color: v(m.specular_color),
+            smoothness: m.smoothness,
+            absorption: m.absorption,
+            specular: m.specular,
+            light: m.light,
+            ior: m.ior,
+            light_slot: m.light_slot,
+            metallic: m.metallic,
+            roughness: m.roughness,
+            pbr: m.model == MODEL_PBR,
+        }
     }
 }
 
@@ -223,7 +226,7 @@ impl CpuScene {
     }
 
     fn take(&mut self, p: &Primitives) {
-        self.materials = p.materials.iter().map(material).collect();
+        self.materials = p.materials.iter().map(Material::of).collect();
         self.spheres = p
             .spheres
             .iter()

@@ -1,6 +1,7 @@
 //! Numerical stability: the tracer's single-ray operations against a double-precision
 //! reference, the white furnace on the extreme scenes, and `check --stress`.
 
+pub mod chi2;
 pub mod meshes;
 pub mod probe;
 pub mod reference;
