@@ -446,11 +446,19 @@ fn overrides_and_edits_are_written_back_and_read_again() {
     let mut s = Scene::from_toml(&toml, "test").unwrap();
     assert_eq!(s.objects[0].material.roughness, 0.25);
     // An override speaks the glTF material's model: the lecture's keys are refused by name.
-    let lecture = placed_box("[gltf.materials.\"#0\"]\nspecular = 0.25\n");
+    let lecture = placed_box("[gltf.materials.\"#0\"]\nabsorption = 0.25\n");
     let e = Scene::from_toml(&lecture, "test").unwrap_err().to_string();
     assert!(
-        e.contains("`specular` belongs to another material model than `pbr`"),
+        e.contains("`absorption` belongs to another material model than `pbr`"),
         "{e}"
+    );
+    // `specular` is both models' (the pbr model's KHR_materials_specular factor).
+    let both = placed_box("[gltf.materials.\"#0\"]\nspecular = 0.25\n");
+    assert_eq!(
+        Scene::from_toml(&both, "test").unwrap().objects[0]
+            .material
+            .specular,
+        0.25
     );
     // A bad value in an override is reported once.
     let bad = placed_box("[gltf.materials.\"#0\"]\nroughness = 5\n");

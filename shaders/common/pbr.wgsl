@@ -23,8 +23,11 @@ struct PbrLobe {
     n: vec3f,
     alpha: f32,
     wo: vec3f,
-    // The dielectric's reflectance at normal incidence, ((ior − 1)/(ior + 1))².
-    f0: f32,
+    // KHR_materials_specular's specularFactor: the dielectric layer's strength (1 without it).
+    weight: f32,
+    // The dielectric's reflectance at normal incidence, ((ior − 1)/(ior + 1))² times the
+    // extension's specularColorFactor (white without it), at most 1.
+    f0: vec3f,
     // The probability of sampling the specular lobe (else the cosine lobe).
     p_spec: f32,
 }
@@ -43,24 +46,31 @@ fn pbr_pow5(x: f32) -> f32 {
     return x2 * x2 * x;
 }
 
-// Schlick's Fresnel at `cos` (of V·H, or of n·v for the mirror): the metal's, of f0 `base`,
-// in xyz, and the dielectric's, of f0 `f0`, in w.
-fn pbr_fresnel(f0: f32, base: vec3f, cos: f32) -> vec4f {
+// Schlick's Fresnel of reflectance `f0` at `cos` (of V·H, or of n·v for the mirror): the
+// metal's (f0 its base colour) and the dielectric's.
+fn pbr_fresnel(f0: vec3f, cos: f32) -> vec3f {
     let x5 = pbr_pow5(1.0 - clamp(cos, 0.0, 1.0));
-    return vec4f(base + (1.0 - base) * x5, f0 + (1.0 - f0) * x5);
+    return f0 + (1.0 - f0) * x5;
 }
 
+fn pbr_max3(v: vec3f) -> f32 {
+    return max(v.x, max(v.y, v.z));
+}
+
+// The material at a hit as a lobe. KHR_materials_specular's fresnel_mix weighs the base by
+// 1 − specular·max(F) and the specular layer by specular·F (F of the coloured f0); without
+// the extension (specular 1, white) that is Appendix B's mix by F.
 fn pbr_lobe(m: Material, wo: vec3f, n: vec3f) -> PbrLobe {
     let r = (m.ior - 1.0) / (m.ior + 1.0);
-    let f0 = r * r;
-    let fd = pbr_fresnel(f0, m.color, dot(n, wo)).w;
+    let f0 = min(vec3f(r * r) * m.specular_color, vec3f(1.0));
+    let fd = m.specular * pbr_max3(pbr_fresnel(f0, dot(n, wo)));
     // Each lobe in proportion to what it reflects towards wo, roughly.
     let spec_w = m.metallic + (1.0 - m.metallic) * fd;
     let diff_w = (1.0 - m.metallic) * (1.0 - fd) * dot(m.color, PBR_LUMINANCE);
     let total = spec_w + diff_w;
     let p_spec = select(1.0, spec_w / total, total > 0.0);
     let alpha = m.roughness * m.roughness;
-    return PbrLobe(m.color, m.metallic, n, alpha, wo, f0, p_spec);
+    return PbrLobe(m.color, m.metallic, n, alpha, wo, m.specular, f0, p_spec);
 }
 
 // Trowbridge-Reitz (GGX) normal distribution, from cos and sin² of the half vector's angle:
@@ -95,16 +105,16 @@ fn pbr_eval(l: PbrLobe, wi: vec3f) -> vec4f {
         return vec4f(0.0);
     }
     let h = normalize(l.wo + wi);
-    let fr = pbr_fresnel(l.f0, l.base, dot(l.wo, h));
-    let fd = fr.w;
-    let fm = fr.xyz;
-    var f = (1.0 - l.metallic) * (1.0 - fd) * l.base / PI;
+    let vh = dot(l.wo, h);
+    let fd = pbr_fresnel(l.f0, vh);
+    let fm = pbr_fresnel(l.base, vh);
+    var f = (1.0 - l.metallic) * (1.0 - l.weight * pbr_max3(fd)) * l.base / PI;
     var pdf = (1.0 - l.p_spec) * nl / PI;
     if l.alpha >= PBR_ALPHA_MIN {
         let nh = clamp(dot(l.n, h), 0.0, 1.0);
         let nxh = cross(l.n, h);
         let d = pbr_d(nh, dot(nxh, nxh), l.alpha);
-        f += ((1.0 - l.metallic) * fd + l.metallic * fm) * (d * pbr_v(nl, nv, l.alpha));
+        f += ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) * (d * pbr_v(nl, nv, l.alpha));
         pdf += l.p_spec * d * pbr_g1(nv, l.alpha) / (4.0 * nv);
     }
     return vec4f(f * nl, pdf);
@@ -142,8 +152,9 @@ fn pbr_sample(l: PbrLobe, state: ptr<function, Rng>) -> PbrSample {
     if pick < l.p_spec {
         if l.alpha < PBR_ALPHA_MIN {
             // The mirror: its Fresnel weight over the choice's probability.
-            let fr = pbr_fresnel(l.f0, l.base, nv);
-            let w = ((1.0 - l.metallic) * fr.w + l.metallic * fr.xyz) / l.p_spec;
+            let fd = pbr_fresnel(l.f0, nv);
+            let fm = pbr_fresnel(l.base, nv);
+            let w = ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) / l.p_spec;
             return PbrSample(reflect(-l.wo, l.n), w, 0.0, true);
         }
         let b = basis(l.n);

@@ -393,7 +393,12 @@ fn material(o: &Object) -> GpuMaterial {
     GpuMaterial {
         color: m.color.to_array(),
         smoothness: m.smoothness,
-        specular_color: m.specular_tint().to_array(),
+        // The pbr model's is KHR_materials_specular's colour (white unless given); the
+        // lecture's its specular tint (the colour unless given).
+        specular_color: match m.model {
+            MaterialModel::Pbr => m.specular_color.unwrap_or(glam::Vec3::ONE).to_array(),
+            MaterialModel::Lecture => m.specular_tint().to_array(),
+        },
         absorption: m.absorption,
         specular: m.specular,
         light: m.light,

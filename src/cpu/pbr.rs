@@ -20,7 +20,10 @@ pub struct Lobe {
     pub n: Vec3A,
     pub alpha: f32,
     pub wo: Vec3A,
-    pub f0: f32,
+    /// KHR_materials_specular's specularFactor (1 without it).
+    pub weight: f32,
+    /// The dielectric's f0, times the extension's colour, at most 1.
+    pub f0: Vec3A,
     pub p_spec: f32,
 }
 
@@ -39,19 +42,25 @@ fn pow5(x: f32) -> f32 {
     x2 * x2 * x
 }
 
-/// Schlick's Fresnel at `cos` (of V·H, or of n·v for the mirror): the metal's, of f0 `base`,
-/// and the dielectric's, of f0 `f0` (pbr.wgsl: pbr_fresnel).
+/// Schlick's Fresnel of reflectance `f0` at `cos` (of V·H, or of n·v for the mirror): the
+/// metal's and the dielectric's (pbr.wgsl: pbr_fresnel).
 #[inline(always)]
-fn fresnel(f0: f32, base: Vec3A, cos: f32) -> (Vec3A, f32) {
+fn fresnel(f0: Vec3A, cos: f32) -> Vec3A {
     let x5 = pow5(1.0 - cos.clamp(0.0, 1.0));
-    (base + (Vec3A::ONE - base) * x5, f0 + (1.0 - f0) * x5)
+    f0 + (Vec3A::ONE - f0) * x5
 }
 
-/// The lobe of material `m` towards `wo` over `n` (pbr.wgsl: pbr_lobe).
+#[inline(always)]
+fn max3(v: Vec3A) -> f32 {
+    v.x.max(v.y.max(v.z))
+}
+
+/// The lobe of material `m` towards `wo` over `n` (pbr.wgsl: pbr_lobe, with
+/// KHR_materials_specular's fresnel_mix).
 pub fn lobe(m: &Material, wo: Vec3A, n: Vec3A) -> Lobe {
     let r = (m.ior - 1.0) / (m.ior + 1.0);
-    let f0 = r * r;
-    let (_, fd) = fresnel(f0, m.color, n.dot(wo));
+    let f0 = (Vec3A::splat(r * r) * m.specular_color).min(Vec3A::ONE);
+    let fd = m.specular * max3(fresnel(f0, n.dot(wo)));
     let spec_w = m.metallic + (1.0 - m.metallic) * fd;
     let diff_w = (1.0 - m.metallic) * (1.0 - fd) * m.color.dot(LUMINANCE);
     let total = spec_w + diff_w;
@@ -62,6 +71,7 @@ pub fn lobe(m: &Material, wo: Vec3A, n: Vec3A) -> Lobe {
         n,
         alpha: m.roughness * m.roughness,
         wo,
+        weight: m.specular,
         f0,
         p_spec,
     }
@@ -101,13 +111,14 @@ pub fn eval(l: &Lobe, wi: Vec3A) -> (Vec3A, f32) {
         return (Vec3A::ZERO, 0.0);
     }
     let h = (l.wo + wi).normalize();
-    let (fm, fd) = fresnel(l.f0, l.base, l.wo.dot(h));
-    let mut f = (1.0 - l.metallic) * (1.0 - fd) * l.base / PI;
+    let vh = l.wo.dot(h);
+    let (fd, fm) = (fresnel(l.f0, vh), fresnel(l.base, vh));
+    let mut f = (1.0 - l.metallic) * (1.0 - l.weight * max3(fd)) * l.base / PI;
     let mut pdf = (1.0 - l.p_spec) * nl / PI;
     if l.alpha >= ALPHA_MIN {
         let nh = l.n.dot(h).clamp(0.0, 1.0);
         let dh = d(nh, l.n.cross(h).length_squared(), l.alpha);
-        f += ((1.0 - l.metallic) * fd + l.metallic * fm) * (dh * v(nl, nv, l.alpha));
+        f += ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) * (dh * v(nl, nv, l.alpha));
         pdf += l.p_spec * dh * g1(nv, l.alpha) / (4.0 * nv);
     }
     (f * nl, pdf)
@@ -148,10 +159,10 @@ pub fn sample(l: &Lobe, rng: &mut Rng) -> Sample {
     }
     let wi = if pick < l.p_spec {
         if l.alpha < ALPHA_MIN {
-            let (fm, fd) = fresnel(l.f0, l.base, nv);
+            let (fd, fm) = (fresnel(l.f0, nv), fresnel(l.base, nv));
             return Sample {
                 dir: reflect(-l.wo, l.n),
-                weight: ((1.0 - l.metallic) * fd + l.metallic * fm) / l.p_spec,
+                weight: ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) / l.p_spec,
                 pdf: 0.0,
                 ok: true,
             };

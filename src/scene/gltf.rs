@@ -41,6 +41,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_emissive_strength",
     "KHR_materials_transmission",
     "KHR_materials_ior",
+    "KHR_materials_specular",
     "KHR_lights_punctual",
 ];
 
@@ -582,6 +583,8 @@ pub fn material(m: &gltf::Material) -> Material {
         emissive: Vec3::from(m.emissive_factor()) * m.emissive_strength().unwrap_or(1.0).max(0.0),
         transmission: m.transmission().map_or(0.0, |t| t.transmission_factor()),
         ior: m.ior().unwrap_or(1.5),
+        specular: m.specular().map_or(1.0, |s| s.specular_factor()),
+        specular_color: Vec3::from(m.specular().map_or([1.0; 3], |s| s.specular_color_factor())),
     })
 }
 
@@ -597,6 +600,10 @@ pub struct Pbr {
     pub emissive: Vec3,
     pub transmission: f32,
     pub ior: f32,
+    /// `KHR_materials_specular`: the dielectric layer's strength and its f0's colour (1 and
+    /// white without the extension).
+    pub specular: f32,
+    pub specular_color: Vec3,
 }
 
 /// [`Pbr`] factors as a material, by the rules of [`material`].
@@ -610,6 +617,10 @@ pub fn pbr_material(p: &Pbr) -> Material {
     } else {
         DEFAULT_IOR
     };
+    let finite = |v: f32, or: f32| if v.is_finite() { v.max(0.0) } else { or };
+    let specular = finite(p.specular, 1.0).min(1.0);
+    let specular_color =
+        (p.specular_color != Vec3::ONE).then(|| p.specular_color.map(|c| finite(c, 1.0)));
     if emissive.max_element() > 0.0 {
         let light = emissive.max_element();
         // Still a pbr material: where its emissive map is dark, a texel is glTF's BRDF.
@@ -620,6 +631,8 @@ pub fn pbr_material(p: &Pbr) -> Material {
             metallic,
             roughness,
             ior,
+            specular,
+            specular_color,
             ..Material::default()
         };
     }
@@ -641,6 +654,8 @@ pub fn pbr_material(p: &Pbr) -> Material {
         metallic,
         roughness,
         ior,
+        specular,
+        specular_color,
         ..Material::default()
     }
 }

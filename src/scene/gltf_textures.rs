@@ -201,6 +201,21 @@ pub fn textured(
         let matrix = texture_transform(xf.offset, xf.rotation, xf.scale);
         pick((n.texture().index(), set, matrix), "normal")
     });
+    // KHR_materials_specular's maps are not read (its factors are): named, once each.
+    if let Some(s) = m.specular() {
+        let which = m.index().map_or("default".into(), |i| i.to_string());
+        for (map, what) in [
+            (s.specular_texture().is_some(), "specularTexture"),
+            (s.specular_color_texture().is_some(), "specularColorTexture"),
+        ] {
+            if map {
+                skipped.push(format!(
+                    "the {what} of materials[{which}] (KHR_materials_specular's factors are \
+                     read, its maps are not)"
+                ));
+            }
+        }
+    }
     let transforms = [&base_color, &metallic_roughness, &emissive, &normal]
         .map(|x| x.as_ref().map_or(IDENTITY_TRANSFORM, |(_, t)| *t));
     let (base_color, metallic_roughness, emissive, normal) = (

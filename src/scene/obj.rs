@@ -176,6 +176,8 @@ pub fn import_from(
             emissive: Vec3::ZERO,
             transmission: 0.0,
             ior: 1.5,
+            specular: 1.0,
+            specular_color: Vec3::ONE,
         })
     };
     let mirrored = place.determinant() < 0.0;
@@ -646,6 +648,8 @@ pub fn mtl_pbr(m: &tobj::Material) -> Pbr {
         emissive: m.emissive.map_or(Vec3::ZERO, Vec3::from),
         transmission: if glass { 1.0 } else { 0.0 },
         ior: m.optical_density.unwrap_or(1.5),
+        specular: 1.0,
+        specular_color: Vec3::ONE,
     }
 }
 

@@ -243,9 +243,11 @@ pub static PARAMS: [ParamSpec; 14] = [
         default: Some(1.0),
         unit: "",
         key: '3',
-        model: Some(MaterialModel::Lecture),
+        model: None,
         group: Group::Material,
-        doc: "probability that a bounce takes the specular lobe",
+        doc: "the lecture's probability that a bounce takes the specular lobe; in the pbr \
+              model KHR_materials_specular's specularFactor, the strength of the dielectric's \
+              specular layer (its f0 colour: `specular_color`)",
         access: Access::Material {
             get: |m| m.specular,
             set: |m, v| m.specular = v,
