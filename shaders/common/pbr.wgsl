@@ -46,11 +46,15 @@ fn pbr_pow5(x: f32) -> f32 {
     return x2 * x2 * x;
 }
 
-// Schlick's Fresnel of reflectance `f0` at `cos` (of V·H, or of n·v for the mirror): the
-// metal's (f0 its base colour) and the dielectric's.
-fn pbr_fresnel(f0: vec3f, cos: f32) -> vec3f {
-    let x5 = pbr_pow5(1.0 - clamp(cos, 0.0, 1.0));
+// Schlick's Fresnel of reflectance `f0` at the angle whose (1 − cos)⁵ is `x5` (cos of V·H,
+// or of n·v for the mirror): the metal's (f0 its base colour) and the dielectric's, one x5 for
+// both.
+fn pbr_fresnel(f0: vec3f, x5: f32) -> vec3f {
     return f0 + (1.0 - f0) * x5;
+}
+
+fn pbr_schlick_x5(cos: f32) -> f32 {
+    return pbr_pow5(1.0 - clamp(cos, 0.0, 1.0));
 }
 
 fn pbr_max3(v: vec3f) -> f32 {
@@ -63,7 +67,7 @@ fn pbr_max3(v: vec3f) -> f32 {
 fn pbr_lobe(m: Material, wo: vec3f, n: vec3f) -> PbrLobe {
     let r = (m.ior - 1.0) / (m.ior + 1.0);
     let f0 = min(vec3f(r * r) * m.specular_color, vec3f(1.0));
-    let fd = m.specular * pbr_max3(pbr_fresnel(f0, dot(n, wo)));
+    let fd = m.specular * pbr_max3(pbr_fresnel(f0, pbr_schlick_x5(dot(n, wo))));
     // Each lobe in proportion to what it reflects towards wo, roughly.
     let spec_w = m.metallic + (1.0 - m.metallic) * fd;
     let diff_w = (1.0 - m.metallic) * (1.0 - fd) * dot(m.color, PBR_LUMINANCE);
@@ -105,9 +109,9 @@ fn pbr_eval(l: PbrLobe, wi: vec3f) -> vec4f {
         return vec4f(0.0);
     }
     let h = normalize(l.wo + wi);
-    let vh = dot(l.wo, h);
-    let fd = pbr_fresnel(l.f0, vh);
-    let fm = pbr_fresnel(l.base, vh);
+    let x5 = pbr_schlick_x5(dot(l.wo, h));
+    let fd = pbr_fresnel(l.f0, x5);
+    let fm = pbr_fresnel(l.base, x5);
     var f = (1.0 - l.metallic) * (1.0 - l.weight * pbr_max3(fd)) * l.base / PI;
     var pdf = (1.0 - l.p_spec) * nl / PI;
     if l.alpha >= PBR_ALPHA_MIN {
@@ -152,8 +156,9 @@ fn pbr_sample(l: PbrLobe, state: ptr<function, Rng>) -> PbrSample {
     if pick < l.p_spec {
         if l.alpha < PBR_ALPHA_MIN {
             // The mirror: its Fresnel weight over the choice's probability.
-            let fd = pbr_fresnel(l.f0, nv);
-            let fm = pbr_fresnel(l.base, nv);
+            let x5 = pbr_schlick_x5(nv);
+            let fd = pbr_fresnel(l.f0, x5);
+            let fm = pbr_fresnel(l.base, x5);
             let w = ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) / l.p_spec;
             return PbrSample(reflect(-l.wo, l.n), w, 0.0, true);
         }

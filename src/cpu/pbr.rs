@@ -42,12 +42,17 @@ fn pow5(x: f32) -> f32 {
     x2 * x2 * x
 }
 
-/// Schlick's Fresnel of reflectance `f0` at `cos` (of V·H, or of n·v for the mirror): the
-/// metal's and the dielectric's (pbr.wgsl: pbr_fresnel).
+/// Schlick's Fresnel of reflectance `f0` at the angle whose (1 − cos)⁵ is `x5`: the metal's
+/// and the dielectric's, one x5 for both (pbr.wgsl: pbr_fresnel).
 #[inline(always)]
-fn fresnel(f0: Vec3A, cos: f32) -> Vec3A {
-    let x5 = pow5(1.0 - cos.clamp(0.0, 1.0));
+fn fresnel(f0: Vec3A, x5: f32) -> Vec3A {
     f0 + (Vec3A::ONE - f0) * x5
+}
+
+/// (1 − cos)⁵ of Schlick's approximation (pbr.wgsl: pbr_schlick_x5).
+#[inline(always)]
+fn schlick_x5(cos: f32) -> f32 {
+    pow5(1.0 - cos.clamp(0.0, 1.0))
 }
 
 #[inline(always)]
@@ -60,7 +65,7 @@ fn max3(v: Vec3A) -> f32 {
 pub fn lobe(m: &Material, wo: Vec3A, n: Vec3A) -> Lobe {
     let r = (m.ior - 1.0) / (m.ior + 1.0);
     let f0 = (Vec3A::splat(r * r) * m.specular_color).min(Vec3A::ONE);
-    let fd = m.specular * max3(fresnel(f0, n.dot(wo)));
+    let fd = m.specular * max3(fresnel(f0, schlick_x5(n.dot(wo))));
     let spec_w = m.metallic + (1.0 - m.metallic) * fd;
     let diff_w = (1.0 - m.metallic) * (1.0 - fd) * m.color.dot(LUMINANCE);
     let total = spec_w + diff_w;
@@ -111,8 +116,8 @@ pub fn eval(l: &Lobe, wi: Vec3A) -> (Vec3A, f32) {
         return (Vec3A::ZERO, 0.0);
     }
     let h = (l.wo + wi).normalize();
-    let vh = l.wo.dot(h);
-    let (fd, fm) = (fresnel(l.f0, vh), fresnel(l.base, vh));
+    let x5 = schlick_x5(l.wo.dot(h));
+    let (fd, fm) = (fresnel(l.f0, x5), fresnel(l.base, x5));
     let mut f = (1.0 - l.metallic) * (1.0 - l.weight * max3(fd)) * l.base / PI;
     let mut pdf = (1.0 - l.p_spec) * nl / PI;
     if l.alpha >= ALPHA_MIN {
@@ -159,7 +164,8 @@ pub fn sample(l: &Lobe, rng: &mut Rng) -> Sample {
     }
     let wi = if pick < l.p_spec {
         if l.alpha < ALPHA_MIN {
-            let (fd, fm) = (fresnel(l.f0, nv), fresnel(l.base, nv));
+            let x5 = schlick_x5(nv);
+            let (fd, fm) = (fresnel(l.f0, x5), fresnel(l.base, x5));
             return Sample {
                 dir: reflect(-l.wo, l.n),
                 weight: ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) / l.p_spec,
