@@ -116,18 +116,17 @@ fn both_tracers_converge_to_one_image() {
     // The shipped pbr scene (gold and plastic from mirror to matte under the sunny map):
     // the GPU tracer against the CPU tracer, tile by tile (Welch t-tests, `converge`'s bias
     // check).
-    let scene = Scene::load("pbr").unwrap();
+    tracers_agree(&Scene::load("pbr").unwrap(), "pbr");
+}
+
+/// The GPU tracer's image of `scene` (256 spp at 48×27) against the CPU tracer's (512 spp),
+/// tile by tile: no tile differs at 1e-3 (Welch t-tests, `converge`'s bias check).
+fn tracers_agree(scene: &Scene, what: &str) {
     let s = settings(48, 27, 6);
-    let cpu = cpu_snapshot(&scene, s, 512);
-    let gpu = snapshot_on(
-        Backend::Gpu(ctx()),
-        &scene,
-        s,
-        256,
-        RenderOptions::default(),
-    );
+    let cpu = cpu_snapshot(scene, s, 512);
+    let gpu = snapshot_on(Backend::Gpu(ctx()), scene, s, 256, RenderOptions::default());
     let mut tally = BiasTally::default();
-    tally.check("pbr, GPU against CPU", &gpu, &cpu, 1e-3);
+    tally.check(&format!("{what}, GPU against CPU"), &gpu, &cpu, 1e-3);
     tally.assert_none_differ(20);
 }
 
@@ -309,18 +308,7 @@ fn both_tracers_agree_on_the_specular_extension() {
     // check), on the spheres above.
     let scene = termtrace::scene::Scene::from_toml(SPECULAR, "specular").unwrap();
     assert!(termtrace::common::Features::of(&scene).pbr);
-    let s = settings(48, 27, 6);
-    let cpu = cpu_snapshot(&scene, s, 512);
-    let gpu = snapshot_on(
-        Backend::Gpu(ctx()),
-        &scene,
-        s,
-        256,
-        RenderOptions::default(),
-    );
-    let mut tally = BiasTally::default();
-    tally.check("specular extension, GPU against CPU", &gpu, &cpu, 1e-3);
-    tally.assert_none_differ(20);
+    tracers_agree(&scene, "specular extension");
 }
 
 #[test]

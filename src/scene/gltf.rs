@@ -495,10 +495,7 @@ fn import_mesh(
             }
         } else if !mapped.is_dielectric() {
             let linear = glam::DMat3::from_mat4(world);
-            m.normals = super::gltf_frames::normals_only(&kept, &normals, linear)
-                .into_iter()
-                .map(|n| if mirrored { [n[0], n[2], n[1]] } else { n })
-                .collect();
+            m.normals = super::gltf_frames::normals_only(&kept, &normals, linear, mirrored);
         }
         let key = material_key(&gm);
         let mapped = mapped.clone();

@@ -83,14 +83,22 @@ pub fn frames(
 }
 
 /// The corner normals of the triangles `tris` alone (smooth shading without a normal map),
-/// in world space as [`frames`] makes them; empty where the file has no normals.
-pub fn normals_only(tris: &[[u32; 3]], normals: &[[f32; 3]], world: DMat3) -> Vec<[[f32; 3]; 3]> {
+/// in world space as [`frames`] makes them, the corners in the order the importer keeps
+/// (`mirrored`: a mirroring transform's, whose triangles are wound the other way); empty
+/// where the file has no normals.
+pub fn normals_only(
+    tris: &[[u32; 3]],
+    normals: &[[f32; 3]],
+    world: DMat3,
+    mirrored: bool,
+) -> Vec<[[f32; 3]; 3]> {
     if normals.is_empty() {
         return Vec::new();
     }
     let normal_m = world.inverse().transpose();
     tris.iter()
-        .map(|t| {
+        .map(|&[a, b, c]| {
+            let t = if mirrored { [a, c, b] } else { [a, b, c] };
             t.map(|i| {
                 let n = normals.get(i as usize).copied().unwrap_or([0.0; 3]);
                 if n.iter().all(|x| x.is_finite()) {

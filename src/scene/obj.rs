@@ -275,10 +275,7 @@ pub fn import_from(
         } else if !material.is_dielectric() {
             // Smooth shading from the file's normals alone.
             let linear = glam::DMat3::from_mat4(place);
-            mesh.normals = super::gltf_frames::normals_only(&kept, &normals, linear)
-                .into_iter()
-                .map(|n| if mirrored { [n[0], n[2], n[1]] } else { n })
-                .collect();
+            mesh.normals = super::gltf_frames::normals_only(&kept, &normals, linear, mirrored);
         }
         if !out.materials.iter().any(|(k, _)| *k == key) {
             out.materials.push((key.clone(), material.clone()));
