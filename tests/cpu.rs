@@ -38,6 +38,49 @@ fn every_shipped_scene_converges_to_the_gpu_image_on_the_cpu() {
     tally.assert_none_differ(12 * BUILTIN_SCENES.len());
 }
 
+#[test]
+fn every_committed_model_converges_to_the_gpu_image_on_the_cpu() {
+    // The same check on every committed glTF and OBJ asset (glTF's BRDF, textures, normal
+    // maps, smooth shading, cut-outs, MTL materials) and the README's outdoor dog under the
+    // sunny map.
+    let spp = 48;
+    let mut files = vec!["docs/outdoor-dog.toml".to_string()];
+    for dir in ["tests/gltf", "tests/assets/obj"] {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let d = e.unwrap().path();
+            if d.ends_with("fuzz") || !d.is_dir() {
+                continue;
+            }
+            for f in std::fs::read_dir(&d).unwrap() {
+                let f = f.unwrap().path();
+                if termtrace::scene::is_model(&f) {
+                    files.push(f.display().to_string());
+                }
+            }
+        }
+    }
+    files.sort();
+    assert!(files.len() >= 7, "{files:?}");
+    let mut tally = BiasTally::default();
+    for name in &files {
+        let scene = Scene::load(name).unwrap();
+        let gpu = render_on(Backend::Gpu(ctx()), &scene, 1, spp);
+        let cpu = render_on(Backend::Cpu, &scene, 2, spp);
+        assert_eq!(
+            cpu.invalid_samples(),
+            0,
+            "{name}: invalid samples on the CPU"
+        );
+        assert_eq!(
+            gpu.invalid_samples(),
+            0,
+            "{name}: invalid samples on the GPU"
+        );
+        tally.check(name, &cpu, &gpu, 0.01 / files.len() as f64);
+    }
+    tally.assert_none_differ(12 * files.len());
+}
+
 /// The share of pixels whose colours agree to a relative 10⁻³.
 fn agreeing(a: &LinearImage, b: &LinearImage) -> f64 {
     agreeing_within(a, b, 1e-3)
