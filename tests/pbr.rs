@@ -307,7 +307,10 @@ fn both_tracers_agree_on_the_specular_extension() {
     // The GPU tracer against the CPU tracer, tile by tile (Welch t-tests, `converge`'s bias
     // check), on the spheres above.
     let scene = termtrace::scene::Scene::from_toml(SPECULAR, "specular").unwrap();
-    assert!(termtrace::common::Features::of(&scene).pbr);
+    let f = termtrace::common::Features::of(&scene);
+    assert!(f.pbr && f.pbr_specular, "{}", f.summary());
+    // The shipped pbr scene does not use the extension: its lobes carry no coloured f0.
+    assert!(!termtrace::common::Features::of(&Scene::load("pbr").unwrap()).pbr_specular);
     tracers_agree(&scene, "specular extension");
 }
 

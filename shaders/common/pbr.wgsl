@@ -2,6 +2,11 @@
 // #include "common/rng.wgsl"
 // #include "common/sampling.wgsl"
 // Twin: src/cpu/pbr.rs (tests/twins.rs keeps their functions paired).
+
+// A pbr material with KHR_materials_specular in the scene: without one the lobes carry a grey
+// f0 and a layer of weight 1, which the compiler folds (the extension's colour cost 6.6 % of
+// the H200's samples/s on the shipped pbr scene, which does not use it).
+override HAS_PBR_SPECULAR: bool = true;
 // glTF 2.0's metallic-roughness BRDF as the specification's Appendix B writes it: a
 // Lambertian base under a dielectric Fresnel layer (Schlick, f0 from the ior: 0.04 at 1.5),
 // mixed by metallic with a metal whose f0 is the base colour; the specular lobe is
@@ -66,15 +71,20 @@ fn pbr_max3(v: vec3f) -> f32 {
 // the extension (specular 1, white) that is Appendix B's mix by F.
 fn pbr_lobe(m: Material, wo: vec3f, n: vec3f) -> PbrLobe {
     let r = (m.ior - 1.0) / (m.ior + 1.0);
-    let f0 = min(vec3f(r * r) * m.specular_color, vec3f(1.0));
-    let fd = m.specular * pbr_max3(pbr_fresnel(f0, pbr_schlick_x5(dot(n, wo))));
+    var f0 = vec3f(r * r);
+    var weight = 1.0;
+    if HAS_PBR_SPECULAR {
+        f0 = min(f0 * m.specular_color, vec3f(1.0));
+        weight = m.specular;
+    }
+    let fd = weight * pbr_max3(pbr_fresnel(f0, pbr_schlick_x5(dot(n, wo))));
     // Each lobe in proportion to what it reflects towards wo, roughly.
     let spec_w = m.metallic + (1.0 - m.metallic) * fd;
     let diff_w = (1.0 - m.metallic) * (1.0 - fd) * dot(m.color, PBR_LUMINANCE);
     let total = spec_w + diff_w;
     let p_spec = select(1.0, spec_w / total, total > 0.0);
     let alpha = m.roughness * m.roughness;
-    return PbrLobe(m.color, m.metallic, n, alpha, wo, m.specular, f0, p_spec);
+    return PbrLobe(m.color, m.metallic, n, alpha, wo, weight, f0, p_spec);
 }
 
 // Trowbridge-Reitz (GGX) normal distribution, from cos and sin² of the half vector's angle:

@@ -11,8 +11,8 @@ use crate::scene::{Scene, Shape, Sky};
 #[derive(Debug, thiserror::Error)]
 #[error(
     "unknown feature `{0}` (expected spheres, quads, boxes, triangles, dielectrics, emitters, \
-     nee, dof, sun, textures, cutouts, normal_maps, smooth_normals, env_map, pbr or \
-     lecture)"
+     nee, dof, sun, textures, cutouts, normal_maps, smooth_normals, env_map, pbr, \
+     pbr_specular or lecture)"
 )]
 pub struct UnknownFeature(pub String);
 
@@ -44,6 +44,9 @@ pub struct Features {
     pub env_map: bool,
     /// glTF's metallic-roughness BRDF (`model = "pbr"` materials).
     pub pbr: bool,
+    /// A pbr material with `KHR_materials_specular` (a specular other than 1 or a coloured
+    /// one): without one the lobes carry no coloured f0.
+    pub pbr_specular: bool,
     /// The lecture's surface lobes (a non-emitting, non-dielectric material of its model):
     /// a scene of glTF materials alone compiles none of them. Without `pbr` too (the
     /// benchmarks' feature lists) the lecture's lobes are what every surface runs.
@@ -73,6 +76,7 @@ impl Features {
             smooth_normals: true,
             env_map: true,
             pbr: true,
+            pbr_specular: true,
             lecture: true,
             count_segments: false,
             bvh: true,
@@ -97,6 +101,7 @@ impl Features {
             smooth_normals: false,
             env_map: false,
             pbr: false,
+            pbr_specular: false,
             lecture: false,
             count_segments: false,
             bvh: false,
@@ -124,6 +129,7 @@ impl Features {
                 "smooth_normals" => &mut f.smooth_normals,
                 "env_map" => &mut f.env_map,
                 "pbr" => &mut f.pbr,
+                "pbr_specular" => &mut f.pbr_specular,
                 "lecture" => &mut f.lecture,
                 _ => return Err(UnknownFeature(name.to_string())),
             };
@@ -156,6 +162,11 @@ impl Features {
             f.dielectrics |= o.material.is_dielectric();
             // An emissive pbr material still needs the BRDF where its emissive map is dark.
             f.pbr |= o.material.is_pbr();
+            f.pbr_specular |= o.material.is_pbr()
+                && (o.material.specular != 1.0
+                    || o.material
+                        .specular_color
+                        .is_some_and(|c| c != glam::Vec3::ONE));
             // (A textured emitter's dark texels are surfaces too.)
             f.lecture |= !o.material.is_pbr()
                 && !o.material.is_dielectric()
@@ -193,6 +204,7 @@ impl Features {
             smooth_normals: self.smooth_normals | other.smooth_normals,
             env_map: self.env_map | other.env_map,
             pbr: self.pbr | other.pbr,
+            pbr_specular: self.pbr_specular | other.pbr_specular,
             lecture: self.lecture | other.lecture,
             count_segments: self.count_segments | other.count_segments,
             bvh: self.bvh | other.bvh,
@@ -223,6 +235,7 @@ impl Features {
             ("HAS_SMOOTH_NORMALS", b(self.smooth_normals)),
             ("HAS_ENV_MAP", b(self.env_map)),
             ("HAS_PBR", b(self.pbr)),
+            ("HAS_PBR_SPECULAR", b(self.pbr_specular)),
             ("HAS_LECTURE", b(self.lecture)),
             ("COUNT_SEGMENTS", b(self.count_segments)),
             ("USE_BVH", b(self.bvh)),
@@ -247,6 +260,7 @@ impl Features {
             (self.smooth_normals, "smooth_normals"),
             (self.env_map, "env_map"),
             (self.pbr, "pbr"),
+            (self.pbr_specular, "pbr_specular"),
         ];
         let on: Vec<&str> = names.iter().filter(|(b, _)| *b).map(|(_, n)| *n).collect();
         if on.is_empty() {
