@@ -243,8 +243,7 @@ fn tex_has_normal_map(rec: u32) -> bool {
 // it is. The caller turns the result to the side it needs.
 fn tex_shading_normal(rec: u32, index: u32, b: vec2f, uv: vec2f, n_geo: vec3f) -> vec3f {
     let at = tex[TEX_FRAMES] + TEX_FRAME_WORDS * index;
-    let n0 = tex_vec3(at);
-    let n = normalize_or(n0 + b.x * (tex_vec3(at + 3u) - n0) + b.y * (tex_vec3(at + 6u) - n0), n_geo);
+    let n = tex_smooth_normal(index, b, n_geo);
     let t0 = tex_vec3(at + 9u);
     var t = t0 + b.x * (tex_vec3(at + 13u) - t0) + b.y * (tex_vec3(at + 17u) - t0);
     t -= n * dot(n, t);

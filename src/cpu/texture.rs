@@ -265,8 +265,7 @@ pub fn shading_normal(
 ) -> Vec3A {
     let at = tex[FRAMES] + FRAME_WORDS as u32 * index;
     let v3 = |k: u32| Vec3A::new(f(tex, at + k), f(tex, at + k + 1), f(tex, at + k + 2));
-    let n0 = v3(0);
-    let n = normalize_or(n0 + b1 * (v3(3) - n0) + b2 * (v3(6) - n0), n_geo);
+    let n = smooth_normal(tex, index, (b1, b2), n_geo);
     let t0 = v3(9);
     let mut t = t0 + b1 * (v3(13) - t0) + b2 * (v3(17) - t0);
     t -= n * n.dot(t);
