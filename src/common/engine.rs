@@ -20,10 +20,12 @@ pub trait Engine: Send {
     /// Zeroes the counters of invalid samples and of traversal work.
     fn reset_counters(&mut self);
 
-    /// Whether the pipeline of `features` is ready; `prepare` compiles it now if not
-    /// (`background`: starts compiling it on another thread instead). Always ready where
-    /// there are no pipelines.
-    fn ready(&mut self, features: Features, prepare: bool, background: bool) -> bool;
+    /// Whether the pipeline of `features` is compiled. Always, where there are no pipelines.
+    fn ready(&self, features: Features) -> bool;
+
+    /// Compiles the pipeline of `features` now, or (`background`) starts compiling it on
+    /// another thread; nothing where it is ready or there are no pipelines.
+    fn prepare(&mut self, features: Features, background: bool);
 
     /// Lane-pixels of scratch for parallel lanes of one pixel (0: one lane per pixel).
     fn scratch_slots(&self) -> u64;

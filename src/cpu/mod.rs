@@ -398,9 +398,11 @@ impl Engine for CpuEngine {
     }
 
     /// No pipelines: the tracer is compiled into the binary.
-    fn ready(&mut self, _: Features, _: bool, _: bool) -> bool {
+    fn ready(&self, _: Features) -> bool {
         true
     }
+
+    fn prepare(&mut self, _: Features, _: bool) {}
 
     fn scratch_slots(&self) -> u64 {
         0

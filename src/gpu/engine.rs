@@ -167,17 +167,16 @@ impl Engine for GpuEngine {
         self.accum.reset_counters(&self.ctx.queue);
     }
 
-    fn ready(&mut self, features: Features, prepare: bool, background: bool) -> bool {
-        if self.trace.ready(features) {
-            return true;
-        }
+    fn ready(&self, features: Features) -> bool {
+        self.trace.ready(features)
+    }
+
+    fn prepare(&mut self, features: Features, background: bool) {
         if background {
             self.trace.prepare_in_background(&self.ctx.device, features);
-        } else if prepare {
+        } else {
             self.trace.prepare(&self.ctx.device, features);
-            return true;
         }
-        false
     }
 
     fn scratch_slots(&self) -> u64 {

@@ -613,18 +613,18 @@ impl Renderer {
     fn pipeline_features(&mut self, want: Features) -> Features {
         let generic = self.generic_features();
         let e = self.engine.get_mut();
-        if e.ready(want, false, false) {
+        if e.ready(want) {
             return want;
         }
         if self.options.compile_in_background {
-            e.ready(want, false, true);
+            e.prepare(want, true);
             for f in [self.features, generic] {
-                if e.ready(f, false, false) {
+                if e.ready(f) {
                     return f;
                 }
             }
         }
-        e.ready(want, true, false);
+        e.prepare(want, false);
         want
     }
 
