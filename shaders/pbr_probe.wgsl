@@ -9,11 +9,11 @@
 
 struct PbrProbeInput {
     material: Material, //   0
-    wo: vec3f,          //  64  unit, the direction toward the viewer
-    seed: u32,          //  76
-    n: vec3f,           //  80  unit shading normal
-    _pad0: u32,         //  92
-}                       //  96
+    wo: vec3f,          //  80  unit, the direction toward the viewer
+    seed: u32,          //  92
+    n: vec3f,           //  96  unit shading normal
+    front: u32,         // 108  1: wo on the outer side (a volume's boundary is entered)
+}                       // 112
 
 struct PbrProbeOutput {
     dir: vec3f,         //   0
@@ -33,6 +33,6 @@ fn pbr_probe(@builtin(global_invocation_id) gid: vec3u) {
     }
     let p = inputs[0];
     var rng = rng_init(5u, i, p.seed);
-    let s = pbr_sample(pbr_lobe(p.material, p.wo, p.n), &rng);
+    let s = pbr_sample(pbr_lobe(p.material, p.wo, p.n, p.front != 0u), &rng);
     outputs[i] = PbrProbeOutput(s.dir, s.pdf, s.weight, u32(s.ok));
 }

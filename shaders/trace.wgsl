@@ -709,6 +709,11 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     let surf = surface_at(hit, ray);
     let sh = material_at(hit, surf);
     let m = sh.m;
+    // Inside a volume's boundary the medium attenuates, by Beer–Lambert's law over the
+    // segment's length (KHR_materials_volume; a closed mesh, not nested).
+    if HAS_PBR_TRANSMISSION && m.transmission > 0.0 && dot(ray.dir, surf.point.normal) > 0.0 {
+        (*path).throughput *= exp(-m.attenuation * hit.t);
+    }
     if HAS_EMITTERS && m.light > 0.0 {
         var w = 1.0;
         if nee && (*path).prev_pdf > 0.0 && m.light_slot > 0u {
@@ -745,7 +750,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         var light_lobe = !is_spec || m.smoothness == 0.0;
         var tint = select(m.color, m.specular_color, is_spec);
         if pbr {
-            lobe = pbr_lobe(m, -ray.dir, ns);
+            lobe = pbr_lobe(m, -ray.dir, ns, dot(ray.dir, n_out) < 0.0);
             light_lobe = lobe.alpha >= PBR_ALPHA_MIN || lobe.p_spec < 1.0;
             tint = vec3f(1.0);
         }
@@ -753,16 +758,22 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
             (*path).radiance += (*path).throughput * tint * sample_light(surf.point.position, ns, n, pbr, lobe, state);
         }
         var pbr_pdf = 0.0;
+        var through = false;
         if pbr {
             let ps = pbr_sample(lobe, state);
             sc = Scatter(ps.dir, ps.weight, !ps.ok);
-            pbr_pdf = ps.pdf;
+            // Light sampling finds no direction through the surface: a light the transmitted
+            // ray meets counts fully.
+            pbr_pdf = select(ps.pdf, 0.0, ps.through);
+            through = ps.through;
         } else {
             sc = scatter_surface(m, ray.dir, ns, is_spec, state);
         }
-        // A direction that the shading normal allows but that enters the surface ends the
-        // path (the light a normal map cannot send there is lost, not leaked).
-        if (HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && dot(sc.dir, n) <= 0.0 {
+        // A direction that the shading normal allows but that enters the surface (or, drawn
+        // through it, leaves it) ends the path (the light a normal map cannot send there is
+        // lost, not leaked).
+        let side = dot(sc.dir, n);
+        if (HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && select(side <= 0.0, side >= 0.0, through) {
             sc.absorbed = true;
         }
         if pbr {

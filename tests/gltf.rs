@@ -193,16 +193,37 @@ fn metallic_roughness_maps_onto_the_model() {
     );
     assert_eq!((e.color, e.light), (Vec3::new(1.0, 0.5, 0.25), 4.0));
     assert!(e.is_emitter());
-    // KHR_materials_transmission with KHR_materials_ior: the model's dielectric.
+    // KHR_materials_transmission with KHR_materials_ior: the pbr model's rough dielectric, a
+    // thin wall without KHR_materials_volume (the specification's reading).
     let g = m(
         r#"{"pbrMetallicRoughness":{"baseColorFactor":[0.9,1,0.9,1],"roughnessFactor":0},
         "extensions":{"KHR_materials_transmission":{"transmissionFactor":1},"KHR_materials_ior":{"ior":1.33}}}"#,
     );
-    assert!(g.is_dielectric());
+    assert!(g.is_pbr() && !g.is_dielectric());
     assert_eq!(
-        (g.ior, g.absorption, g.color),
-        (1.33, 0.0, Vec3::new(0.9, 1.0, 0.9))
+        (g.ior, g.transmission, g.color, g.volume.thin_walled),
+        (1.33, 1.0, Vec3::new(0.9, 1.0, 0.9), true)
     );
+    // With a volume of some thickness: a solid whose medium attenuates; of thickness 0,
+    // still a thin wall.
+    let v = m(
+        r#"{"extensions":{"KHR_materials_transmission":{"transmissionFactor":0.5},
+        "KHR_materials_volume":{"thicknessFactor":0.2,"attenuationDistance":0.5,"attenuationColor":[1,0.5,0.25]}}}"#,
+    );
+    assert_eq!(v.transmission, 0.5);
+    assert_eq!(
+        v.volume,
+        termtrace::scene::Volume {
+            thin_walled: false,
+            attenuation_color: Vec3::new(1.0, 0.5, 0.25),
+            attenuation_distance: 0.5
+        }
+    );
+    let flat = m(
+        r#"{"extensions":{"KHR_materials_transmission":{"transmissionFactor":1},
+        "KHR_materials_volume":{"thicknessFactor":0}}}"#,
+    );
+    assert!(flat.volume.thin_walled);
 }
 
 #[test]

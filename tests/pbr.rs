@@ -181,17 +181,18 @@ fn gltf_files_open_as_pbr_materials() {
 
 #[test]
 fn the_wgsl_sampler_draws_from_the_density_it_reports() {
-    // The chi-square test of the CPU sampler (src/cpu/pbr.rs) on the WGSL one: the same six
-    // lobes, 400 000 draws each from pbr_probe.wgsl (common/pbr.wgsl's pbr_lobe and
-    // pbr_sample, the tracer's random streams), binned against the density the CPU twin
-    // evaluates from the same formulas; each case must pass at 1e-3 / cases. And each draw's
-    // reported density is that density at its direction (relative 1e-3: two compilers' f32).
+    // The chi-square test of the CPU sampler (src/cpu/pbr.rs) on the WGSL one: the same
+    // reflecting and transmitting lobes, 400 000 draws each from pbr_probe.wgsl
+    // (common/pbr.wgsl's pbr_lobe and pbr_sample, the tracer's random streams), binned over
+    // the sphere against the density the CPU twin evaluates from the same formulas; each case
+    // must pass at 1e-3 / cases. And each draw's reported density is that density at its
+    // direction (relative 1e-3: two compilers' f32).
     use termtrace::common::layout::{GpuMaterial, MODEL_PBR};
-    use termtrace::cpu::scene::Material;
-    use termtrace::stability::chi2::{self, PBR_CASES, PBR_DRAWS};
-    use termtrace::stability::probe::{GpuPbrProbeInput, PbrProbePass};
+    use termtrace::stability::chi2::{PBR_CASES, PBR_THROUGH_CASES};
+    use termtrace::stability::probe::PbrProbePass;
     let ctx = ctx();
     let pass = PbrProbePass::new(&ctx.device);
+    let cases = (PBR_CASES.len() + PBR_THROUGH_CASES.len()) as f64;
     for (metallic, roughness, cos_theta) in PBR_CASES {
         let m = GpuMaterial {
             color: [0.8, 0.4, 0.2],
@@ -203,35 +204,66 @@ fn the_wgsl_sampler_draws_from_the_density_it_reports() {
             model: MODEL_PBR,
             ..Default::default()
         };
-        let s = (1.0 - cos_theta * cos_theta).sqrt();
-        let wo = glam::Vec3A::new(s, 0.0, cos_theta);
-        let input = GpuPbrProbeInput {
-            material: m,
-            wo: wo.to_array(),
-            seed: 3,
-            n: [0.0, 0.0, 1.0],
-            _pad0: 0,
+        let label = format!("metallic {metallic} roughness {roughness} cos {cos_theta}");
+        wgsl_draws_match(&ctx, &pass, m, cos_theta, true, cases, &label);
+    }
+    for (roughness, cos_theta, eta) in PBR_THROUGH_CASES {
+        let m = GpuMaterial {
+            color: [0.9, 0.8, 0.7],
+            specular_color: [1.0; 3],
+            specular: 1.0,
+            ior: 1.5,
+            roughness,
+            model: MODEL_PBR,
+            transmission: 0.8,
+            thin: (eta == 0.0) as u32,
+            ..Default::default()
         };
-        let drawn = pass.run(&ctx, input, PBR_DRAWS as usize);
-        let lobe = termtrace::cpu::pbr::lobe(&Material::of(&m), wo, glam::Vec3A::Z);
-        let pdf = |d: [f32; 3]| termtrace::cpu::pbr::eval(&lobe, glam::Vec3A::from(d)).1;
-        for o in drawn.iter().filter(|o| o.ok != 0) {
-            let want = pdf(o.dir);
-            assert!(
-                (o.pdf - want).abs() <= 1e-3 * want.max(1e-3),
-                "metallic {metallic} roughness {roughness}: pdf {} at {:?}, the CPU's {want}",
-                o.pdf,
-                o.dir
-            );
-        }
-        let r = chi2::test(drawn.iter().map(|o| (o.ok != 0).then_some(o.dir)), |d| {
-            pdf(d) as f64
-        });
+        let label = format!("transmission: roughness {roughness} cos {cos_theta} eta {eta}");
+        wgsl_draws_match(&ctx, &pass, m, cos_theta, eta < 1.0, cases, &label);
+    }
+}
+
+/// Draws from the WGSL sampler on material `m`, seen at `cos_theta` over +z (`front`: from
+/// the outer side), against the CPU twin's density: per draw, and by chi-square at
+/// 1e-3 / `cases`.
+fn wgsl_draws_match(
+    ctx: &termtrace::gpu::GpuContext,
+    pass: &termtrace::stability::probe::PbrProbePass,
+    m: termtrace::common::layout::GpuMaterial,
+    cos_theta: f32,
+    front: bool,
+    cases: f64,
+    label: &str,
+) {
+    use termtrace::cpu::scene::Material;
+    use termtrace::stability::chi2::{self, PBR_DRAWS};
+    use termtrace::stability::probe::GpuPbrProbeInput;
+    let s = (1.0 - cos_theta * cos_theta).sqrt();
+    let wo = glam::Vec3A::new(s, 0.0, cos_theta);
+    let input = GpuPbrProbeInput {
+        material: m,
+        wo: wo.to_array(),
+        seed: 3,
+        n: [0.0, 0.0, 1.0],
+        front: front as u32,
+    };
+    let drawn = pass.run(ctx, input, PBR_DRAWS as usize);
+    let lobe = termtrace::cpu::pbr::lobe(&Material::of(&m), wo, glam::Vec3A::Z, front);
+    let pdf = |d: [f32; 3]| termtrace::cpu::pbr::eval(&lobe, glam::Vec3A::from(d)).1;
+    for o in drawn.iter().filter(|o| o.ok != 0) {
+        let want = pdf(o.dir);
         assert!(
-            r.p > 1e-3 / PBR_CASES.len() as f64,
-            "metallic {metallic} roughness {roughness} cos {cos_theta}: {r:?}"
+            (o.pdf - want).abs() <= 1e-3 * want.max(1e-3),
+            "{label}: pdf {} at {:?}, the CPU's {want}",
+            o.pdf,
+            o.dir
         );
     }
+    let r = chi2::test(drawn.iter().map(|o| (o.ok != 0).then_some(o.dir)), |d| {
+        pdf(d) as f64
+    });
+    assert!(r.p > 1e-3 / cases, "{label}: {r:?}");
 }
 
 #[test]
@@ -355,4 +387,98 @@ fn gltf_reads_the_specular_extensions_factors_and_names_its_maps() {
         "{:?}",
         s.gltf[0].left_out
     );
+}
+
+/// A uniform sky of radiance 1 seen through a pbr object `shape` (TOML keys) of `material`.
+fn through(shape: &str, material: &str) -> String {
+    format!(
+        "[camera]\nlook_from = [0, 0, 3]\nlook_at = [0, 0, 0]\nvfov = 45\n\
+         [sky]\nuniform = [1, 1, 1]\n\
+         [[{shape}\nmodel = \"pbr\"\ntransmission = 1\n{material}\n"
+    )
+}
+
+const SPHERE: &str = "sphere]]\ncenter = [0, 0, 0]\nradius = 1";
+const PANE: &str = "quad]]\nq = [-3, -3, 0]\nu = [6, 0, 0]\nv = [0, 6, 0]";
+
+#[test]
+fn smooth_white_glass_returns_what_it_receives() {
+    // A white, smooth, fully transmitting dielectric in a white furnace: every draw's weight
+    // is F / p_spec or (1 − F) / p_trans, 1 to rounding, through every interface (total
+    // internal reflection included), so every pixel is the sky's 1 within 1e-5: a solid
+    // sphere that refracts, a thin-walled one that does not, and both at ior 1.
+    on_both(|| {
+        for material in [
+            "color = [1, 1, 1]\nroughness = 0\nior = 1.5",
+            "color = [1, 1, 1]\nroughness = 0\nior = 1.5\nthin_walled = true",
+            "color = [1, 1, 1]\nroughness = 0\nior = 1.0",
+            "color = [1, 1, 1]\nroughness = 0\nior = 1.0\nthin_walled = true",
+        ] {
+            let img = render(&through(SPHERE, material), 24, 24, 4, 64);
+            for p in &img.pixels {
+                for c in p {
+                    assert!((c - 1.0).abs() <= 1e-5, "{material}: {p:?}");
+                }
+            }
+        }
+    });
+}
+
+#[test]
+fn a_thin_pane_without_its_specular_layer_is_its_colour() {
+    // A thin pane whose specular layer is off (KHR_materials_specular's factor 0; at ior 1
+    // glTF's Schlick Fresnel, (1 − cos)⁵, still reflects off-normal) passes every ray on
+    // unbent, tinted once by its base colour: every pixel is exactly that colour.
+    on_both(|| {
+        let pane = "color = [0.25, 0.5, 0.75]\nroughness = 0\nspecular = 0\nthin_walled = true";
+        let img = render(&through(PANE, pane), 16, 16, 2, 8);
+        for p in &img.pixels {
+            assert_eq!(*p, [0.25, 0.5, 0.75]);
+        }
+    });
+}
+
+#[test]
+fn a_volume_attenuates_by_beer_lambert() {
+    // A clear sphere of ior 1 (nothing reflects or bends) whose medium turns white light
+    // (0.5, 0.25, 1) after 0.5 units: the ray through its centre crosses 2 units, so the
+    // centre pixel of a narrow view is (0.5, 0.25, 1)⁴ = (0.0625, 0.0039, 1), within 1 %.
+    // Thin-walled, the same material does not attenuate.
+    let scene =
+        |thin: bool| {
+            through(SPHERE, &format!(
+            "color = [1, 1, 1]\nroughness = 0\nior = 1.0\nattenuation_color = [0.5, 0.25, 1]\n\
+             attenuation_distance = 0.5\nthin_walled = {thin}"
+        ))
+        .replace("vfov = 45", "vfov = 1")
+        };
+    on_both(|| {
+        let img = render(&scene(false), 9, 9, 4, 8);
+        let want = [0.0625, 0.25f32.powi(4), 1.0];
+        let got = img.get(4, 4);
+        for c in 0..3 {
+            assert!(
+                (got[c] - want[c]).abs() <= 0.01 * want[c],
+                "{got:?} against {want:?}"
+            );
+        }
+        let img = render(&scene(true), 9, 9, 4, 8);
+        assert_eq!(img.get(4, 4), [1.0, 1.0, 1.0]);
+    });
+}
+
+#[test]
+fn both_tracers_agree_through_rough_glass() {
+    // The shipped glass scene (polished to frosted spheres that refract, an attenuating
+    // green one, a frosted thin-walled pane, under the sunny map): the GPU tracer against
+    // the CPU tracer, tile by tile.
+    let scene = Scene::load("glass").unwrap();
+    let f = termtrace::common::Features::of(&scene);
+    assert!(
+        f.pbr && f.pbr_transmission && !f.dielectrics,
+        "{}",
+        f.summary()
+    );
+    assert!(!termtrace::common::Features::of(&Scene::load("pbr").unwrap()).pbr_transmission);
+    tracers_agree(&scene, "glass");
 }

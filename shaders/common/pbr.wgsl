@@ -7,6 +7,9 @@
 // f0 and a layer of weight 1, which the compiler folds (the extension's colour cost 6.6 % of
 // the H200's samples/s on the shipped pbr scene, which does not use it).
 override HAS_PBR_SPECULAR: bool = true;
+// A pbr material that transmits (KHR_materials_transmission, with KHR_materials_volume's
+// refracting boundary) in the scene: without one the transmission lobe is left out.
+override HAS_PBR_TRANSMISSION: bool = true;
 // glTF 2.0's metallic-roughness BRDF as the specification's Appendix B writes it: a
 // Lambertian base under a dielectric Fresnel layer (Schlick, f0 from the ior: 0.04 at 1.5),
 // mixed by metallic with a metal whose f0 is the base colour; the specular lobe is
@@ -14,10 +17,16 @@ override HAS_PBR_SPECULAR: bool = true;
 // (Heitz 2014). Sampled by the distribution of visible normals (Heitz, "Sampling the GGX
 // Distribution of Visible Normals", JCGT 7(4), 2018) mixed with the cosine lobe, with a
 // density light sampling's MIS evaluates. Below PBR_ALPHA_MIN the specular lobe is a mirror.
+// KHR_materials_transmission splits the dielectric base between the Lambertian lobe and a
+// rough dielectric's transmission (Walter et al., "Microfacet Models for Refraction through
+// Rough Surfaces", EGSR 2007), sampled by visible normals too.
 
 // The smallest α the microfacet lobe keeps; below it the lobe is a perfect mirror (a delta,
 // which light sampling cannot find): roughness 0 is a mirror, continuously.
 const PBR_ALPHA_MIN: f32 = 1e-4;
+// The least share of the base a rough transmission lobe is drawn by, however much the
+// macroscopic Fresnel reflects.
+const PBR_TRANSMISSION_FLOOR: f32 = 0.25;
 const PBR_LUMINANCE: vec3f = vec3f(0.2126, 0.7152, 0.0722);
 
 // A pbr material at a hit, seen from `wo` (unit, towards the viewer) over the shading
@@ -33,17 +42,26 @@ struct PbrLobe {
     // The dielectric's reflectance at normal incidence, ((ior − 1)/(ior + 1))² times the
     // extension's specularColorFactor (white without it), at most 1.
     f0: vec3f,
-    // The probability of sampling the specular lobe (else the cosine lobe).
+    // The probability of sampling the specular lobe (else the transmission or cosine lobe).
     p_spec: f32,
+    // KHR_materials_transmission's share of the dielectric base (0: opaque).
+    transmission: f32,
+    // The probability of sampling the transmission lobe.
+    p_trans: f32,
+    // The index ratio η_wo / η_wi across a refracting (volume) boundary; 0 for a thin wall,
+    // which transmits without bending (the specification's default).
+    eta: f32,
 }
 
 // A direction drawn from the lobe: f·cos/pdf as the throughput's factor, and the density
-// (0 for the mirror, which MIS cannot weigh).
+// (0 for the mirror, which MIS cannot weigh); `through`: drawn by the transmission lobe,
+// below the surface.
 struct PbrSample {
     dir: vec3f,
     weight: vec3f,
     pdf: f32,
     ok: bool,
+    through: bool,
 }
 
 fn pbr_pow5(x: f32) -> f32 {
@@ -62,14 +80,30 @@ fn pbr_schlick_x5(cos: f32) -> f32 {
     return pbr_pow5(1.0 - clamp(cos, 0.0, 1.0));
 }
 
+// (1 − cos)⁵ for the dielectric's Fresnel at a microfacet that wo meets at `cos`: from inside
+// a refracting material (η > 1) Schlick's approximation takes the angle outside, and total
+// internal reflection reflects everything.
+fn pbr_dielectric_x5(cos: f32, eta: f32) -> f32 {
+    if eta <= 1.0 {
+        return pbr_schlick_x5(cos);
+    }
+    let cos_t2 = 1.0 - eta * eta * (1.0 - cos * cos);
+    if cos_t2 <= 0.0 {
+        return 1.0;
+    }
+    return pbr_schlick_x5(sqrt(cos_t2));
+}
+
 fn pbr_max3(v: vec3f) -> f32 {
     return max(v.x, max(v.y, v.z));
 }
 
 // The material at a hit as a lobe. KHR_materials_specular's fresnel_mix weighs the base by
 // 1 − specular·max(F) and the specular layer by specular·F (F of the coloured f0); without
-// the extension (specular 1, white) that is Appendix B's mix by F.
-fn pbr_lobe(m: Material, wo: vec3f, n: vec3f) -> PbrLobe {
+// the extension (specular 1, white) that is Appendix B's mix by F. KHR_materials_transmission
+// gives `transmission` of the base to the transmission lobe. `front`: wo is on the outer side
+// of the geometric surface.
+fn pbr_lobe(m: Material, wo: vec3f, n: vec3f, front: bool) -> PbrLobe {
     let r = (m.ior - 1.0) / (m.ior + 1.0);
     var f0 = vec3f(r * r);
     var weight = 1.0;
@@ -77,14 +111,31 @@ fn pbr_lobe(m: Material, wo: vec3f, n: vec3f) -> PbrLobe {
         f0 = min(f0 * m.specular_color, vec3f(1.0));
         weight = m.specular;
     }
-    let fd = weight * pbr_max3(pbr_fresnel(f0, pbr_schlick_x5(dot(n, wo))));
+    var transmission = 0.0;
+    var eta = 0.0;
+    if HAS_PBR_TRANSMISSION {
+        transmission = m.transmission;
+        if transmission > 0.0 && m.thin == 0u {
+            eta = select(m.ior, 1.0 / m.ior, front);
+        }
+    }
+    let fd = weight * pbr_max3(pbr_fresnel(f0, pbr_dielectric_x5(dot(n, wo), eta)));
     // Each lobe in proportion to what it reflects towards wo, roughly.
     let spec_w = m.metallic + (1.0 - m.metallic) * fd;
-    let diff_w = (1.0 - m.metallic) * (1.0 - fd) * dot(m.color, PBR_LUMINANCE);
-    let total = spec_w + diff_w;
+    let rest = (1.0 - m.metallic) * (1.0 - fd);
+    let diff_w = rest * (1.0 - transmission) * dot(m.color, PBR_LUMINANCE);
+    // A rough boundary transmits where the macroscopic normal reflects totally (fd = 1): its
+    // lobe keeps a share there, so that the light is drawn.
+    var rest_t = rest;
+    if m.roughness * m.roughness >= PBR_ALPHA_MIN {
+        rest_t = (1.0 - m.metallic) * max(1.0 - fd, PBR_TRANSMISSION_FLOOR);
+    }
+    let trans_w = rest_t * transmission * dot(m.color, PBR_LUMINANCE);
+    let total = spec_w + diff_w + trans_w;
     let p_spec = select(1.0, spec_w / total, total > 0.0);
+    let p_trans = select(0.0, trans_w / total, total > 0.0);
     let alpha = m.roughness * m.roughness;
-    return PbrLobe(m.color, m.metallic, n, alpha, wo, weight, f0, p_spec);
+    return PbrLobe(m.color, m.metallic, n, alpha, wo, weight, f0, p_spec, transmission, p_trans, eta);
 }
 
 // Trowbridge-Reitz (GGX) normal distribution, from cos and sin² of the half vector's angle:
@@ -110,20 +161,32 @@ fn pbr_g1(n_dot_v: f32, alpha: f32) -> f32 {
     return 2.0 * n_dot_v / (n_dot_v + sqrt(a2 + (1.0 - a2) * n_dot_v * n_dot_v));
 }
 
-// The BRDF times the cosine towards `wi`, and the density with which pbr_sample draws wi
-// (its part that can be evaluated: the mirror's delta is left out of both).
+// The BSDF times the cosine towards `wi`, and the density with which pbr_sample draws wi
+// (its part that can be evaluated: the deltas of the mirror and of smooth transmission are
+// left out of both).
 fn pbr_eval(l: PbrLobe, wi: vec3f) -> vec4f {
     let nl = dot(l.n, wi);
     let nv = dot(l.n, l.wo);
-    if nl <= 0.0 || nv <= 0.0 {
+    if nv <= 0.0 {
+        return vec4f(0.0);
+    }
+    if nl <= 0.0 {
+        if HAS_PBR_TRANSMISSION && l.transmission > 0.0 && nl < 0.0 {
+            return pbr_eval_through(l, wi, -nl, nv);
+        }
         return vec4f(0.0);
     }
     let h = normalize(l.wo + wi);
-    let x5 = pbr_schlick_x5(dot(l.wo, h));
-    let fd = pbr_fresnel(l.f0, x5);
+    let c = dot(l.wo, h);
+    let x5 = pbr_schlick_x5(c);
+    var xd = x5;
+    if HAS_PBR_TRANSMISSION && l.eta > 1.0 {
+        xd = pbr_dielectric_x5(c, l.eta);
+    }
+    let fd = pbr_fresnel(l.f0, xd);
     let fm = pbr_fresnel(l.base, x5);
-    var f = (1.0 - l.metallic) * (1.0 - l.weight * pbr_max3(fd)) * l.base / PI;
-    var pdf = (1.0 - l.p_spec) * nl / PI;
+    var f = (1.0 - l.metallic) * (1.0 - l.weight * pbr_max3(fd)) * (1.0 - l.transmission) * l.base / PI;
+    var pdf = (1.0 - l.p_spec - l.p_trans) * nl / PI;
     if l.alpha >= PBR_ALPHA_MIN {
         let nh = clamp(dot(l.n, h), 0.0, 1.0);
         let nxh = cross(l.n, h);
@@ -132,6 +195,44 @@ fn pbr_eval(l: PbrLobe, wi: vec3f) -> vec4f {
         pdf += l.p_spec * d * pbr_g1(nv, l.alpha) / (4.0 * nv);
     }
     return vec4f(f * nl, pdf);
+}
+
+// The transmission lobe towards `wi` below the surface (|n·wi| = nl): f·cos and its density.
+// A thin wall's is the specular lobe mirrored through the surface (KHR_materials_transmission,
+// "thin-walled"); a volume's boundary refracts, by Walter et al. 2007, eq. 16 and 21, with
+// PBRT 4th ed. §9.7's density. The base colour tints it; radiance's 1/η² across the boundary
+// is left out, as the lecture's glass leaves it out (it cancels on a closed object).
+fn pbr_eval_through(l: PbrLobe, wi: vec3f, nl: f32, nv: f32) -> vec4f {
+    if l.alpha < PBR_ALPHA_MIN {
+        return vec4f(0.0);
+    }
+    let tint = (1.0 - l.metallic) * l.transmission * l.base;
+    if l.eta == 0.0 {
+        let h = normalize(l.wo + wi + 2.0 * nl * l.n);
+        let fd = pbr_fresnel(l.f0, pbr_schlick_x5(dot(l.wo, h)));
+        let nh = clamp(dot(l.n, h), 0.0, 1.0);
+        let nxh = cross(l.n, h);
+        let d = pbr_d(nh, dot(nxh, nxh), l.alpha);
+        let f = tint * (1.0 - l.weight * pbr_max3(fd)) * (d * pbr_v(nl, nv, l.alpha));
+        return vec4f(f * nl, l.p_trans * d * pbr_g1(nv, l.alpha) / (4.0 * nv));
+    }
+    var h = normalize_or(l.eta * l.wo + wi, l.n);
+    if dot(h, l.n) < 0.0 {
+        h = -h;
+    }
+    let oh = dot(l.wo, h);
+    let ih = dot(wi, h);
+    if oh <= 0.0 || ih >= 0.0 {
+        return vec4f(0.0);
+    }
+    let denom = (ih + l.eta * oh) * (ih + l.eta * oh);
+    let fd = pbr_fresnel(l.f0, pbr_dielectric_x5(oh, l.eta));
+    let nh = clamp(dot(l.n, h), 0.0, 1.0);
+    let nxh = cross(l.n, h);
+    let d = pbr_d(nh, dot(nxh, nxh), l.alpha);
+    let jacobian = -ih * oh / denom;
+    let f = tint * (1.0 - l.weight * pbr_max3(fd)) * (4.0 * nl * pbr_v(nl, nv, l.alpha) * d * jacobian);
+    return vec4f(f, l.p_trans * pbr_g1(nv, l.alpha) / nv * d * jacobian);
 }
 
 // A visible normal of the GGX distribution seen from `wo` (local frame, z the normal):
@@ -154,37 +255,77 @@ fn pbr_visible_normal(wo: vec3f, alpha: f32, u: vec2f) -> vec3f {
 }
 
 // Draws a direction: the specular lobe with probability p_spec (a visible normal, or the
-// mirror direction below PBR_ALPHA_MIN), else the cosine lobe. Three draws either way.
+// mirror direction below PBR_ALPHA_MIN), the transmission lobe with probability p_trans (the
+// visible normal refracted, or mirrored through a thin wall), else the cosine lobe. Three
+// draws either way.
 fn pbr_sample(l: PbrLobe, state: ptr<function, Rng>) -> PbrSample {
     let pick = rand(state);
     let u = rand2(state);
     let nv = dot(l.n, l.wo);
     if nv <= 0.0 {
-        return PbrSample(l.n, vec3f(0.0), 0.0, false);
+        return PbrSample(l.n, vec3f(0.0), 0.0, false, false);
     }
+    let through = HAS_PBR_TRANSMISSION && l.p_trans > 0.0 && pick >= l.p_spec && pick < l.p_spec + l.p_trans;
     var wi: vec3f;
-    if pick < l.p_spec {
+    if pick < l.p_spec || through {
         if l.alpha < PBR_ALPHA_MIN {
-            // The mirror: its Fresnel weight over the choice's probability.
-            let x5 = pbr_schlick_x5(nv);
-            let fd = pbr_fresnel(l.f0, x5);
-            let fm = pbr_fresnel(l.base, x5);
-            let w = ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) / l.p_spec;
-            return PbrSample(reflect(-l.wo, l.n), w, 0.0, true);
+            return pbr_mirror(l, nv, through);
         }
         let b = basis(l.n);
         let wo_local = vec3f(dot(b[0], l.wo), dot(b[1], l.wo), nv);
         let h = b * pbr_visible_normal(wo_local, l.alpha, u);
         wi = reflect(-l.wo, h);
+        if through {
+            if l.eta == 0.0 {
+                wi = wi - 2.0 * dot(wi, l.n) * l.n;
+            } else {
+                let t = pbr_refract(-l.wo, h, dot(l.wo, h), l.eta);
+                if t.w == 0.0 {
+                    return PbrSample(h, vec3f(0.0), 0.0, false, false);
+                }
+                wi = t.xyz;
+            }
+        }
     } else {
         let z = 1.0 - 2.0 * u.x;
         let phi = 2.0 * PI * u.y;
         let r = sqrt(max(0.0, 1.0 - z * z));
         wi = normalize_or(l.n + vec3f(r * cos(phi), r * sin(phi), z), l.n);
     }
+    if through != (dot(wi, l.n) < 0.0) {
+        return PbrSample(wi, vec3f(0.0), 0.0, false, false);
+    }
     let e = pbr_eval(l, wi);
     if e.w <= 0.0 {
-        return PbrSample(wi, vec3f(0.0), 0.0, false);
+        return PbrSample(wi, vec3f(0.0), 0.0, false, false);
     }
-    return PbrSample(wi, e.xyz / e.w, e.w, true);
+    return PbrSample(wi, e.xyz / e.w, e.w, true, through);
+}
+
+// The smooth lobes' deltas (α below PBR_ALPHA_MIN): the mirror, or straight through a thin
+// wall, or refracted by a volume's boundary; each its Fresnel weight over its probability.
+fn pbr_mirror(l: PbrLobe, nv: f32, through: bool) -> PbrSample {
+    let x5 = pbr_schlick_x5(nv);
+    let fd = pbr_fresnel(l.f0, pbr_dielectric_x5(nv, l.eta));
+    if !through {
+        let fm = pbr_fresnel(l.base, x5);
+        let w = ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) / l.p_spec;
+        return PbrSample(reflect(-l.wo, l.n), w, 0.0, true, false);
+    }
+    var dir = vec4f(-l.wo, 1.0);
+    if l.eta != 0.0 {
+        dir = pbr_refract(-l.wo, l.n, nv, l.eta);
+    }
+    let w = (1.0 - l.metallic) * l.transmission * (1.0 - l.weight * pbr_max3(fd)) * l.base;
+    return PbrSample(select(l.n, dir.xyz, dir.w != 0.0), w / l.p_trans, 0.0, dir.w != 0.0, true);
+}
+
+// `d` refracted through a surface of normal `n` (on the side d comes from, cos = −d·n) with
+// index ratio `eta`; w = 0 at total internal reflection.
+fn pbr_refract(d: vec3f, n: vec3f, cos: f32, eta: f32) -> vec4f {
+    let sin2_t = eta * eta * (1.0 - cos * cos);
+    if sin2_t >= 1.0 {
+        return vec4f(0.0);
+    }
+    return vec4f(normalize(eta * d + (eta * cos - sqrt(1.0 - sin2_t)) * n), 1.0);
 }

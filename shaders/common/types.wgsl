@@ -75,8 +75,10 @@ struct Material {
     metallic: f32,          //  48  pbr: glTF's metallic factor
     roughness: f32,         //  52  pbr: glTF's perceptual roughness (α = roughness²)
     model: u32,             //  56  MODEL_LECTURE or MODEL_PBR
-    _pad0: u32,             //  60
-}                           //  64
+    transmission: f32,      //  60  pbr: KHR_materials_transmission's factor
+    attenuation: vec3f,     //  64  pbr: KHR_materials_volume's coefficient per unit (0 clear)
+    thin: u32,              //  76  pbr: 1 a thin wall, 0 a volume's boundary (refracts)
+}                           //  80
 
 // Material.model.
 const MODEL_LECTURE: u32 = 0u;

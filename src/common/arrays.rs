@@ -410,7 +410,9 @@ fn material(o: &Object) -> GpuMaterial {
             MaterialModel::Lecture => MODEL_LECTURE,
             MaterialModel::Pbr => MODEL_PBR,
         },
-        _pad0: 0,
+        transmission: m.transmission,
+        attenuation: m.volume.coefficient().to_array(),
+        thin: m.volume.thin_walled as u32,
     }
 }
 

@@ -12,7 +12,7 @@ use crate::scene::{Scene, Shape, Sky};
 #[error(
     "unknown feature `{0}` (expected spheres, quads, boxes, triangles, dielectrics, emitters, \
      nee, dof, sun, textures, cutouts, normal_maps, smooth_normals, env_map, pbr, \
-     pbr_specular or lecture)"
+     pbr_specular, pbr_transmission or lecture)"
 )]
 pub struct UnknownFeature(pub String);
 
@@ -47,6 +47,9 @@ pub struct Features {
     /// A pbr material with `KHR_materials_specular` (a specular other than 1 or a coloured
     /// one): without one the lobes carry no coloured f0.
     pub pbr_specular: bool,
+    /// A pbr material that transmits (KHR_materials_transmission), with its volume's
+    /// refraction and attenuation (KHR_materials_volume).
+    pub pbr_transmission: bool,
     /// The lecture's surface lobes (a non-emitting, non-dielectric material of its model):
     /// a scene of glTF materials alone compiles none of them. Without `pbr` too (the
     /// benchmarks' feature lists) the lecture's lobes are what every surface runs.
@@ -77,6 +80,7 @@ impl Features {
             env_map: true,
             pbr: true,
             pbr_specular: true,
+            pbr_transmission: true,
             lecture: true,
             count_segments: false,
             bvh: true,
@@ -102,6 +106,7 @@ impl Features {
             env_map: false,
             pbr: false,
             pbr_specular: false,
+            pbr_transmission: false,
             lecture: false,
             count_segments: false,
             bvh: false,
@@ -130,6 +135,7 @@ impl Features {
                 "env_map" => &mut f.env_map,
                 "pbr" => &mut f.pbr,
                 "pbr_specular" => &mut f.pbr_specular,
+                "pbr_transmission" => &mut f.pbr_transmission,
                 "lecture" => &mut f.lecture,
                 _ => return Err(UnknownFeature(name.to_string())),
             };
@@ -167,6 +173,7 @@ impl Features {
                     || o.material
                         .specular_color
                         .is_some_and(|c| c != glam::Vec3::ONE));
+            f.pbr_transmission |= o.material.is_pbr() && o.material.transmission > 0.0;
             // (A textured emitter's dark texels are surfaces too.)
             f.lecture |= !o.material.is_pbr()
                 && !o.material.is_dielectric()
@@ -205,6 +212,7 @@ impl Features {
             env_map: self.env_map | other.env_map,
             pbr: self.pbr | other.pbr,
             pbr_specular: self.pbr_specular | other.pbr_specular,
+            pbr_transmission: self.pbr_transmission | other.pbr_transmission,
             lecture: self.lecture | other.lecture,
             count_segments: self.count_segments | other.count_segments,
             bvh: self.bvh | other.bvh,
@@ -236,6 +244,7 @@ impl Features {
             ("HAS_ENV_MAP", b(self.env_map)),
             ("HAS_PBR", b(self.pbr)),
             ("HAS_PBR_SPECULAR", b(self.pbr_specular)),
+            ("HAS_PBR_TRANSMISSION", b(self.pbr_transmission)),
             ("HAS_LECTURE", b(self.lecture)),
             ("COUNT_SEGMENTS", b(self.count_segments)),
             ("USE_BVH", b(self.bvh)),
@@ -261,6 +270,7 @@ impl Features {
             (self.env_map, "env_map"),
             (self.pbr, "pbr"),
             (self.pbr_specular, "pbr_specular"),
+            (self.pbr_transmission, "pbr_transmission"),
         ];
         let on: Vec<&str> = names.iter().filter(|(b, _)| *b).map(|(_, n)| *n).collect();
         if on.is_empty() {

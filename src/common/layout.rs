@@ -86,7 +86,13 @@ pub struct GpuMaterial {
     pub roughness: f32,
     /// [`MODEL_LECTURE`] or [`MODEL_PBR`].
     pub model: u32,
-    pub _pad0: u32,
+    /// pbr: KHR_materials_transmission's factor.
+    pub transmission: f32,
+    /// pbr: KHR_materials_volume's attenuation coefficient per scene unit,
+    /// −ln(attenuationColor) / attenuationDistance (0: clear).
+    pub attenuation: [f32; 3],
+    /// pbr: 1 for a thin wall (transmits without refracting), 0 for a volume's boundary.
+    pub thin: u32,
 }
 
 /// `GpuMaterial::model`: the lecture's material model (MODEL_LECTURE in types.wgsl).
@@ -230,6 +236,9 @@ pub fn mirrors() -> Vec<MirrorLayout> {
                 metallic,
                 roughness,
                 model,
+                transmission,
+                attenuation,
+                thin,
             ]
         ),
         m!(
@@ -257,7 +266,7 @@ const _: () = {
     assert!(std::mem::size_of::<SceneUniforms>() == 208);
     assert!(std::mem::size_of::<DispatchUniforms>() == 32);
     assert!(std::mem::size_of::<ResolveUniforms>() == 32);
-    assert!(std::mem::size_of::<GpuMaterial>() == 64);
+    assert!(std::mem::size_of::<GpuMaterial>() == 80);
     assert!(std::mem::size_of::<GpuSphere>() == 32);
     assert!(std::mem::size_of::<GpuQuad>() == 80);
     assert!(std::mem::size_of::<GpuCuboid>() == 80);

@@ -33,6 +33,11 @@ pub struct Material {
     pub roughness: f32,
     /// glTF's metallic-roughness BRDF (`cpu::pbr`) rather than the lecture's lobes.
     pub pbr: bool,
+    /// pbr: KHR_materials_transmission's factor, and whether the surface is a thin wall
+    /// (else a volume's boundary, with its medium's attenuation per unit).
+    pub transmission: f32,
+    pub thin: bool,
+    pub attenuation: Vec3A,
 }
 
 /// The uniforms the tracer reads per sample, as vectors.
@@ -109,6 +114,9 @@ impl Material {
             metallic: m.metallic,
             roughness: m.roughness,
             pbr: m.model == MODEL_PBR,
+            transmission: m.transmission,
+            thin: m.thin != 0,
+            attenuation: v(m.attenuation),
         }
     }
 }

@@ -663,6 +663,11 @@ impl<'a> Tracer<'a> {
             let m = textured
                 .as_ref()
                 .unwrap_or(&self.s.materials[material as usize]);
+            // Inside a volume's boundary the medium attenuates, by Beer–Lambert's law over the
+            // segment's length (KHR_materials_volume; a closed mesh, not nested).
+            if self.f.pbr_transmission && m.transmission > 0.0 && ray.dir.dot(point.normal) > 0.0 {
+                throughput *= (-m.attenuation * hit.t).exp();
+            }
             if self.f.emitters && m.light > 0.0 {
                 let mut w = 1.0;
                 if nee && prev_pdf > 0.0 && m.light_slot > 0 {
@@ -693,7 +698,7 @@ impl<'a> Tracer<'a> {
                 let n = if front { n_out } else { -n_out };
                 // The shading normal, on the side of n.
                 let ns = self.shading_normal_at(hit, mapped, point.position, n_out, n);
-                let lobe = pbr.then(|| pbr::lobe(m, -ray.dir, ns));
+                let lobe = pbr.then(|| pbr::lobe(m, -ray.dir, ns, front));
                 // A lobe with a density light sampling can weigh: the Lambertian one, the
                 // lecture's specular one at smoothness 0, or glTF's but for its mirror.
                 let light_lobe = match &lobe {
@@ -713,10 +718,14 @@ impl<'a> Tracer<'a> {
                         * self.sample_light::<P>(point.position, ns, n, from, lobe.as_ref(), rng);
                 }
                 let mut pbr_pdf = 0.0;
+                let mut through = false;
                 sc = match &lobe {
                     Some(l) => {
                         let s = pbr::sample(l, rng);
-                        pbr_pdf = s.pdf;
+                        // Light sampling finds no direction through the surface: a light
+                        // the transmitted ray meets counts fully.
+                        pbr_pdf = if s.through { 0.0 } else { s.pdf };
+                        through = s.through;
                         Scatter {
                             dir: s.dir,
                             attenuation: s.weight,
@@ -725,9 +734,10 @@ impl<'a> Tracer<'a> {
                     }
                     None => scatter_surface(m, ray.dir, ns, is_spec, rng),
                 };
-                // A direction the shading normal allows but that enters the surface ends the
-                // path.
-                if self.s.shading_normals() && sc.dir.dot(n) <= 0.0 {
+                // A direction the shading normal allows but that enters the surface (or, drawn
+                // through it, leaves it) ends the path.
+                let side = sc.dir.dot(n);
+                if self.s.shading_normals() && (if through { side >= 0.0 } else { side <= 0.0 }) {
                     sc.absorbed = true;
                 }
                 if pbr {

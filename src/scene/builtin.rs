@@ -21,6 +21,7 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
     ("lamp", include_str!("../../scenes/lamp.toml")),
     ("outdoor", include_str!("../../scenes/outdoor.toml")),
     ("pbr", include_str!("../../scenes/pbr.toml")),
+    ("glass", include_str!("../../scenes/glass.toml")),
 ];
 
 /// The extreme scenes of `scenes/extreme/` (numerical stability; `check --stress`).

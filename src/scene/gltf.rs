@@ -8,7 +8,7 @@
 
 use super::error::Malformed;
 use super::mesh::Mesh;
-use super::model::{Camera, Material, MaterialModel, Object, Shape, Sun};
+use super::model::{Camera, Material, MaterialModel, Object, Shape, Sun, Volume};
 use glam::{DMat4, DVec3, Vec3};
 use std::path::Path;
 use std::sync::Arc;
@@ -40,6 +40,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_texture_transform",
     "KHR_materials_emissive_strength",
     "KHR_materials_transmission",
+    "KHR_materials_volume",
     "KHR_materials_ior",
     "KHR_materials_specular",
     "KHR_lights_punctual",
@@ -568,8 +569,9 @@ fn accessor_fits(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(
 /// 1.5) as they are; and where the model has no lobe for it yet:
 /// - emission → an emitter: `light` (strength × the brightest channel of `emissiveFactor`)
 ///   with the emissive colour as `color`, since an emitter's radiance is `color × light`;
-/// - `KHR_materials_transmission` above one half → the lecture's dielectric, with the ior and
-///   the base colour as the glass's tint, frosted by the roughness.
+/// - `KHR_materials_transmission` and `KHR_materials_volume` → the model's rough dielectric:
+///   a thin wall without a volume (or of thickness 0), else a refracting boundary whose
+///   medium attenuates by `attenuationColor` over `attenuationDistance`.
 pub fn material(m: &gltf::Material) -> Material {
     let pbr = m.pbr_metallic_roughness();
     let [r, g, b, _] = pbr.base_color_factor();
@@ -579,6 +581,14 @@ pub fn material(m: &gltf::Material) -> Material {
         roughness: pbr.roughness_factor(),
         emissive: Vec3::from(m.emissive_factor()) * m.emissive_strength().unwrap_or(1.0).max(0.0),
         transmission: m.transmission().map_or(0.0, |t| t.transmission_factor()),
+        volume: m
+            .volume()
+            .filter(|v| v.thickness_factor() > 0.0)
+            .map(|v| Volume {
+                thin_walled: false,
+                attenuation_color: Vec3::from(v.attenuation_color()),
+                attenuation_distance: v.attenuation_distance(),
+            }),
         ior: m.ior().unwrap_or(1.5),
         specular: m.specular().map_or(1.0, |s| s.specular_factor()),
         specular_color: Vec3::from(m.specular().map_or([1.0; 3], |s| s.specular_color_factor())),
@@ -596,6 +606,8 @@ pub struct Pbr {
     /// Emitted radiance (factor × strength).
     pub emissive: Vec3,
     pub transmission: f32,
+    /// `KHR_materials_volume` of a thickness above 0 (`None`: a thin wall).
+    pub volume: Option<Volume>,
     pub ior: f32,
     /// `KHR_materials_specular`: the dielectric layer's strength and its f0's colour (1 and
     /// white without the extension).
@@ -618,6 +630,22 @@ pub fn pbr_material(p: &Pbr) -> Material {
     let specular = finite(p.specular, 1.0).min(1.0);
     let specular_color =
         (p.specular_color != Vec3::ONE).then(|| p.specular_color.map(|c| finite(c, 1.0)));
+    let transmission = finite(p.transmission, 0.0).min(1.0);
+    let volume = match p.volume {
+        Some(v) => Volume {
+            thin_walled: false,
+            attenuation_color: v.attenuation_color.map(|c| finite(c, 1.0).min(1.0)),
+            attenuation_distance: if v.attenuation_distance > 0.0 {
+                v.attenuation_distance
+            } else {
+                f32::INFINITY
+            },
+        },
+        None => Volume {
+            thin_walled: true,
+            ..Volume::default()
+        },
+    };
     if emissive.max_element() > 0.0 {
         let light = emissive.max_element();
         // Still a pbr material: where its emissive map is dark, a texel is glTF's BRDF.
@@ -630,18 +658,8 @@ pub fn pbr_material(p: &Pbr) -> Material {
             ior,
             specular,
             specular_color,
-            ..Material::default()
-        };
-    }
-    if p.transmission > 0.5 {
-        // KHR_materials_transmission is not yet the specification's rough dielectric: a
-        // mostly transmissive material is the lecture's glass, frosted by its roughness.
-        return Material {
-            color: base,
-            smoothness: -1.0,
-            absorption: roughness,
-            specular: 1.0,
-            ior,
+            transmission,
+            volume,
             ..Material::default()
         };
     }
@@ -653,6 +671,8 @@ pub fn pbr_material(p: &Pbr) -> Material {
         ior,
         specular,
         specular_color,
+        transmission,
+        volume,
         ..Material::default()
     }
 }

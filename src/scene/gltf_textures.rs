@@ -216,6 +216,27 @@ pub fn textured(
             }
         }
     }
+    // Nor are the transmission and volume extensions' maps.
+    let which = m.index().map_or("default".into(), |i| i.to_string());
+    for (map, what, ext) in [
+        (
+            m.transmission()
+                .is_some_and(|t| t.transmission_texture().is_some()),
+            "transmissionTexture",
+            "KHR_materials_transmission",
+        ),
+        (
+            m.volume().is_some_and(|v| v.thickness_texture().is_some()),
+            "thicknessTexture",
+            "KHR_materials_volume",
+        ),
+    ] {
+        if map {
+            skipped.push(format!(
+                "the {what} of materials[{which}] ({ext}'s factors are read, its maps are not)"
+            ));
+        }
+    }
     let transforms = [&base_color, &metallic_roughness, &emissive, &normal]
         .map(|x| x.as_ref().map_or(IDENTITY_TRANSFORM, |(_, t)| *t));
     let (base_color, metallic_roughness, emissive, normal) = (

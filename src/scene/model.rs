@@ -197,9 +197,51 @@ pub struct Material {
     pub metallic: f32,
     /// glTF's perceptual roughness (α = roughness²); the `pbr` model's.
     pub roughness: f32,
+    /// KHR_materials_transmission's factor: the share of the dielectric base that passes
+    /// through the surface; the `pbr` model's.
+    pub transmission: f32,
+    /// How a transmitting pbr material's light passes: a thin wall, or a volume's boundary
+    /// (KHR_materials_volume).
+    pub volume: Volume,
     /// A glTF material's texture maps, mapped onto the other fields at each hit (`None`: the
     /// fields as they are).
     pub textured: Option<TexturedRef>,
+}
+
+/// What lies behind a transmitting pbr surface (KHR_materials_volume).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Volume {
+    /// A thin wall: light passes without bending (glTF's reading of a material without
+    /// KHR_materials_volume or of thickness 0). Else the surface bounds a volume: it
+    /// refracts, and the medium inside attenuates.
+    pub thin_walled: bool,
+    /// The colour white light takes after `attenuation_distance` inside (linear).
+    pub attenuation_color: Vec3,
+    /// Scene units; infinite: a clear medium.
+    pub attenuation_distance: f32,
+}
+
+impl Default for Volume {
+    /// A clear solid: what a scene file's transmitting material is unless it says otherwise.
+    fn default() -> Self {
+        Volume {
+            thin_walled: false,
+            attenuation_color: Vec3::ONE,
+            attenuation_distance: f32::INFINITY,
+        }
+    }
+}
+
+impl Volume {
+    /// Beer–Lambert's attenuation coefficient per scene unit, −ln(colour) / distance (0 for a
+    /// clear medium; a black channel absorbs within 10⁻⁶ of the distance).
+    pub fn coefficient(&self) -> Vec3 {
+        if self.thin_walled || !self.attenuation_distance.is_finite() {
+            return Vec3::ZERO;
+        }
+        let c = self.attenuation_color.clamp(Vec3::splat(1e-6), Vec3::ONE);
+        -c.map(f32::ln) / self.attenuation_distance
+    }
 }
 
 /// The material models a surface can follow.

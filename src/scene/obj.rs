@@ -175,6 +175,7 @@ pub fn import_from(
             roughness: 1.0,
             emissive: Vec3::ZERO,
             transmission: 0.0,
+            volume: None,
             ior: 1.5,
             specular: 1.0,
             specular_color: Vec3::ONE,
@@ -644,6 +645,8 @@ pub fn mtl_pbr(m: &tobj::Material) -> Pbr {
         roughness,
         emissive: m.emissive.map_or(Vec3::ZERO, Vec3::from),
         transmission: if glass { 1.0 } else { 0.0 },
+        // An OBJ mesh is a solid: its glass refracts.
+        volume: glass.then(super::model::Volume::default),
         ior: m.optical_density.unwrap_or(1.5),
         specular: 1.0,
         specular_color: Vec3::ONE,
@@ -850,7 +853,8 @@ mod tests {
         assert_eq!((p[0].metallic, p[0].roughness), (0.0, 0.5));
         assert_eq!((p[1].metallic, p[1].roughness), (1.0, 0.0));
         assert_eq!((p[2].transmission, p[2].ior), (1.0, 1.33));
-        assert!(pbr_material(&p[2]).is_dielectric());
+        let glass = pbr_material(&p[2]);
+        assert!(glass.is_pbr() && glass.transmission == 1.0 && !glass.volume.thin_walled);
         let lamp = pbr_material(&p[3]);
         assert_eq!((lamp.light, lamp.color), (4.0, Vec3::new(1.0, 0.5, 0.0)));
         assert_eq!((p[4].metallic, p[4].roughness), (0.5, 0.3));

@@ -190,7 +190,7 @@ pub struct ParamSpec {
 }
 
 /// Every parameter, in the preview's order (`m` goes to the next).
-pub static PARAMS: [ParamSpec; 14] = [
+pub static PARAMS: [ParamSpec; 15] = [
     ParamSpec {
         name: "smoothness",
         label: "smooth",
@@ -287,7 +287,8 @@ pub static PARAMS: [ParamSpec; 14] = [
         key: '5',
         model: None,
         group: Group::Material,
-        doc: "index of refraction of a dielectric (smoothness below 0)",
+        doc: "index of refraction: the lecture's dielectric's (smoothness below 0); a pbr \
+              material's Fresnel f0 and, where it transmits, its refraction",
         access: Access::Material {
             get: |m| m.ior,
             set: |m, v| m.ior = v,
@@ -331,6 +332,28 @@ pub static PARAMS: [ParamSpec; 14] = [
         access: Access::Material {
             get: |m| m.roughness,
             set: |m, v| m.roughness = v,
+        },
+    },
+    ParamSpec {
+        name: "transmission",
+        label: "trans",
+        help: "transmission",
+        toml: Some(("material", "transmission")),
+        range: Range::closed(0.0, 1.0),
+        fine: 0.01,
+        coarse: 0.1,
+        step: Step::Add,
+        default: Some(0.0),
+        unit: "",
+        key: 't',
+        model: Some(MaterialModel::Pbr),
+        group: Group::Pbr,
+        doc: "KHR_materials_transmission's factor: the share of the dielectric base that \
+              passes through, tinted by the colour (a rough dielectric; `thin_walled`, \
+              `attenuation_color` and `attenuation_distance` say what lies behind)",
+        access: Access::Material {
+            get: |m| m.transmission,
+            set: |m, v| m.transmission = v,
         },
     },
     channel("red", "r", '6', 0),
@@ -639,6 +662,8 @@ impl Default for Material {
             model: MaterialModel::Lecture,
             metallic: 0.0,
             roughness: 0.0,
+            transmission: 0.0,
+            volume: super::model::Volume::default(),
             textured: None,
         };
         for (p, _) in material_keys() {

@@ -56,7 +56,12 @@ const GLTF_KEYS: &[&str] = &[
 fn material_keys() -> Vec<&'static str> {
     let mut keys = vec!["model", "color"];
     keys.extend(params::material_keys().map(|(_, k)| k));
-    keys.push("specular_color");
+    keys.extend([
+        "specular_color",
+        "thin_walled",
+        "attenuation_color",
+        "attenuation_distance",
+    ]);
     keys
 }
 
@@ -300,6 +305,50 @@ struct MaterialPatch {
     /// The numbers of the parameter table, by parameter.
     numbers: Vec<(Param, f32)>,
     specular_color: Option<Vec3>,
+    volume: VolumePatch,
+}
+
+/// KHR_materials_volume's keys as given in one table (`Volume`'s fields).
+#[derive(Clone, Copy, Default)]
+struct VolumePatch {
+    thin_walled: Option<bool>,
+    attenuation_color: Option<Vec3>,
+    attenuation_distance: Option<f32>,
+}
+
+impl VolumePatch {
+    fn read(t: &Table) -> VolumePatch {
+        VolumePatch {
+            thin_walled: t.boolean("thin_walled"),
+            attenuation_color: t.color("attenuation_color"),
+            attenuation_distance: t.f64_above("attenuation_distance", 0.0).map(|d| d as f32),
+        }
+    }
+
+    fn over(&self, base: &VolumePatch) -> VolumePatch {
+        VolumePatch {
+            thin_walled: self.thin_walled.or(base.thin_walled),
+            attenuation_color: self.attenuation_color.or(base.attenuation_color),
+            attenuation_distance: self.attenuation_distance.or(base.attenuation_distance),
+        }
+    }
+
+    fn of(v: &Volume) -> VolumePatch {
+        VolumePatch {
+            thin_walled: Some(v.thin_walled),
+            attenuation_color: Some(v.attenuation_color),
+            attenuation_distance: Some(v.attenuation_distance),
+        }
+    }
+
+    fn resolve(&self) -> Volume {
+        let d = Volume::default();
+        Volume {
+            thin_walled: self.thin_walled.unwrap_or(d.thin_walled),
+            attenuation_color: self.attenuation_color.unwrap_or(d.attenuation_color),
+            attenuation_distance: self.attenuation_distance.unwrap_or(d.attenuation_distance),
+        }
+    }
 }
 
 impl MaterialPatch {
@@ -322,6 +371,7 @@ impl MaterialPatch {
                 .filter_map(|(p, key)| Some((p, t.param("material", key)? as f32)))
                 .collect(),
             specular_color: t.color("specular_color"),
+            volume: VolumePatch::read(t),
         }
     }
 
@@ -347,6 +397,22 @@ impl MaterialPatch {
                 );
             }
         }
+        if model != MaterialModel::Pbr {
+            let v = &self.volume;
+            for (key, given) in [
+                ("thin_walled", v.thin_walled.is_some()),
+                ("attenuation_color", v.attenuation_color.is_some()),
+                ("attenuation_distance", v.attenuation_distance.is_some()),
+            ] {
+                if given {
+                    t.error(
+                        key,
+                        format!("`{key}` belongs to the `pbr` model (with `transmission`)"),
+                        Some("add `model = \"pbr\"`".into()),
+                    );
+                }
+            }
+        }
     }
 
     fn number(&self, p: Param) -> Option<f32> {
@@ -362,6 +428,7 @@ impl MaterialPatch {
                 .filter_map(|(p, _)| Some((p, self.number(p).or(base.number(p))?)))
                 .collect(),
             specular_color: self.specular_color.or(base.specular_color),
+            volume: self.volume.over(&base.volume),
         }
     }
 
@@ -374,6 +441,7 @@ impl MaterialPatch {
                 .filter_map(|(p, _)| Some((p, params::material_value(p, m)?)))
                 .collect(),
             specular_color: m.specular_color,
+            volume: VolumePatch::of(&m.volume),
         }
     }
 
@@ -392,6 +460,7 @@ impl MaterialPatch {
             DEFAULT_COLOR
         });
         m.specular_color = self.specular_color;
+        m.volume = self.volume.resolve();
         m
     }
 }

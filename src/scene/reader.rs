@@ -169,6 +169,11 @@ impl<'a, 's> Table<'a, 's> {
         self.f64_range(key, &Range::closed(lo, hi), "")
     }
 
+    /// A finite number greater than `lo`.
+    pub fn f64_above(&self, key: &str, lo: f64) -> Option<f64> {
+        self.f64_range(key, &Range::above(lo), "")
+    }
+
     /// A finite number in `range` (`unit` follows the range in the error's help).
     fn f64_range(&self, key: &str, range: &Range, unit: &str) -> Option<f64> {
         let v = self.get(key)?;

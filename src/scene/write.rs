@@ -54,6 +54,18 @@ fn material_lines(out: &mut String, m: &Material, base: &Material) {
     {
         let _ = writeln!(out, "specular_color = {}", col(s));
     }
+    let (v, b) = (&m.volume, &base.volume);
+    if m.is_pbr() {
+        if v.thin_walled != b.thin_walled {
+            let _ = writeln!(out, "thin_walled = {}", v.thin_walled);
+        }
+        if v.attenuation_color != b.attenuation_color {
+            let _ = writeln!(out, "attenuation_color = {}", col(v.attenuation_color));
+        }
+        if v.attenuation_distance != b.attenuation_distance && v.attenuation_distance.is_finite() {
+            let _ = writeln!(out, "attenuation_distance = {}", v.attenuation_distance);
+        }
+    }
 }
 
 /// Writes `scene` as a scene file.

@@ -49,7 +49,8 @@ pub struct GpuPbrProbeInput {
     pub wo: [f32; 3],
     pub seed: u32,
     pub n: [f32; 3],
-    pub _pad0: u32,
+    /// 1: `wo` is on the outer side of the surface (a volume's boundary is entered).
+    pub front: u32,
 }
 
 /// One draw of the pbr sampler (`PbrProbeOutput` in pbr_probe.wgsl).
@@ -65,7 +66,7 @@ pub struct GpuPbrProbeOutput {
 const _: () = {
     assert!(std::mem::size_of::<GpuProbeInput>() == 160);
     assert!(std::mem::size_of::<GpuProbeOutput>() == 80);
-    assert!(std::mem::size_of::<GpuPbrProbeInput>() == 96);
+    assert!(std::mem::size_of::<GpuPbrProbeInput>() == 112);
     assert!(std::mem::size_of::<GpuPbrProbeOutput>() == 32);
 };
 
