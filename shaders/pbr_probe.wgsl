@@ -9,11 +9,11 @@
 
 struct PbrProbeInput {
     material: Material, //   0
-    wo: vec3f,          //  80  unit, the direction toward the viewer
-    seed: u32,          //  92
-    n: vec3f,           //  96  unit shading normal
-    front: u32,         // 108  1: wo on the outer side (a volume's boundary is entered)
-}                       // 112
+    wo: vec3f,          //  96  unit, the direction toward the viewer
+    seed: u32,          // 108
+    n: vec3f,           // 112  unit shading normal
+    front: u32,         // 124  1: wo on the outer side (a volume's boundary is entered)
+}                       // 128
 
 struct PbrProbeOutput {
     dir: vec3f,         //   0

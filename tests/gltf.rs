@@ -224,6 +224,13 @@ fn metallic_roughness_maps_onto_the_model() {
         "KHR_materials_volume":{"thicknessFactor":0}}}"#,
     );
     assert!(flat.volume.thin_walled);
+    // KHR_materials_clearcoat (read from its JSON): factor and roughness, clamped.
+    let c = m(
+        r#"{"extensions":{"KHR_materials_clearcoat":{"clearcoatFactor":0.75,
+        "clearcoatRoughnessFactor":1.5}}}"#,
+    );
+    assert_eq!((c.clearcoat, c.clearcoat_roughness), (0.75, 1.0));
+    assert_eq!((d.clearcoat, d.clearcoat_roughness), (0.0, 0.0));
 }
 
 #[test]

@@ -188,11 +188,11 @@ fn the_wgsl_sampler_draws_from_the_density_it_reports() {
     // must pass at 1e-3 / cases. And each draw's reported density is that density at its
     // direction (relative 1e-3: two compilers' f32).
     use termtrace::common::layout::{GpuMaterial, MODEL_PBR};
-    use termtrace::stability::chi2::{PBR_CASES, PBR_THROUGH_CASES};
+    use termtrace::stability::chi2::{PBR_CASES, PBR_COAT_CASES, PBR_THROUGH_CASES};
     use termtrace::stability::probe::PbrProbePass;
     let ctx = ctx();
     let pass = PbrProbePass::new(&ctx.device);
-    let cases = (PBR_CASES.len() + PBR_THROUGH_CASES.len()) as f64;
+    let cases = (PBR_CASES.len() + PBR_THROUGH_CASES.len() + PBR_COAT_CASES.len()) as f64;
     for (metallic, roughness, cos_theta) in PBR_CASES {
         let m = GpuMaterial {
             color: [0.8, 0.4, 0.2],
@@ -221,6 +221,23 @@ fn the_wgsl_sampler_draws_from_the_density_it_reports() {
         };
         let label = format!("transmission: roughness {roughness} cos {cos_theta} eta {eta}");
         wgsl_draws_match(&ctx, &pass, m, cos_theta, eta < 1.0, cases, &label);
+    }
+    for (metallic, roughness, coat_roughness, cos_theta) in PBR_COAT_CASES {
+        let m = GpuMaterial {
+            color: [0.8, 0.4, 0.2],
+            specular_color: [1.0; 3],
+            specular: 1.0,
+            ior: 1.5,
+            metallic,
+            roughness,
+            model: MODEL_PBR,
+            clearcoat: 1.0,
+            clearcoat_roughness: coat_roughness,
+            ..Default::default()
+        };
+        let label =
+            format!("coat: metallic {metallic} roughness {roughness} coat {coat_roughness}");
+        wgsl_draws_match(&ctx, &pass, m, cos_theta, true, cases, &label);
     }
 }
 
@@ -347,10 +364,10 @@ fn both_tracers_agree_on_the_specular_extension() {
 }
 
 #[test]
-fn gltf_reads_the_specular_extensions_factors_and_names_its_maps() {
+fn gltf_reads_the_specular_extensions_factors_and_maps() {
     let text = std::fs::read_to_string("fuzz/corpus/gltf/pbr-extensions.gltf").unwrap();
     // Its first material has the ior and emissive strength extensions: the specular one
-    // joins them, with a 1×1 PNG as its (unread) specularTexture.
+    // joins them, with a 1×1 PNG as its specularTexture.
     let with = text
         .replacen(
             "\"KHR_materials_ior\": {",
@@ -373,12 +390,9 @@ fn gltf_reads_the_specular_extensions_factors_and_names_its_maps() {
     assert_eq!(m.model, MaterialModel::Pbr);
     assert_eq!(m.specular, 0.5);
     assert_eq!(m.specular_color, Some(glam::Vec3::new(1.0, 0.5, 0.25)));
-    let named: Vec<_> = s.gltf[0]
-        .left_out
-        .iter()
-        .filter(|l| l.contains("specularTexture"))
-        .collect();
-    assert_eq!(named.len(), 1, "{:?}", s.gltf[0].left_out);
+    // The map is read (tests/pbr.rs `the_extensions_maps_scale_their_factors` renders one).
+    let t = m.textured.as_ref().expect("textured");
+    assert!(t.0.extensions.specular.is_some());
     assert!(
         !s.gltf[0]
             .left_out
@@ -481,4 +495,197 @@ fn both_tracers_agree_through_rough_glass() {
     );
     assert!(!termtrace::common::Features::of(&Scene::load("pbr").unwrap()).pbr_transmission);
     tracers_agree(&scene, "glass");
+}
+
+#[test]
+fn a_clear_coat_over_black_is_its_fresnel() {
+    // KHR_materials_clearcoat over a black base without a specular layer: the only light is
+    // the coat's mirror, Fc(n·v) of the white sky: 0.04 where it faces the camera, rising
+    // towards 1 at the silhouette.
+    let coat = format!(
+        "{}specular = 0\nclearcoat = 1\nclearcoat_roughness = 0\n",
+        furnace("[0, 0, 0]", 0.0, 0.5)
+    );
+    on_both(|| {
+        let img = render(&coat, 48, 48, 64, 8);
+        let centre = img.get(24, 24)[0];
+        assert!((centre - 0.04).abs() < 0.01, "centre {centre}");
+        let rim = (0..48).map(|x| img.get(x, 24)[0]).fold(0f32, f32::max);
+        assert!(rim > 0.3, "rim {rim}");
+    });
+}
+
+/// Clear-coated spheres under a lamp and a dim sky: a red plastic under a polished coat, a
+/// rough gold under a slightly rough one, a matte blue under a rough coat.
+const CLEARCOAT: &str = r##"
+[camera]
+look_from = [0, 0.6, 4]
+look_at = [0, 0, 0]
+vfov = 45
+[sky]
+uniform = [0.3, 0.3, 0.35]
+[[sphere]]
+center = [0, 3, 2]
+radius = 0.4
+color = [1, 1, 1]
+light = 10
+[[sphere]]
+center = [-1.1, 0, 0]
+radius = 0.5
+model = "pbr"
+color = [0.7, 0.1, 0.1]
+roughness = 0.6
+clearcoat = 1
+clearcoat_roughness = 0
+[[sphere]]
+center = [0, 0, 0]
+radius = 0.5
+model = "pbr"
+color = [1, 0.77, 0.34]
+metallic = 1
+roughness = 0.5
+clearcoat = 0.8
+clearcoat_roughness = 0.1
+[[sphere]]
+center = [1.1, 0, 0]
+radius = 0.5
+model = "pbr"
+color = [0.1, 0.2, 0.6]
+roughness = 1
+clearcoat = 1
+clearcoat_roughness = 0.4
+"##;
+
+#[test]
+fn both_tracers_agree_under_a_clear_coat() {
+    let scene = Scene::from_toml(CLEARCOAT, "clearcoat").unwrap();
+    let f = termtrace::common::Features::of(&scene);
+    assert!(
+        f.pbr && f.pbr_clearcoat && !f.pbr_transmission,
+        "{}",
+        f.summary()
+    );
+    assert!(!termtrace::common::Features::of(&Scene::load("pbr").unwrap()).pbr_clearcoat);
+    tracers_agree(&scene, "clearcoat");
+}
+
+/// An 8×8 PNG: its left half white and opaque, its right half black and transparent.
+const HALF_WHITE_PNG: &str = "iVBORw0KGgoAAAANSUhEUgAAAAgAAAAICAYAAADED76LAAAAEUlEQVR4nGP4jwYY0MHIUAAAvxN/gYiu+sYAAAAASUVORK5CYII=";
+
+/// A glTF file of one square (−1…1 in x and y, facing +z, u along x, v down y) whose
+/// material's `extensions` are given, its textures all the half-white PNG (clamped).
+fn square_gltf(extensions: &str, base: [f32; 3]) -> String {
+    use base64::Engine;
+    let mut bin = Vec::new();
+    for p in [[-1f32, -1., 0.], [1., -1., 0.], [1., 1., 0.], [-1., 1., 0.]] {
+        bin.extend(p.iter().flat_map(|x| x.to_le_bytes()));
+    }
+    for t in [[0f32, 1.], [1., 1.], [1., 0.], [0., 0.]] {
+        bin.extend(t.iter().flat_map(|x| x.to_le_bytes()));
+    }
+    for i in [0u16, 1, 2, 0, 2, 3] {
+        bin.extend(i.to_le_bytes());
+    }
+    let data = base64::engine::general_purpose::STANDARD.encode(&bin);
+    let [r, g, b] = base;
+    format!(
+        r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+        "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0,"TEXCOORD_0":1}},"indices":2,"material":0}}]}}],
+        "materials":[{{"pbrMetallicRoughness":{{"baseColorFactor":[{r},{g},{b},1],"metallicFactor":0,"roughnessFactor":0}},
+          "extensions":{{{extensions}}}}}],
+        "textures":[{{"source":0,"sampler":0}}],"samplers":[{{"wrapS":33071,"wrapT":33071}}],
+        "images":[{{"uri":"data:image/png;base64,{HALF_WHITE_PNG}"}}],
+        "buffers":[{{"byteLength":{len},"uri":"data:application/octet-stream;base64,{data}"}}],
+        "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":48}},{{"buffer":0,"byteOffset":48,"byteLength":32}},
+          {{"buffer":0,"byteOffset":80,"byteLength":12}}],
+        "accessors":[{{"bufferView":0,"componentType":5126,"count":4,"type":"VEC3","min":[-1,-1,0],"max":[1,1,0]}},
+          {{"bufferView":1,"componentType":5126,"count":4,"type":"VEC2"}},
+          {{"bufferView":2,"componentType":5123,"count":6,"type":"SCALAR"}}],
+        "extensionsUsed":["KHR_materials_clearcoat","KHR_materials_transmission","KHR_materials_specular"]}}"#,
+        len = bin.len()
+    )
+}
+
+/// `square_gltf` placed by a TOML scene in a uniform white sky, filling the view.
+fn square_scene(extensions: &str, base: [f32; 3]) -> (tempfile::TempDir, Scene) {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("square.gltf"),
+        square_gltf(extensions, base),
+    )
+    .unwrap();
+    let toml = "[camera]\nlook_from = [0, 0, 2]\nlook_at = [0, 0, 0]\nvfov = 40\n\
+                [sky]\nuniform = [1, 1, 1]\n[[gltf]]\nfile = \"square.gltf\"\n";
+    let path = dir.path().join("scene.toml");
+    std::fs::write(&path, toml).unwrap();
+    let scene = Scene::load(path.to_str().unwrap()).unwrap();
+    (dir, scene)
+}
+
+#[test]
+fn the_extensions_maps_scale_their_factors() {
+    // A black square without a specular layer under a polished coat whose clearcoatTexture
+    // is white on the left and black on the right: the right half returns exactly nothing,
+    // the left the coat's Fresnel (0.04 facing the camera); both tracers. The glTF reader
+    // reads the maps of KHR_materials_clearcoat, _transmission and _specular and names none
+    // of them as left out.
+    let coat = r#""KHR_materials_specular":{"specularFactor":0},
+        "KHR_materials_clearcoat":{"clearcoatFactor":1,"clearcoatTexture":{"index":0}}"#;
+    let (_dir, scene) = square_scene(coat, [0.0; 3]);
+    let t = scene.objects[0]
+        .material
+        .textured
+        .as_ref()
+        .expect("textured");
+    assert!(t.0.extensions.clearcoat.is_some());
+    assert!(
+        scene.gltf[0].left_out.is_empty(),
+        "{:?}",
+        scene.gltf[0].left_out
+    );
+    // (The map's bilinear blend covers u 0.44…0.56: columns 12–20 of the 32 seen.)
+    on_both(|| {
+        let img = snapshot(&scene, settings(32, 32, 8), 64).image();
+        let mut left = 0.0;
+        for y in 8..24 {
+            for x in 21..32 {
+                assert_eq!(img.get(x, y), [0.0; 3], "({x}, {y})");
+            }
+            left += (2..11).map(|x| img.get(x, y)[0] as f64).sum::<f64>();
+        }
+        // Each sample is 1 with probability Fc ≈ 0.04, else 0: 9 216 samples, σ 0.002.
+        let mean = left / (16.0 * 9.0);
+        assert!((mean - 0.04).abs() < 0.01, "{mean}");
+    });
+    let all = r#""KHR_materials_transmission":{"transmissionFactor":1,"transmissionTexture":{"index":0}},
+        "KHR_materials_specular":{"specularTexture":{"index":0},"specularColorTexture":{"index":0}},
+        "KHR_materials_clearcoat":{"clearcoatFactor":1,"clearcoatTexture":{"index":0},
+          "clearcoatRoughnessFactor":0.5,"clearcoatRoughnessTexture":{"index":0}}"#;
+    let (_dir, scene) = square_scene(all, [0.9, 0.6, 0.3]);
+    let e = &scene.objects[0]
+        .material
+        .textured
+        .as_ref()
+        .unwrap()
+        .0
+        .extensions;
+    assert!(e.all().iter().all(|m| m.is_some()), "{e:?}");
+    let f = termtrace::common::Features::of(&scene);
+    assert!(
+        f.pbr_specular && f.pbr_transmission && f.pbr_clearcoat,
+        "{}",
+        f.summary()
+    );
+}
+
+#[test]
+fn both_tracers_agree_on_the_extensions_maps() {
+    // Every map of the three extensions on one square under a lamp: the GPU tracer against
+    // the CPU tracer, tile by tile.
+    let all = r#""KHR_materials_transmission":{"transmissionFactor":1,"transmissionTexture":{"index":0}},
+        "KHR_materials_specular":{"specularTexture":{"index":0},"specularColorTexture":{"index":0}},
+        "KHR_materials_clearcoat":{"clearcoatFactor":1,"clearcoatTexture":{"index":0},
+          "clearcoatRoughnessFactor":0.5,"clearcoatRoughnessTexture":{"index":0}}"#;
+    let (_dir, scene) = square_scene(all, [0.9, 0.6, 0.3]);
+    tracers_agree(&scene, "extension maps");
 }

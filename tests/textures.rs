@@ -195,6 +195,7 @@ fn sample_one(t: &termtrace::scene::texture::Texture, u: f32) -> f32 {
         emissive_factor: [0.0; 3],
         alpha: AlphaMode::Opaque,
         transforms: [termtrace::scene::texture::IDENTITY_TRANSFORM; 4],
+        extensions: Default::default(),
     })));
     let words = textures::words(&s).unwrap();
     let header = (textures::MATERIALS + 1 + s.objects.len()) as u32;

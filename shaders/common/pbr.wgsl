@@ -10,6 +10,8 @@ override HAS_PBR_SPECULAR: bool = true;
 // A pbr material that transmits (KHR_materials_transmission, with KHR_materials_volume's
 // refracting boundary) in the scene: without one the transmission lobe is left out.
 override HAS_PBR_TRANSMISSION: bool = true;
+// A pbr material with a clear coat (KHR_materials_clearcoat) in the scene.
+override HAS_PBR_CLEARCOAT: bool = true;
 // glTF 2.0's metallic-roughness BRDF as the specification's Appendix B writes it: a
 // Lambertian base under a dielectric Fresnel layer (Schlick, f0 from the ior: 0.04 at 1.5),
 // mixed by metallic with a metal whose f0 is the base colour; the specular lobe is
@@ -19,7 +21,8 @@ override HAS_PBR_TRANSMISSION: bool = true;
 // density light sampling's MIS evaluates. Below PBR_ALPHA_MIN the specular lobe is a mirror.
 // KHR_materials_transmission splits the dielectric base between the Lambertian lobe and a
 // rough dielectric's transmission (Walter et al., "Microfacet Models for Refraction through
-// Rough Surfaces", EGSR 2007), sampled by visible normals too.
+// Rough Surfaces", EGSR 2007), sampled by visible normals too. KHR_materials_clearcoat lays a
+// GGX coat of ior 1.5 over it all.
 
 // The smallest α the microfacet lobe keeps; below it the lobe is a perfect mirror (a delta,
 // which light sampling cannot find): roughness 0 is a mirror, continuously.
@@ -27,6 +30,8 @@ const PBR_ALPHA_MIN: f32 = 1e-4;
 // The least share of the base a rough transmission lobe is drawn by, however much the
 // macroscopic Fresnel reflects.
 const PBR_TRANSMISSION_FLOOR: f32 = 0.25;
+// The clear coat's reflectance at normal incidence: ior 1.5, as the extension fixes it.
+const PBR_COAT_F0: f32 = 0.04;
 const PBR_LUMINANCE: vec3f = vec3f(0.2126, 0.7152, 0.0722);
 
 // A pbr material at a hit, seen from `wo` (unit, towards the viewer) over the shading
@@ -51,6 +56,10 @@ struct PbrLobe {
     // The index ratio η_wo / η_wi across a refracting (volume) boundary; 0 for a thin wall,
     // which transmits without bending (the specification's default).
     eta: f32,
+    // KHR_materials_clearcoat's mix weight, clearcoat · Fc(n·v) with Fc Schlick's of f0 0.04;
+    // also the probability of sampling the coat (0: no coat).
+    coat: f32,
+    coat_alpha: f32,
 }
 
 // A direction drawn from the lobe: f·cos/pdf as the throughput's factor, and the density
@@ -135,7 +144,14 @@ fn pbr_lobe(m: Material, wo: vec3f, n: vec3f, front: bool) -> PbrLobe {
     let p_spec = select(1.0, spec_w / total, total > 0.0);
     let p_trans = select(0.0, trans_w / total, total > 0.0);
     let alpha = m.roughness * m.roughness;
-    return PbrLobe(m.color, m.metallic, n, alpha, wo, weight, f0, p_spec, transmission, p_trans, eta);
+    // KHR_materials_clearcoat's fresnel_coat: the coat's Fresnel at n·v (ior 1.5).
+    var coat = 0.0;
+    var coat_alpha = 0.0;
+    if HAS_PBR_CLEARCOAT && m.clearcoat > 0.0 {
+        coat = m.clearcoat * (PBR_COAT_F0 + (1.0 - PBR_COAT_F0) * pbr_schlick_x5(dot(n, wo)));
+        coat_alpha = m.clearcoat_roughness * m.clearcoat_roughness;
+    }
+    return PbrLobe(m.color, m.metallic, n, alpha, wo, weight, f0, p_spec, transmission, p_trans, eta, coat, coat_alpha);
 }
 
 // Trowbridge-Reitz (GGX) normal distribution, from cos and sin² of the half vector's angle:
@@ -165,6 +181,28 @@ fn pbr_g1(n_dot_v: f32, alpha: f32) -> f32 {
 // (its part that can be evaluated: the deltas of the mirror and of smooth transmission are
 // left out of both).
 fn pbr_eval(l: PbrLobe, wi: vec3f) -> vec4f {
+    let e = pbr_eval_base(l, wi);
+    if !HAS_PBR_CLEARCOAT || l.coat <= 0.0 {
+        return e;
+    }
+    // KHR_materials_clearcoat's fresnel_coat: the material weighed by 1 − coat, plus the
+    // coat's GGX lobe (no F: the weight holds it) times coat; the coat is drawn with
+    // probability coat, so the material's density is scaled alike.
+    var r = e * (1.0 - l.coat);
+    let nl = dot(l.n, wi);
+    let nv = dot(l.n, l.wo);
+    if nl > 0.0 && nv > 0.0 && l.coat_alpha >= PBR_ALPHA_MIN {
+        let h = normalize(l.wo + wi);
+        let nh = clamp(dot(l.n, h), 0.0, 1.0);
+        let nxh = cross(l.n, h);
+        let d = pbr_d(nh, dot(nxh, nxh), l.coat_alpha);
+        r += vec4f(vec3f(l.coat * d * pbr_v(nl, nv, l.coat_alpha) * nl), l.coat * d * pbr_g1(nv, l.coat_alpha) / (4.0 * nv));
+    }
+    return r;
+}
+
+// The material without its coat: f·cos and the density of its lobes.
+fn pbr_eval_base(l: PbrLobe, wi: vec3f) -> vec4f {
     let nl = dot(l.n, wi);
     let nv = dot(l.n, l.wo);
     if nv <= 0.0 {
@@ -259,11 +297,18 @@ fn pbr_visible_normal(wo: vec3f, alpha: f32, u: vec2f) -> vec3f {
 // visible normal refracted, or mirrored through a thin wall), else the cosine lobe. Three
 // draws either way.
 fn pbr_sample(l: PbrLobe, state: ptr<function, Rng>) -> PbrSample {
-    let pick = rand(state);
+    var pick = rand(state);
     let u = rand2(state);
     let nv = dot(l.n, l.wo);
     if nv <= 0.0 {
         return PbrSample(l.n, vec3f(0.0), 0.0, false, false);
+    }
+    // The coat with probability coat; the material's lobes share the rest of the draw.
+    if HAS_PBR_CLEARCOAT && l.coat > 0.0 {
+        if pick < l.coat {
+            return pbr_sample_coat(l, nv, u);
+        }
+        pick = (pick - l.coat) / (1.0 - l.coat);
     }
     let through = HAS_PBR_TRANSMISSION && l.p_trans > 0.0 && pick >= l.p_spec && pick < l.p_spec + l.p_trans;
     var wi: vec3f;
@@ -300,6 +345,25 @@ fn pbr_sample(l: PbrLobe, state: ptr<function, Rng>) -> PbrSample {
         return PbrSample(wi, vec3f(0.0), 0.0, false, false);
     }
     return PbrSample(wi, e.xyz / e.w, e.w, true, through);
+}
+
+// A direction from the clear coat's GGX lobe, or its mirror below PBR_ALPHA_MIN (weight 1: the
+// coat's Fresnel over the probability of drawing it).
+fn pbr_sample_coat(l: PbrLobe, nv: f32, u: vec2f) -> PbrSample {
+    if l.coat_alpha < PBR_ALPHA_MIN {
+        return PbrSample(reflect(-l.wo, l.n), vec3f(1.0), 0.0, true, false);
+    }
+    let b = basis(l.n);
+    let wo_local = vec3f(dot(b[0], l.wo), dot(b[1], l.wo), nv);
+    let wi = reflect(-l.wo, b * pbr_visible_normal(wo_local, l.coat_alpha, u));
+    if dot(wi, l.n) <= 0.0 {
+        return PbrSample(wi, vec3f(0.0), 0.0, false, false);
+    }
+    let e = pbr_eval(l, wi);
+    if e.w <= 0.0 {
+        return PbrSample(wi, vec3f(0.0), 0.0, false, false);
+    }
+    return PbrSample(wi, e.xyz / e.w, e.w, true, false);
 }
 
 // The smooth lobes' deltas (α below PBR_ALPHA_MIN): the mirror, or straight through a thin

@@ -22,6 +22,14 @@ const TEX_FLAG_BASE: u32 = 1u;
 const TEX_FLAG_MR: u32 = 2u;
 const TEX_FLAG_EMISSIVE: u32 = 4u;
 const TEX_FLAG_NORMAL: u32 = 8u;
+const TEX_FLAG_TRANSMISSION: u32 = 16u;
+const TEX_FLAG_CLEARCOAT: u32 = 32u;
+const TEX_FLAG_CLEARCOAT_ROUGHNESS: u32 = 64u;
+const TEX_FLAG_SPECULAR: u32 = 128u;
+const TEX_FLAG_SPECULAR_COLOR: u32 = 1024u;
+// The record word of the first extension map's header, and its transform's index.
+const TEX_EXTENSION_MAPS: u32 = 70u;
+const TEX_EXTENSION_TRANSFORMS: u32 = 4u;
 // Record word of the normal map's texture header (its scale follows).
 const TEX_NORMAL_MAP: u32 = 14u;
 // How a texel's 8-bit values are read: as [0, 1], sRGB-decoded colour, or signed with 128 as
@@ -172,6 +180,22 @@ fn tex_material(m: Material, rec: u32, uv: vec2f) -> Material {
         out.color = base.xyz;
         out.metallic = metallic;
         out.roughness = roughness;
+        // The material extensions' maps, each times the material's factor.
+        if (flags & TEX_FLAG_TRANSMISSION) != 0u {
+            out.transmission *= tex_extension_map(rec, 0u, uv, TEX_UNORM).x;
+        }
+        if (flags & TEX_FLAG_CLEARCOAT) != 0u {
+            out.clearcoat *= tex_extension_map(rec, 1u, uv, TEX_UNORM).x;
+        }
+        if (flags & TEX_FLAG_CLEARCOAT_ROUGHNESS) != 0u {
+            out.clearcoat_roughness *= tex_extension_map(rec, 2u, uv, TEX_UNORM).y;
+        }
+        if (flags & TEX_FLAG_SPECULAR) != 0u {
+            out.specular *= tex_extension_map(rec, 3u, uv, TEX_UNORM).w;
+        }
+        if (flags & TEX_FLAG_SPECULAR_COLOR) != 0u {
+            out.specular_color *= tex_extension_map(rec, 4u, uv, TEX_SRGB).xyz;
+        }
         return out;
     }
     let specular = metallic + (1.0 - metallic) * DIELECTRIC_F0;
@@ -181,6 +205,13 @@ fn tex_material(m: Material, rec: u32, uv: vec2f) -> Material {
     out.specular = specular;
     out.specular_color = (metallic * base.xyz + vec3f((1.0 - metallic) * DIELECTRIC_F0)) / specular;
     return out;
+}
+
+// Extension map k of record `rec` (transmission, clearcoat, clearcoat roughness, specular,
+// specular colour) at `uv`, through its transform.
+fn tex_extension_map(rec: u32, k: u32, uv: vec2f, mode: u32) -> vec4f {
+    let h = tex[rec + TEX_EXTENSION_MAPS + k];
+    return tex_sample(h, tex_xform(rec, TEX_EXTENSION_TRANSFORMS + k, uv), mode);
 }
 
 // Whether a ray's hit at distance t on triangle `tri` (number `index`) falls through

@@ -78,7 +78,11 @@ struct Material {
     transmission: f32,      //  60  pbr: KHR_materials_transmission's factor
     attenuation: vec3f,     //  64  pbr: KHR_materials_volume's coefficient per unit (0 clear)
     thin: u32,              //  76  pbr: 1 a thin wall, 0 a volume's boundary (refracts)
-}                           //  80
+    clearcoat: f32,         //  80  pbr: KHR_materials_clearcoat's factor
+    clearcoat_roughness: f32, // 84  pbr: its perceptual roughness
+    _pad0: u32,             //  88
+    _pad1: u32,             //  92
+}                           //  96
 
 // Material.model.
 const MODEL_LECTURE: u32 = 0u;

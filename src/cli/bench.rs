@@ -395,6 +395,7 @@ fn with_mean_textures(scene: &crate::scene::Scene) -> crate::scene::Scene {
                     // surface a lamp, another scene.
                     emissive: t.0.emissive.clone(),
                     normal: mean(&t.0.normal),
+                    extensions: t.0.extensions.clone(),
                     ..*t.0
                 }));
                 done.push((key, n.clone()));

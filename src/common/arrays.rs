@@ -413,6 +413,10 @@ fn material(o: &Object) -> GpuMaterial {
         transmission: m.transmission,
         attenuation: m.volume.coefficient().to_array(),
         thin: m.volume.thin_walled as u32,
+        clearcoat: m.clearcoat,
+        clearcoat_roughness: m.clearcoat_roughness,
+        _pad0: 0,
+        _pad1: 0,
     }
 }
 

@@ -12,7 +12,7 @@ use crate::scene::{Scene, Shape, Sky};
 #[error(
     "unknown feature `{0}` (expected spheres, quads, boxes, triangles, dielectrics, emitters, \
      nee, dof, sun, textures, cutouts, normal_maps, smooth_normals, env_map, pbr, \
-     pbr_specular, pbr_transmission or lecture)"
+     pbr_specular, pbr_transmission, pbr_clearcoat or lecture)"
 )]
 pub struct UnknownFeature(pub String);
 
@@ -50,6 +50,8 @@ pub struct Features {
     /// A pbr material that transmits (KHR_materials_transmission), with its volume's
     /// refraction and attenuation (KHR_materials_volume).
     pub pbr_transmission: bool,
+    /// A pbr material with a clear coat (KHR_materials_clearcoat).
+    pub pbr_clearcoat: bool,
     /// The lecture's surface lobes (a non-emitting, non-dielectric material of its model):
     /// a scene of glTF materials alone compiles none of them. Without `pbr` too (the
     /// benchmarks' feature lists) the lecture's lobes are what every surface runs.
@@ -81,6 +83,7 @@ impl Features {
             pbr: true,
             pbr_specular: true,
             pbr_transmission: true,
+            pbr_clearcoat: true,
             lecture: true,
             count_segments: false,
             bvh: true,
@@ -107,6 +110,7 @@ impl Features {
             pbr: false,
             pbr_specular: false,
             pbr_transmission: false,
+            pbr_clearcoat: false,
             lecture: false,
             count_segments: false,
             bvh: false,
@@ -136,6 +140,7 @@ impl Features {
                 "pbr" => &mut f.pbr,
                 "pbr_specular" => &mut f.pbr_specular,
                 "pbr_transmission" => &mut f.pbr_transmission,
+                "pbr_clearcoat" => &mut f.pbr_clearcoat,
                 "lecture" => &mut f.lecture,
                 _ => return Err(UnknownFeature(name.to_string())),
             };
@@ -168,12 +173,17 @@ impl Features {
             f.dielectrics |= o.material.is_dielectric();
             // An emissive pbr material still needs the BRDF where its emissive map is dark.
             f.pbr |= o.material.is_pbr();
+            let specular_maps = o.material.textured.as_ref().is_some_and(|t| {
+                t.0.extensions.specular.is_some() || t.0.extensions.specular_color.is_some()
+            });
             f.pbr_specular |= o.material.is_pbr()
                 && (o.material.specular != 1.0
+                    || specular_maps
                     || o.material
                         .specular_color
                         .is_some_and(|c| c != glam::Vec3::ONE));
             f.pbr_transmission |= o.material.is_pbr() && o.material.transmission > 0.0;
+            f.pbr_clearcoat |= o.material.is_pbr() && o.material.clearcoat > 0.0;
             // (A textured emitter's dark texels are surfaces too.)
             f.lecture |= !o.material.is_pbr()
                 && !o.material.is_dielectric()
@@ -213,6 +223,7 @@ impl Features {
             pbr: self.pbr | other.pbr,
             pbr_specular: self.pbr_specular | other.pbr_specular,
             pbr_transmission: self.pbr_transmission | other.pbr_transmission,
+            pbr_clearcoat: self.pbr_clearcoat | other.pbr_clearcoat,
             lecture: self.lecture | other.lecture,
             count_segments: self.count_segments | other.count_segments,
             bvh: self.bvh | other.bvh,
@@ -245,6 +256,7 @@ impl Features {
             ("HAS_PBR", b(self.pbr)),
             ("HAS_PBR_SPECULAR", b(self.pbr_specular)),
             ("HAS_PBR_TRANSMISSION", b(self.pbr_transmission)),
+            ("HAS_PBR_CLEARCOAT", b(self.pbr_clearcoat)),
             ("HAS_LECTURE", b(self.lecture)),
             ("COUNT_SEGMENTS", b(self.count_segments)),
             ("USE_BVH", b(self.bvh)),
@@ -271,6 +283,7 @@ impl Features {
             (self.pbr, "pbr"),
             (self.pbr_specular, "pbr_specular"),
             (self.pbr_transmission, "pbr_transmission"),
+            (self.pbr_clearcoat, "pbr_clearcoat"),
         ];
         let on: Vec<&str> = names.iter().filter(|(b, _)| *b).map(|(_, n)| *n).collect();
         if on.is_empty() {

@@ -93,6 +93,11 @@ pub struct GpuMaterial {
     pub attenuation: [f32; 3],
     /// pbr: 1 for a thin wall (transmits without refracting), 0 for a volume's boundary.
     pub thin: u32,
+    /// pbr: KHR_materials_clearcoat's factor and perceptual roughness.
+    pub clearcoat: f32,
+    pub clearcoat_roughness: f32,
+    pub _pad0: u32,
+    pub _pad1: u32,
 }
 
 /// `GpuMaterial::model`: the lecture's material model (MODEL_LECTURE in types.wgsl).
@@ -239,6 +244,8 @@ pub fn mirrors() -> Vec<MirrorLayout> {
                 transmission,
                 attenuation,
                 thin,
+                clearcoat,
+                clearcoat_roughness,
             ]
         ),
         m!(
@@ -266,7 +273,7 @@ const _: () = {
     assert!(std::mem::size_of::<SceneUniforms>() == 208);
     assert!(std::mem::size_of::<DispatchUniforms>() == 32);
     assert!(std::mem::size_of::<ResolveUniforms>() == 32);
-    assert!(std::mem::size_of::<GpuMaterial>() == 80);
+    assert!(std::mem::size_of::<GpuMaterial>() == 96);
     assert!(std::mem::size_of::<GpuSphere>() == 32);
     assert!(std::mem::size_of::<GpuQuad>() == 80);
     assert!(std::mem::size_of::<GpuCuboid>() == 80);

@@ -8,7 +8,7 @@
 
 use super::Features;
 use crate::scene::gltf::DIELECTRIC_F0;
-use crate::scene::texture::{AlphaMode, Texture, Textured};
+use crate::scene::texture::{AlphaMode, IDENTITY_TRANSFORM, Texture, Textured};
 use crate::scene::{Material, Scene, Shape, euler_xyz};
 use glam::DVec3;
 use std::sync::Arc;
@@ -30,9 +30,15 @@ pub const NONE: u32 = u32::MAX;
 
 /// Record words: flags, the base colour, metallic-roughness and emissive maps' texture
 /// headers, base factor (4), metallic, roughness, emissive factor (3), alpha cutoff, the
-/// normal map's header ([`NORMAL_MAP`]) and scale, then each of the four maps' texture
-/// transform (six words from [`TRANSFORMS`]).
-pub const RECORD_WORDS: usize = 40;
+/// normal map's header ([`NORMAL_MAP`]) and scale, then each of the nine maps' texture
+/// transform (six words from [`TRANSFORMS`]: the four above, then the extensions' five), then
+/// the extensions' maps' headers ([`EXTENSION_MAPS`]: transmission, clearcoat, clearcoat
+/// roughness, specular, specular colour).
+pub const RECORD_WORDS: usize = 75;
+/// The record word holding the first extension map's texture header.
+pub const EXTENSION_MAPS: usize = 70;
+/// The transform index of the first extension map.
+pub const EXTENSION_TRANSFORMS: u32 = 4;
 /// The record word holding the normal map's texture header (its scale follows).
 pub const NORMAL_MAP: usize = 14;
 /// The record word where the maps' texture transforms start.
@@ -41,6 +47,12 @@ pub const FLAG_BASE: u32 = 1;
 pub const FLAG_MR: u32 = 2;
 pub const FLAG_EMISSIVE: u32 = 4;
 pub const FLAG_NORMAL: u32 = 8;
+/// The extensions' maps (bits 4–7 and 10; bits 8–9 are the alpha mode).
+pub const FLAG_TRANSMISSION: u32 = 16;
+pub const FLAG_CLEARCOAT: u32 = 32;
+pub const FLAG_CLEARCOAT_ROUGHNESS: u32 = 64;
+pub const FLAG_SPECULAR: u32 = 128;
+pub const FLAG_SPECULAR_COLOR: u32 = 1024;
 /// Bits 8–9 of the flags: 0 opaque, 1 mask (cut-out at the cutoff), 2 blend (a stochastic
 /// cut-out).
 pub const ALPHA_SHIFT: u32 = 8;
@@ -91,9 +103,11 @@ impl<'a> Layout<'a> {
                 continue;
             }
             records.push((t, &o.material));
+            let extensions = t.extensions.all().map(|m| m.as_ref().map(|(t, _)| t));
             for tex in [&t.base_color, &t.metallic_roughness, &t.emissive, &t.normal]
                 .into_iter()
                 .flatten()
+                .chain(extensions.into_iter().flatten())
             {
                 if !textures.iter().any(|x| Arc::ptr_eq(x, tex)) {
                     textures.push(tex);
@@ -199,6 +213,28 @@ impl<'a> Layout<'a> {
             for t in &t.transforms {
                 w.extend(t.map(f32::to_bits));
             }
+            let maps = t.extensions.all();
+            for m in maps {
+                let xf = m.as_ref().map_or(IDENTITY_TRANSFORM, |(_, xf)| *xf);
+                w.extend(xf.map(f32::to_bits));
+            }
+            let flags_of = [
+                FLAG_TRANSMISSION,
+                FLAG_CLEARCOAT,
+                FLAG_CLEARCOAT_ROUGHNESS,
+                FLAG_SPECULAR,
+                FLAG_SPECULAR_COLOR,
+            ];
+            for (m, flag) in maps.into_iter().zip(flags_of) {
+                match m {
+                    Some((tex, _)) => {
+                        w[start] |= flag;
+                        w.push(self.header(tex));
+                    }
+                    None => w.push(NONE),
+                }
+            }
+            debug_assert_eq!(w.len() - start, RECORD_WORDS);
         }
         w
     }

@@ -38,6 +38,9 @@ pub struct Material {
     pub transmission: f32,
     pub thin: bool,
     pub attenuation: Vec3A,
+    /// pbr: KHR_materials_clearcoat's factor and perceptual roughness.
+    pub clearcoat: f32,
+    pub clearcoat_roughness: f32,
 }
 
 /// The uniforms the tracer reads per sample, as vectors.
@@ -117,6 +120,8 @@ impl Material {
             transmission: m.transmission,
             thin: m.thin != 0,
             attenuation: v(m.attenuation),
+            clearcoat: m.clearcoat,
+            clearcoat_roughness: m.clearcoat_roughness,
         }
     }
 }

@@ -6,8 +6,10 @@ use super::intersect::{Ray, Triangle, triangle_barycentrics};
 use super::sampling::normalize_or;
 use super::scene::Material;
 use crate::common::textures::{
-    ALPHA_SHIFT, FLAG_BASE, FLAG_EMISSIVE, FLAG_MR, FLAG_NORMAL, FRAME_WORDS, FRAMES, MATERIALS,
-    NONE, NORMAL_MAP, SRGB_LUT, TRANSFORMS, UV_BASE,
+    ALPHA_SHIFT, EXTENSION_MAPS, EXTENSION_TRANSFORMS, FLAG_BASE, FLAG_CLEARCOAT,
+    FLAG_CLEARCOAT_ROUGHNESS, FLAG_EMISSIVE, FLAG_MR, FLAG_NORMAL, FLAG_SPECULAR,
+    FLAG_SPECULAR_COLOR, FLAG_TRANSMISSION, FRAME_WORDS, FRAMES, MATERIALS, NONE, NORMAL_MAP,
+    SRGB_LUT, TRANSFORMS, UV_BASE,
 };
 use crate::scene::gltf::DIELECTRIC_F0;
 use glam::{Vec2, Vec3A, Vec4};
@@ -190,6 +192,23 @@ pub fn material(tex: &[u32], m: &Material, rec: u32, uv: Vec2) -> Material {
         out.color = base;
         out.metallic = metallic;
         out.roughness = roughness;
+        // The material extensions' maps, each times the material's factor.
+        if flags & FLAG_TRANSMISSION != 0 {
+            out.transmission *= extension_map(tex, rec, 0, uv, Decode::Unorm).x;
+        }
+        if flags & FLAG_CLEARCOAT != 0 {
+            out.clearcoat *= extension_map(tex, rec, 1, uv, Decode::Unorm).x;
+        }
+        if flags & FLAG_CLEARCOAT_ROUGHNESS != 0 {
+            out.clearcoat_roughness *= extension_map(tex, rec, 2, uv, Decode::Unorm).y;
+        }
+        if flags & FLAG_SPECULAR != 0 {
+            out.specular *= extension_map(tex, rec, 3, uv, Decode::Unorm).w;
+        }
+        if flags & FLAG_SPECULAR_COLOR != 0 {
+            out.specular_color *=
+                Vec3A::from(extension_map(tex, rec, 4, uv, Decode::Srgb).truncate());
+        }
         return out;
     }
     let specular = metallic + (1.0 - metallic) * DIELECTRIC_F0;
@@ -200,6 +219,18 @@ pub fn material(tex: &[u32], m: &Material, rec: u32, uv: Vec2) -> Material {
     out.specular_color =
         (metallic * base + Vec3A::splat((1.0 - metallic) * DIELECTRIC_F0)) / specular;
     out
+}
+
+/// Extension map `k` of record `rec` (transmission, clearcoat, clearcoat roughness, specular,
+/// specular colour) at `uv`, through its transform (texture.wgsl: tex_extension_map).
+fn extension_map(tex: &[u32], rec: u32, k: u32, uv: Vec2, decode: Decode) -> Vec4 {
+    let h = tex[rec as usize + EXTENSION_MAPS + k as usize];
+    sample(
+        tex,
+        h,
+        xform(tex, rec, EXTENSION_TRANSFORMS + k, uv),
+        decode,
+    )
 }
 
 /// Whether a hit at `t` on triangle `index` falls through a cut-out (texture.wgsl:

@@ -41,6 +41,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_emissive_strength",
     "KHR_materials_transmission",
     "KHR_materials_volume",
+    "KHR_materials_clearcoat",
     "KHR_materials_ior",
     "KHR_materials_specular",
     "KHR_lights_punctual",
@@ -590,9 +591,23 @@ pub fn material(m: &gltf::Material) -> Material {
                 attenuation_distance: v.attenuation_distance(),
             }),
         ior: m.ior().unwrap_or(1.5),
+        clearcoat: clearcoat(m),
         specular: m.specular().map_or(1.0, |s| s.specular_factor()),
         specular_color: Vec3::from(m.specular().map_or([1.0; 3], |s| s.specular_color_factor())),
     })
+}
+
+/// `KHR_materials_clearcoat`'s factor and roughness factor (0 and 0 without it; the crate
+/// has no type for the extension, so its JSON is read).
+fn clearcoat(m: &gltf::Material) -> (f32, f32) {
+    let Some(ext) = m.extension_value("KHR_materials_clearcoat") else {
+        return (0.0, 0.0);
+    };
+    let factor = |key: &str| ext.get(key).and_then(|v| v.as_f64()).unwrap_or(0.0) as f32;
+    (
+        factor("clearcoatFactor"),
+        factor("clearcoatRoughnessFactor"),
+    )
 }
 
 /// A metallic-roughness material's factors, as glTF gives them or as an MTL material maps
@@ -609,6 +624,8 @@ pub struct Pbr {
     /// `KHR_materials_volume` of a thickness above 0 (`None`: a thin wall).
     pub volume: Option<Volume>,
     pub ior: f32,
+    /// `KHR_materials_clearcoat`: the coat's factor and roughness (0, 0 without it).
+    pub clearcoat: (f32, f32),
     /// `KHR_materials_specular`: the dielectric layer's strength and its f0's colour (1 and
     /// white without the extension).
     pub specular: f32,
@@ -631,6 +648,8 @@ pub fn pbr_material(p: &Pbr) -> Material {
     let specular_color =
         (p.specular_color != Vec3::ONE).then(|| p.specular_color.map(|c| finite(c, 1.0)));
     let transmission = finite(p.transmission, 0.0).min(1.0);
+    let clearcoat = finite(p.clearcoat.0, 0.0).min(1.0);
+    let clearcoat_roughness = finite(p.clearcoat.1, 0.0).min(1.0);
     let volume = match p.volume {
         Some(v) => Volume {
             thin_walled: false,
@@ -660,6 +679,8 @@ pub fn pbr_material(p: &Pbr) -> Material {
             specular_color,
             transmission,
             volume,
+            clearcoat,
+            clearcoat_roughness,
             ..Material::default()
         };
     }
@@ -673,6 +694,8 @@ pub fn pbr_material(p: &Pbr) -> Material {
         specular_color,
         transmission,
         volume,
+        clearcoat,
+        clearcoat_roughness,
         ..Material::default()
     }
 }

@@ -3,7 +3,9 @@
 //! each textured material as the model's [`Textured`].
 
 use super::error::Malformed;
-use super::texture::{AlphaMode, IDENTITY_TRANSFORM, Texture, Textured, TexturedRef, Wrap};
+use super::texture::{
+    AlphaMode, ExtensionMaps, IDENTITY_TRANSFORM, Texture, Textured, TexturedRef, Wrap,
+};
 use base64::Engine;
 use rayon::prelude::*;
 use std::path::Path;
@@ -13,7 +15,8 @@ use std::sync::Arc;
 pub type Textures = Vec<Option<Arc<Texture>>>;
 
 /// Decodes every image that a material's base colour, metallic-roughness, emissive or normal
-/// map uses, each once, in parallel.
+/// map, or a map of the material extensions read ([`extension_textures`]), uses, each once, in
+/// parallel.
 pub fn decode(
     doc: &gltf::Document,
     base: Option<&Path>,
@@ -34,6 +37,11 @@ pub fn decode(
         }
         if let Some(n) = m.normal_texture() {
             used[n.texture().index()] = true;
+        }
+        for i in extension_textures(&m) {
+            if let Some(u) = used.get_mut(i) {
+                *u = true;
+            }
         }
     }
     let mut images: Vec<usize> = doc
@@ -89,6 +97,26 @@ pub fn decode(
             }))
         })
         .collect())
+}
+
+/// The textures the maps of KHR_materials_transmission, _specular and _clearcoat name (the
+/// last from its JSON, which the crate does not type).
+fn extension_textures(m: &gltf::Material) -> Vec<usize> {
+    let mut out = Vec::new();
+    if let Some(i) = m.transmission().and_then(|t| t.transmission_texture()) {
+        out.push(i.texture().index());
+    }
+    if let Some(s) = m.specular() {
+        out.extend(s.specular_texture().map(|i| i.texture().index()));
+        out.extend(s.specular_color_texture().map(|i| i.texture().index()));
+    }
+    if let Some(c) = m.extension_value("KHR_materials_clearcoat") {
+        for key in ["clearcoatTexture", "clearcoatRoughnessTexture"] {
+            let index = c.get(key).and_then(|v| v.get("index")?.as_u64());
+            out.extend(index.map(|i| i as usize));
+        }
+    }
+    out
 }
 
 /// The encoded bytes of an image: from a buffer view, a `data:` URI, or a file beside the
@@ -201,29 +229,53 @@ pub fn textured(
         let matrix = texture_transform(xf.offset, xf.rotation, xf.scale);
         pick((n.texture().index(), set, matrix), "normal")
     });
-    // KHR_materials_specular's maps are not read (its factors are): named, once each.
-    if let Some(s) = m.specular() {
-        let which = m.index().map_or("default".into(), |i| i.to_string());
-        for (map, what) in [
-            (s.specular_texture().is_some(), "specularTexture"),
-            (s.specular_color_texture().is_some(), "specularColorTexture"),
-        ] {
-            if map {
-                skipped.push(format!(
-                    "the {what} of materials[{which}] (KHR_materials_specular's factors are \
-                     read, its maps are not)"
-                ));
-            }
-        }
-    }
-    // Nor are the transmission and volume extensions' maps.
+    // The material extensions' maps: the crate's types where it has them, the JSON's
+    // textureInfo for KHR_materials_clearcoat (as a normal map's transform is read).
+    let coat = m.extension_value("KHR_materials_clearcoat");
+    let json_info = |key: &str| -> Option<(usize, u32, [f32; 6])> {
+        let v = coat?.get(key)?;
+        let index = v.get("index")?.as_u64()? as usize;
+        let xf = v
+            .get("extensions")
+            .and_then(|e| e.get("KHR_texture_transform"))
+            .map(NormalTransform::from_json)
+            .unwrap_or_default();
+        let set = xf.tex_coord.unwrap_or_else(|| {
+            v.get("texCoord")
+                .and_then(|t| t.as_u64())
+                .map_or(0, |t| t.min(u32::MAX as u64) as u32)
+        });
+        Some((
+            index,
+            set,
+            texture_transform(xf.offset, xf.rotation, xf.scale),
+        ))
+    };
+    let extensions = ExtensionMaps {
+        transmission: m
+            .transmission()
+            .and_then(|t| t.transmission_texture())
+            .and_then(|i| pick(info(i), "transmission")),
+        clearcoat: json_info("clearcoatTexture").and_then(|i| pick(i, "clearcoat")),
+        clearcoat_roughness: json_info("clearcoatRoughnessTexture")
+            .and_then(|i| pick(i, "clearcoat roughness")),
+        specular: m
+            .specular()
+            .and_then(|s| s.specular_texture())
+            .and_then(|i| pick(info(i), "specular")),
+        specular_color: m
+            .specular()
+            .and_then(|s| s.specular_color_texture())
+            .and_then(|i| pick(info(i), "specular colour")),
+    };
+    // Maps that are not read: named, once each. The coat follows the material's shading
+    // normal; a path tracer takes a volume's thickness from its geometry.
     let which = m.index().map_or("default".into(), |i| i.to_string());
     for (map, what, ext) in [
         (
-            m.transmission()
-                .is_some_and(|t| t.transmission_texture().is_some()),
-            "transmissionTexture",
-            "KHR_materials_transmission",
+            coat.is_some_and(|c| c.get("clearcoatNormalTexture").is_some()),
+            "clearcoatNormalTexture",
+            "KHR_materials_clearcoat",
         ),
         (
             m.volume().is_some_and(|v| v.thickness_texture().is_some()),
@@ -233,7 +285,7 @@ pub fn textured(
     ] {
         if map {
             skipped.push(format!(
-                "the {what} of materials[{which}] ({ext}'s factors are read, its maps are not)"
+                "the {what} of materials[{which}] ({ext}'s other maps and its factors are read)"
             ));
         }
     }
@@ -254,6 +306,7 @@ pub fn textured(
         && metallic_roughness.is_none()
         && emissive.is_none()
         && normal.is_none()
+        && extensions.all().iter().all(|m| m.is_none())
         && alpha == AlphaMode::Opaque
     {
         return None;
@@ -271,6 +324,7 @@ pub fn textured(
         emissive_factor: m.emissive_factor().map(|x| x.max(0.0) * strength),
         alpha,
         transforms,
+        extensions,
     })))
 }
 

@@ -203,6 +203,10 @@ pub struct Material {
     /// How a transmitting pbr material's light passes: a thin wall, or a volume's boundary
     /// (KHR_materials_volume).
     pub volume: Volume,
+    /// KHR_materials_clearcoat's factor and roughness: a clear coat of ior 1.5 over the
+    /// material; the `pbr` model's.
+    pub clearcoat: f32,
+    pub clearcoat_roughness: f32,
     /// A glTF material's texture maps, mapped onto the other fields at each hit (`None`: the
     /// fields as they are).
     pub textured: Option<TexturedRef>,

@@ -177,6 +177,7 @@ pub fn import_from(
             transmission: 0.0,
             volume: None,
             ior: 1.5,
+            clearcoat: (0.0, 0.0),
             specular: 1.0,
             specular_color: Vec3::ONE,
         })
@@ -622,7 +623,9 @@ fn find_image(base: &Path, file: &str, read: Reader) -> Result<Vec<u8>, Malforme
 ///   writes Ns = 1000 · (1 − roughness)²); no `Ns`: roughness 1;
 /// - `Pm` → metallic, else 1 for the reflecting illumination models 3, 5 and 8, else 0;
 /// - the transparent illumination models 4, 6, 7 and 9 → glass (transmission 1) of ior `Ni`;
-/// - `Ke` → emission.
+/// - `Ke` → emission;
+/// - `Pc` and `Pcr` (the clear coat's thickness and roughness) → KHR_materials_clearcoat's
+///   factor and roughness.
 pub fn mtl_pbr(m: &tobj::Material) -> Pbr {
     let param = |k: &str| -> Option<f32> {
         m.unknown_param
@@ -648,6 +651,7 @@ pub fn mtl_pbr(m: &tobj::Material) -> Pbr {
         // An OBJ mesh is a solid: its glass refracts.
         volume: glass.then(super::model::Volume::default),
         ior: m.optical_density.unwrap_or(1.5),
+        clearcoat: (param("Pc").unwrap_or(0.0), param("Pcr").unwrap_or(0.0)),
         specular: 1.0,
         specular_color: Vec3::ONE,
     }
@@ -736,6 +740,7 @@ fn textured(
             norm.as_ref()
                 .map_or(IDENTITY_TRANSFORM, |l| l.spec.transform()),
         ],
+        extensions: Default::default(),
     })))
 }
 

@@ -154,7 +154,8 @@ impl Group {
     pub fn help(self, names: &str) -> String {
         match self {
             Group::Colour => format!("adjust the colour's {names} (sRGB)"),
-            Group::Pbr => format!("adjust a pbr (glTF) material's {names}"),
+            // Short: five names fit an 80-column help.
+            Group::Pbr => format!("adjust pbr {names}"),
             _ => format!("adjust {names}"),
         }
     }
@@ -190,7 +191,7 @@ pub struct ParamSpec {
 }
 
 /// Every parameter, in the preview's order (`m` goes to the next).
-pub static PARAMS: [ParamSpec; 15] = [
+pub static PARAMS: [ParamSpec; 17] = [
     ParamSpec {
         name: "smoothness",
         label: "smooth",
@@ -354,6 +355,47 @@ pub static PARAMS: [ParamSpec; 15] = [
         access: Access::Material {
             get: |m| m.transmission,
             set: |m, v| m.transmission = v,
+        },
+    },
+    ParamSpec {
+        name: "clearcoat",
+        label: "coat",
+        help: "coat",
+        toml: Some(("material", "clearcoat")),
+        range: Range::closed(0.0, 1.0),
+        fine: 0.01,
+        coarse: 0.1,
+        step: Step::Add,
+        default: Some(0.0),
+        unit: "",
+        key: 'o',
+        model: Some(MaterialModel::Pbr),
+        group: Group::Pbr,
+        doc: "KHR_materials_clearcoat's factor: the strength of a clear coat (ior 1.5) over \
+              the material",
+        access: Access::Material {
+            get: |m| m.clearcoat,
+            set: |m, v| m.clearcoat = v,
+        },
+    },
+    ParamSpec {
+        name: "clearcoat_roughness",
+        label: "coat rough",
+        help: "coat roughness",
+        toml: Some(("material", "clearcoat_roughness")),
+        range: Range::closed(0.0, 1.0),
+        fine: 0.01,
+        coarse: 0.1,
+        step: Step::Add,
+        default: Some(0.0),
+        unit: "",
+        key: 'O',
+        model: Some(MaterialModel::Pbr),
+        group: Group::Pbr,
+        doc: "KHR_materials_clearcoat's roughness (GGX α = roughness²): 0 a polished coat",
+        access: Access::Material {
+            get: |m| m.clearcoat_roughness,
+            set: |m, v| m.clearcoat_roughness = v,
         },
     },
     channel("red", "r", '6', 0),
@@ -664,6 +706,8 @@ impl Default for Material {
             roughness: 0.0,
             transmission: 0.0,
             volume: super::model::Volume::default(),
+            clearcoat: 0.0,
+            clearcoat_roughness: 0.0,
             textured: None,
         };
         for (p, _) in material_keys() {

@@ -64,6 +64,38 @@ pub struct Textured {
     /// Each map's `KHR_texture_transform` (base colour, metallic-roughness, emissive, normal), as
     /// the rows of a 2×3 matrix: u' = m[0]·u + m[1]·v + m[2], v' = m[3]·u + m[4]·v + m[5].
     pub transforms: [[f32; 6]; 4],
+    /// The maps of the material extensions the pbr model reads.
+    pub extensions: ExtensionMaps,
+}
+
+/// A map and its `KHR_texture_transform`.
+pub type Map = (Arc<Texture>, [f32; 6]);
+
+/// The maps of the material extensions the pbr model reads; each multiplies the material's
+/// factor (which the preview edits) by one channel, as the extensions define them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ExtensionMaps {
+    /// KHR_materials_transmission's transmissionTexture: its red channel.
+    pub transmission: Option<Map>,
+    /// KHR_materials_clearcoat's clearcoatTexture (red) and clearcoatRoughnessTexture (green).
+    pub clearcoat: Option<Map>,
+    pub clearcoat_roughness: Option<Map>,
+    /// KHR_materials_specular's specularTexture (alpha) and specularColorTexture (RGB, sRGB).
+    pub specular: Option<Map>,
+    pub specular_color: Option<Map>,
+}
+
+impl ExtensionMaps {
+    /// The maps in the order of the texture words' records (`common::textures`).
+    pub fn all(&self) -> [&Option<Map>; 5] {
+        [
+            &self.transmission,
+            &self.clearcoat,
+            &self.clearcoat_roughness,
+            &self.specular,
+            &self.specular_color,
+        ]
+    }
 }
 
 /// The identity texture transform.

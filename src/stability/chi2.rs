@@ -35,6 +35,17 @@ pub const PBR_THROUGH_CASES: [(f32, f32, f32); 6] = [
     (0.6, 0.3, 1.5),
 ];
 
+/// The clear-coated lobes both samplers are tested on: (metallic, roughness, clearcoat
+/// roughness, cos θ of the viewer), of clearcoat 1 over an orange base.
+/// (Coats of α ≥ 0.1, as the other cases: the bins' midpoint rule cannot integrate a narrower
+/// lobe; the polished coat has known answers in tests/pbr.rs.)
+pub const PBR_COAT_CASES: [(f32, f32, f32, f32); 4] = [
+    (0.0, 0.8, 0.35, 0.6),
+    (1.0, 0.6, 0.4, 0.3),
+    (0.0, 0.3, 0.6, 0.9),
+    (0.5, 1.0, 0.35, 0.2),
+];
+
 /// Draws per case.
 pub const PBR_DRAWS: u32 = 400_000;
 

@@ -66,7 +66,7 @@ pub struct GpuPbrProbeOutput {
 const _: () = {
     assert!(std::mem::size_of::<GpuProbeInput>() == 160);
     assert!(std::mem::size_of::<GpuProbeOutput>() == 80);
-    assert!(std::mem::size_of::<GpuPbrProbeInput>() == 112);
+    assert!(std::mem::size_of::<GpuPbrProbeInput>() == 128);
     assert!(std::mem::size_of::<GpuPbrProbeOutput>() == 32);
 };
 
