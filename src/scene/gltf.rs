@@ -45,6 +45,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_ior",
     "KHR_materials_specular",
     "KHR_lights_punctual",
+    "KHR_mesh_quantization",
 ];
 
 /// What one glTF file adds to a scene.
@@ -245,8 +246,19 @@ fn parse(bytes: &[u8]) -> Result<gltf::Gltf, Malformed> {
             }
         }
     }
-    let gltf = gltf::Gltf::from_slice(bytes)
-        .map_err(|e| Malformed(format!("not a valid glTF file: {e}")))?;
+    // The crate's validation, without its refusal of the required extensions it does not
+    // type (KHR_mesh_quantization among them): `import` checks those against what termtrace
+    // reads, and names the one it cannot.
+    let mut root = unchecked.document.into_json();
+    let required = std::mem::take(&mut root.extensions_required);
+    let mut root = gltf::Document::from_json(root)
+        .map_err(|e| Malformed(format!("not a valid glTF file: {e}")))?
+        .into_json();
+    root.extensions_required = required;
+    let gltf = gltf::Gltf {
+        document: gltf::Document::from_json_without_validation(root),
+        blob: unchecked.blob,
+    };
     // The crate's `Image::source` unwraps a missing `uri` and a view's missing `mimeType`
     // (its image.rs:125 and :128, found by `fuzz/`), which the validation lets through.
     for (i, image) in gltf.document.as_json().images.iter().enumerate() {
@@ -348,33 +360,44 @@ fn import_mesh(
             .textured
             .as_ref()
             .is_some_and(|t| t.0.normal.is_some());
-        // (Smooth shading reads float normals alone; other kinds are a normal map's error.)
+        // (Smooth shading reads the normals of a kind glTF allows alone; other kinds are a
+        // normal map's error.)
         let normal_accessor = prim.get(&gltf::Semantic::Normals).filter(|a| {
+            use gltf::accessor::DataType as T;
             normal_mapped
                 || (a.dimensions() == gltf::accessor::Dimensions::Vec3
-                    && a.data_type() == gltf::accessor::DataType::F32)
+                    && [T::F32, T::I8, T::I16].contains(&a.data_type()))
         });
         let tangent_accessor = normal_mapped
             .then(|| prim.get(&gltf::Semantic::Tangents))
             .flatten();
         {
             use gltf::accessor::{DataType as T, Dimensions as D};
-            let checks = std::iter::once((pos, D::Vec3, &[T::F32][..]))
-                .chain(
-                    prim.indices()
-                        .map(|a| (a, D::Scalar, &[T::U8, T::U16, T::U32][..])),
-                )
-                .chain(
-                    uv_accessor
-                        .clone()
-                        .map(|a| (a, D::Vec2, &[T::F32, T::U8, T::U16][..])),
-                )
-                .chain(normal_accessor.clone().map(|a| (a, D::Vec3, &[T::F32][..])))
-                .chain(
-                    tangent_accessor
-                        .clone()
-                        .map(|a| (a, D::Vec4, &[T::F32][..])),
-                );
+            // Floats, and the integer kinds KHR_mesh_quantization adds.
+            let checks = std::iter::once((
+                pos.clone(),
+                D::Vec3,
+                &[T::F32, T::I8, T::U8, T::I16, T::U16][..],
+            ))
+            .chain(
+                prim.indices()
+                    .map(|a| (a, D::Scalar, &[T::U8, T::U16, T::U32][..])),
+            )
+            .chain(
+                uv_accessor
+                    .clone()
+                    .map(|a| (a, D::Vec2, &[T::F32, T::U8, T::U16, T::I8, T::I16][..])),
+            )
+            .chain(
+                normal_accessor
+                    .clone()
+                    .map(|a| (a, D::Vec3, &[T::F32, T::I8, T::I16][..])),
+            )
+            .chain(
+                tangent_accessor
+                    .clone()
+                    .map(|a| (a, D::Vec4, &[T::F32, T::I8, T::I16][..])),
+            );
             for (a, dims, types) in checks {
                 // The crate's reader assumes the element type its caller asks for (a debug
                 // assertion, found by `fuzz/`; garbage without it).
@@ -390,19 +413,13 @@ fn import_mesh(
             }
         }
         let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-        let Some(positions) = reader.read_positions() else {
-            out.skipped.push(format!("{what}: no positions"));
-            continue;
-        };
-        // Texture coordinates, for a textured material (missing ones read as (0, 0)). Read
-        // only where checked above: the crate's reader panics on an element type that
-        // TEXCOORD_0 cannot have (its mesh/mod.rs:430, found by `fuzz/`).
+        // Attributes dequantized (gltf_accessors), read only where checked above.
+        let local: Vec<[f32; 3]> = super::gltf_accessors::read(&pos, buffers);
+        // Texture coordinates, for a textured material (missing ones read as (0, 0)).
         let uvs: Vec<[f32; 2]> = uv_accessor
             .as_ref()
-            .and_then(|_| reader.read_tex_coords(0))
-            .map_or_else(Vec::new, |t| t.into_f32().collect());
+            .map_or_else(Vec::new, |a| super::gltf_accessors::read(a, buffers));
         let uv = |i: u32| uvs.get(i as usize).copied().unwrap_or([0.0; 2]);
-        let local: Vec<[f32; 3]> = positions.collect();
         let points: Vec<DVec3> = local
             .iter()
             .map(|p| world.transform_point3(DVec3::from(p.map(f64::from))))
@@ -480,12 +497,11 @@ fn import_mesh(
         // Likewise read only where checked.
         let normals: Vec<[f32; 3]> = normal_accessor
             .as_ref()
-            .and_then(|_| reader.read_normals())
-            .map_or_else(Vec::new, |n| n.collect());
+            .map_or_else(Vec::new, |a| super::gltf_accessors::read(a, buffers));
         if normal_mapped {
             let tangents: Vec<[f32; 4]> = tangent_accessor
-                .and_then(|_| reader.read_tangents())
-                .map_or_else(Vec::new, |t| t.collect());
+                .as_ref()
+                .map_or_else(Vec::new, |a| super::gltf_accessors::read(a, buffers));
             let linear = glam::DMat3::from_mat4(world);
             for (n, t) in
                 super::gltf_frames::frames(&kept, &local, &normals, &tangents, &uvs, linear)

@@ -12,6 +12,7 @@ mod error;
 mod files;
 pub mod generate;
 pub mod gltf;
+mod gltf_accessors;
 mod gltf_frames;
 mod gltf_textures;
 pub mod mesh;

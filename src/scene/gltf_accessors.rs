@@ -1,0 +1,84 @@
+//! A glTF accessor's elements as f32, dequantized: floats as they are, and the integer kinds
+//! `KHR_mesh_quantization` allows, normalized (the specification's §3.11 rules: i8 c/127, u8
+//! c/255, i16 c/32767, u16 c/65535, the signed ones at least −1) or not (their value).
+
+use gltf::accessor::DataType;
+
+/// Bytes of one component of `t`.
+fn size(t: DataType) -> usize {
+    match t {
+        DataType::I8 | DataType::U8 => 1,
+        DataType::I16 | DataType::U16 => 2,
+        DataType::U32 | DataType::F32 => 4,
+    }
+}
+
+/// The component of type `t` at the start of `b`, as f32.
+fn component(t: DataType, normalized: bool, b: &[u8]) -> f32 {
+    match (t, normalized) {
+        (DataType::F32, _) => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+        (DataType::I8, true) => (b[0] as i8 as f32 / 127.0).max(-1.0),
+        (DataType::I8, false) => b[0] as i8 as f32,
+        (DataType::U8, true) => b[0] as f32 / 255.0,
+        (DataType::U8, false) => b[0] as f32,
+        (DataType::I16, n) => {
+            let v = i16::from_le_bytes([b[0], b[1]]) as f32;
+            if n { (v / 32767.0).max(-1.0) } else { v }
+        }
+        (DataType::U16, n) => {
+            let v = u16::from_le_bytes([b[0], b[1]]) as f32;
+            if n { v / 65535.0 } else { v }
+        }
+        (DataType::U32, n) => {
+            let v = u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32;
+            if n { v / u32::MAX as f32 } else { v }
+        }
+    }
+}
+
+/// The `N` components of each of `a`'s elements, as f32. The caller has checked that the
+/// accessor lies inside its buffer (`gltf::accessor_fits`) and has `N` components; a missing
+/// buffer or view reads as no elements.
+pub fn read<const N: usize>(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Vec<[f32; N]> {
+    let Some(view) = a.view() else {
+        return Vec::new();
+    };
+    let Some(data) = buffers.get(view.buffer().index()) else {
+        return Vec::new();
+    };
+    let t = a.data_type();
+    let elem = a.size();
+    let stride = view.stride().unwrap_or(elem).max(elem);
+    let start = view.offset() + a.offset();
+    let normalized = a.normalized();
+    (0..a.count())
+        .map(|i| {
+            let at = start + i * stride;
+            std::array::from_fn(|c| component(t, normalized, &data.0[at + c * size(t)..]))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn normalized_integers_follow_the_specification() {
+        assert_eq!(component(DataType::I8, true, &[127]), 1.0);
+        assert_eq!(component(DataType::I8, true, &[0x80]), -1.0);
+        assert_eq!(component(DataType::I8, true, &[0x81]), -1.0);
+        assert_eq!(component(DataType::U8, true, &[255]), 1.0);
+        assert_eq!(
+            component(DataType::I16, true, &(-32768i16).to_le_bytes()),
+            -1.0
+        );
+        assert_eq!(component(DataType::U16, true, &[0xff, 0xff]), 1.0);
+        assert_eq!(
+            component(DataType::U16, false, &16383u16.to_le_bytes()),
+            16383.0
+        );
+        assert_eq!(component(DataType::I8, false, &[0xfe]), -2.0);
+        assert_eq!(component(DataType::F32, false, &1.5f32.to_le_bytes()), 1.5);
+    }
+}
