@@ -581,8 +581,9 @@ fn missing_files_and_required_extensions_are_named() {
     // (Said once, by termtrace rather than the glTF crate's validation.)
     let e = import(required.as_bytes()).unwrap_err().to_string();
     assert!(
-        e.contains("requires the extension KHR_draco_mesh_compression, which termtrace does not read")
-            && e.matches("KHR_draco_mesh_compression").count() == 1,
+        e.contains(
+            "requires the extension KHR_draco_mesh_compression, which termtrace does not read"
+        ) && e.matches("KHR_draco_mesh_compression").count() == 1,
         "{e}"
     );
     let optional = text.replacen(
@@ -733,4 +734,44 @@ fn a_quantized_file_renders_like_its_original() {
             a.pixels.len()
         );
     });
+}
+
+#[test]
+fn sparse_positions_are_substituted() {
+    // A triangle (0,0,0), (1,0,0), (0,1,0) whose positions accessor has one sparse
+    // substitution: vertex 2 moves to (0,2,0). Sparse indices are still refused, by name.
+    let mut bin = Vec::new();
+    for p in [[0f32, 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 2., 0.]] {
+        bin.extend(p.iter().flat_map(|x| x.to_le_bytes()));
+    }
+    bin.extend(2u16.to_le_bytes());
+    bin.extend([0u8; 2]);
+    let data = base64::engine::general_purpose::STANDARD.encode(&bin);
+    let file = |indices: &str| {
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},"scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],
+            "meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}{indices}}}]}}],
+            "buffers":[{{"byteLength":{},"uri":"data:application/octet-stream;base64,{data}"}}],
+            "bufferViews":[{{"buffer":0,"byteOffset":0,"byteLength":36}},{{"buffer":0,"byteOffset":36,"byteLength":12}},
+              {{"buffer":0,"byteOffset":48,"byteLength":2}}],
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,2,0],
+              "sparse":{{"count":1,"indices":{{"bufferView":2,"componentType":5123}},"values":{{"bufferView":1}}}}}},
+              {{"componentType":5123,"count":3,"type":"SCALAR",
+              "sparse":{{"count":1,"indices":{{"bufferView":2,"componentType":5123}},"values":{{"bufferView":2}}}}}}]}}"#,
+            bin.len()
+        )
+    };
+    let imp = import(file("").as_bytes()).unwrap();
+    let Shape::Mesh { mesh, .. } = &imp.objects[0].shape else {
+        panic!("not a mesh")
+    };
+    let t = mesh.triangles[0];
+    assert_eq!(
+        [t[0], t[1], t[2]],
+        [DVec3::ZERO, DVec3::X, DVec3::new(0.0, 2.0, 0.0)]
+    );
+    let e = import(file(r#","indices":1"#).as_bytes())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("accessor 1 is sparse"), "{e}");
 }

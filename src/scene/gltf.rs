@@ -409,7 +409,10 @@ fn import_mesh(
                         a.data_type()
                     )));
                 }
-                accessor_fits(&a, buffers).map_err(|e| Malformed(format!("{what}: {e}")))?;
+                // Indices are read by the crate's reader, which does not check sparse data.
+                let sparse_ok = prim.indices().is_none_or(|i| i.index() != a.index());
+                accessor_fits(&a, buffers, sparse_ok)
+                    .map_err(|e| Malformed(format!("{what}: {e}")))?;
             }
         }
         let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
@@ -542,7 +545,11 @@ fn import_mesh(
 
 /// Checks that `a`'s elements lie inside its buffer's data: the crate's reader slices without
 /// checking, so a view or accessor that overruns its buffer would otherwise panic.
-fn accessor_fits(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(), Malformed> {
+fn accessor_fits(
+    a: &gltf::Accessor,
+    buffers: &[gltf::buffer::Data],
+    sparse_ok: bool,
+) -> Result<(), Malformed> {
     let name = format!("accessor {}", a.index());
     // The specification's minimum; the crate's reader computes `count - 1` unchecked (its
     // accessor/util.rs:384, found by `fuzz/`).
@@ -551,10 +558,48 @@ fn accessor_fits(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(
             "{name} has a count of 0 (at least 1 is required)"
         )));
     }
-    if a.sparse().is_some() {
-        return Err(Malformed(format!(
-            "{name} is sparse, which termtrace does not read"
-        )));
+    // A sparse attribute (its base, if any, then its substitutions) is read by
+    // `gltf_accessors`; sparse indices are not read.
+    if let Some(s) = a.sparse() {
+        if !sparse_ok {
+            return Err(Malformed(format!(
+                "{name} is sparse, which termtrace does not read for indices"
+            )));
+        }
+        let index_size = match s.indices().index_type() {
+            gltf::accessor::sparse::IndexType::U8 => 1,
+            gltf::accessor::sparse::IndexType::U16 => 2,
+            gltf::accessor::sparse::IndexType::U32 => 4,
+        };
+        for (what, view, offset, elem) in [
+            (
+                "indices",
+                s.indices().view(),
+                s.indices().offset(),
+                index_size,
+            ),
+            ("values", s.values().view(), s.values().offset(), a.size()),
+        ] {
+            let data = buffers.get(view.buffer().index()).ok_or_else(|| {
+                Malformed(format!(
+                    "{name}'s sparse {what}: no buffer {}",
+                    view.buffer().index()
+                ))
+            })?;
+            let span = elem
+                .checked_mul(s.count())
+                .and_then(|x| x.checked_add(offset));
+            let end = view.offset().checked_add(view.length());
+            if !matches!((span, end), (Some(span), Some(end)) if span <= view.length() && end <= data.len())
+            {
+                return Err(Malformed(format!(
+                    "{name}'s sparse {what} reach past the end of their buffer view or buffer"
+                )));
+            }
+        }
+        if a.view().is_none() {
+            return Ok(());
+        }
     }
     let Some(view) = a.view() else {
         return Err(Malformed(format!("{name} has no buffer view")));

@@ -1,6 +1,7 @@
 //! A glTF accessor's elements as f32, dequantized: floats as they are, and the integer kinds
 //! `KHR_mesh_quantization` allows, normalized (the specification's §3.11 rules: i8 c/127, u8
-//! c/255, i16 c/32767, u16 c/65535, the signed ones at least −1) or not (their value).
+//! c/255, i16 c/32767, u16 c/65535, the signed ones at least −1) or not (their value); a
+//! sparse accessor's substitutions applied over its base (zeros without a buffer view).
 
 use gltf::accessor::DataType;
 
@@ -40,23 +41,54 @@ fn component(t: DataType, normalized: bool, b: &[u8]) -> f32 {
 /// accessor lies inside its buffer (`gltf::accessor_fits`) and has `N` components; a missing
 /// buffer or view reads as no elements.
 pub fn read<const N: usize>(a: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Vec<[f32; N]> {
-    let Some(view) = a.view() else {
-        return Vec::new();
-    };
-    let Some(data) = buffers.get(view.buffer().index()) else {
-        return Vec::new();
-    };
     let t = a.data_type();
     let elem = a.size();
-    let stride = view.stride().unwrap_or(elem).max(elem);
-    let start = view.offset() + a.offset();
     let normalized = a.normalized();
-    (0..a.count())
-        .map(|i| {
-            let at = start + i * stride;
-            std::array::from_fn(|c| component(t, normalized, &data.0[at + c * size(t)..]))
-        })
-        .collect()
+    let element = |data: &[u8], at: usize| -> [f32; N] {
+        std::array::from_fn(|c| component(t, normalized, &data[at + c * size(t)..]))
+    };
+    let mut out = match a.view() {
+        Some(view) => {
+            let Some(data) = buffers.get(view.buffer().index()) else {
+                return Vec::new();
+            };
+            let stride = view.stride().unwrap_or(elem).max(elem);
+            let start = view.offset() + a.offset();
+            (0..a.count())
+                .map(|i| element(&data.0, start + i * stride))
+                .collect()
+        }
+        None => vec![[0.0; N]; a.count()],
+    };
+    if let Some(s) = a.sparse() {
+        let (iv, vv) = (s.indices().view(), s.values().view());
+        let (Some(idata), Some(vdata)) = (
+            buffers.get(iv.buffer().index()),
+            buffers.get(vv.buffer().index()),
+        ) else {
+            return out;
+        };
+        let istart = iv.offset() + s.indices().offset();
+        let vstart = vv.offset() + s.values().offset();
+        for k in 0..s.count() {
+            let b = &idata.0[..];
+            let i = match s.indices().index_type() {
+                gltf::accessor::sparse::IndexType::U8 => b[istart + k] as usize,
+                gltf::accessor::sparse::IndexType::U16 => {
+                    u16::from_le_bytes([b[istart + 2 * k], b[istart + 2 * k + 1]]) as usize
+                }
+                gltf::accessor::sparse::IndexType::U32 => {
+                    let at = istart + 4 * k;
+                    u32::from_le_bytes([b[at], b[at + 1], b[at + 2], b[at + 3]]) as usize
+                }
+            };
+            // An index past the elements is the file's error; it is skipped.
+            if let Some(slot) = out.get_mut(i) {
+                *slot = element(&vdata.0, vstart + k * elem);
+            }
+        }
+    }
+    out
 }
 
 #[cfg(test)]
