@@ -302,3 +302,20 @@ fn an_unknown_adapter_is_a_clear_error() {
         "{err}"
     );
 }
+
+#[test]
+fn a_cut_glb_is_named_once() {
+    // A GLB cut short: `check` and `render` say what is wrong with the path once, not twice.
+    let dir = tmpdir();
+    let bytes =
+        std::fs::read("tests/gltf/BoxTextured-quantized/BoxTextured-quantized.glb").unwrap();
+    let cut = dir.path().join("cut.glb");
+    std::fs::write(&cut, &bytes[..3000]).unwrap();
+    let path = cut.to_str().unwrap();
+    for args in [vec!["check", path], vec!["render", path, "--spp", "1"]] {
+        let (code, _, err) = run(termtrace().args(&args).current_dir(dir.path()));
+        assert_ne!(code, 0, "{args:?}");
+        assert_eq!(err.matches(path).count(), 1, "{args:?}: {err}");
+        assert!(err.contains("not a valid glTF file"), "{err}");
+    }
+}

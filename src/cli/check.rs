@@ -29,7 +29,12 @@ pub fn run(a: CheckArgs, g: &super::args::GlobalArgs) -> anyhow::Result<ExitCode
             Ok(s) => println!("{}", summary(&s)),
             Err(e) => {
                 failed += 1;
-                eprintln!("error: {name}: {e}\n");
+                // Most errors name the file themselves; a sky map's names the map.
+                if matches!(e, crate::scene::SceneError::Sky(_)) {
+                    eprintln!("error: {name}: {e}\n");
+                } else {
+                    eprintln!("error: {e}\n");
+                }
             }
         }
     }
