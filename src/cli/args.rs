@@ -33,8 +33,11 @@ pub struct GlobalArgs {
     #[arg(long, global = true, value_name = "FILE")]
     pub log: Option<PathBuf>,
     /// More detail in the logs (-v info, -vv debug).
-    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    #[arg(short, long, global = true, action = clap::ArgAction::Count, conflicts_with = "quiet")]
     pub verbose: u8,
+    /// No progress bars, and errors alone in the logs (no warnings).
+    #[arg(short, long, global = true)]
+    pub quiet: bool,
 }
 
 /// The frame options `render` and `converge` share: the scene's `[render]` values,

@@ -65,8 +65,8 @@ pub struct ConvergeArgs {
     /// true one.
     #[arg(long)]
     pub denoise: bool,
-    /// No progress bars.
-    #[arg(short, long)]
+    /// The global `-q` (set by `run`).
+    #[arg(skip)]
     pub quiet: bool,
 }
 
@@ -117,7 +117,8 @@ fn bar(quiet: bool, len: u64, template: &str) -> ProgressBar {
     pb
 }
 
-pub fn run(a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
+pub fn run(mut a: ConvergeArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
+    a.quiet |= g.quiet;
     let scene = load_scene(&a.scene, g.camera.as_deref(), g.sky.as_deref())?;
     let settings = a.frame.settings(&scene);
     let variants = if a.compare.is_empty() {

@@ -100,6 +100,7 @@ pub struct ViewArgs {
 
 fn init_logging(g: &GlobalArgs, to_stderr: bool) -> anyhow::Result<()> {
     let level = match g.verbose {
+        _ if g.quiet => tracing::Level::ERROR,
         0 => tracing::Level::WARN,
         1 => tracing::Level::INFO,
         _ => tracing::Level::DEBUG,

@@ -58,8 +58,8 @@ pub struct RenderArgs {
     /// NAME-normal.exr.
     #[arg(long, conflicts_with = "shard")]
     pub denoise: bool,
-    /// No progress bar.
-    #[arg(short, long)]
+    /// The global `-q` (set by `run`).
+    #[arg(skip)]
     pub quiet: bool,
 }
 
@@ -87,7 +87,8 @@ fn install_ctrlc() {
     });
 }
 
-pub fn run(a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
+pub fn run(mut a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
+    a.quiet |= g.quiet;
     let scene = load_scene(&a.scene, g.camera.as_deref(), g.sky.as_deref())?;
     let to_tta = a
         .output
