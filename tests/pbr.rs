@@ -309,10 +309,10 @@ fn a_dielectric_without_its_specular_layer_is_lambertian() {
     });
 }
 
-/// Spheres of KHR_materials_specular's factors: a glossy plastic with a weak orange layer, a
-/// near-mirror with a blue one, and a rough half-metal, under a lamp (light sampling and
-/// MIS on every lobe) and a dim sky.
-const SPECULAR: &str = r##"
+/// The stage of the sphere scenes below: a camera, a lamp above and a dim sky.
+macro_rules! lamp_stage {
+    () => {
+        r##"
 [camera]
 look_from = [0, 0.6, 4]
 look_at = [0, 0, 0]
@@ -324,6 +324,16 @@ center = [0, 3, 2]
 radius = 0.4
 color = [1, 1, 1]
 light = 10
+"##
+    };
+}
+
+/// Spheres of KHR_materials_specular's factors: a glossy plastic with a weak orange layer, a
+/// near-mirror with a blue one, and a rough half-metal, under a lamp (light sampling and
+/// MIS on every lobe) and a dim sky.
+const SPECULAR: &str = concat!(
+    lamp_stage!(),
+    r##"
 [[sphere]]
 center = [-1.1, 0, 0]
 radius = 0.5
@@ -349,7 +359,8 @@ color = [0.9, 0.6, 0.3]
 metallic = 0.5
 roughness = 0.6
 specular = 0.7
-"##;
+"##
+);
 
 #[test]
 fn both_tracers_agree_on_the_specular_extension() {
@@ -517,18 +528,9 @@ fn a_clear_coat_over_black_is_its_fresnel() {
 
 /// Clear-coated spheres under a lamp and a dim sky: a red plastic under a polished coat, a
 /// rough gold under a slightly rough one, a matte blue under a rough coat.
-const CLEARCOAT: &str = r##"
-[camera]
-look_from = [0, 0.6, 4]
-look_at = [0, 0, 0]
-vfov = 45
-[sky]
-uniform = [0.3, 0.3, 0.35]
-[[sphere]]
-center = [0, 3, 2]
-radius = 0.4
-color = [1, 1, 1]
-light = 10
+const CLEARCOAT: &str = concat!(
+    lamp_stage!(),
+    r##"
 [[sphere]]
 center = [-1.1, 0, 0]
 radius = 0.5
@@ -554,7 +556,8 @@ color = [0.1, 0.2, 0.6]
 roughness = 1
 clearcoat = 1
 clearcoat_roughness = 0.4
-"##;
+"##
+);
 
 #[test]
 fn both_tracers_agree_under_a_clear_coat() {

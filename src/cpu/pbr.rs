@@ -666,59 +666,48 @@ mod tests {
         assert_eq!((s.dir, s.weight, s.through), (-l.wo, Vec3A::ONE, true));
     }
 
+    /// Pearson's chi-square (`stability::chi2`) of 400 000 draws from `l` against the density
+    /// the sampler reports; passes at 1e-3 / `cases`.
+    fn assert_draws_match(l: &Lobe, cases: usize, what: &str) {
+        use crate::stability::chi2::PBR_DRAWS;
+        let draws = (0..PBR_DRAWS).map(|i| {
+            let s = sample(l, &mut Rng::new(5, i, 3));
+            s.ok.then(|| s.dir.to_array())
+        });
+        let r = crate::stability::chi2::test(draws, |d| eval(l, Vec3A::from(d)).1 as f64);
+        assert!(r.p > 1e-3 / cases as f64, "{what}: {r:?}");
+    }
+
     #[test]
     fn the_sampler_draws_from_the_density_it_reports() {
-        use crate::stability::chi2::{PBR_CASES, PBR_DRAWS};
-        // Pearson's chi-square (`stability::chi2`): the directions drawn against the density
-        // the sampler reports. Each case must pass at 1e-3 / cases. tests/pbr.rs runs the
-        // same cases on the WGSL sampler.
+        use crate::stability::chi2::PBR_CASES;
+        // Each case must pass at 1e-3 / cases. tests/pbr.rs runs the same cases, and those of
+        // the two tests below, on the WGSL sampler.
         for (metallic, roughness, cos_theta) in PBR_CASES {
             let l = lobe_at(&material(0.8, metallic, roughness), cos_theta);
-            let draws = (0..PBR_DRAWS).map(|i| {
-                let s = sample(&l, &mut Rng::new(5, i, 3));
-                s.ok.then(|| s.dir.to_array())
-            });
-            let r = crate::stability::chi2::test(draws, |d| eval(&l, Vec3A::from(d)).1 as f64);
-            assert!(
-                r.p > 1e-3 / PBR_CASES.len() as f64,
-                "metallic {metallic} roughness {roughness} cos {cos_theta}: {r:?}"
-            );
+            let what = format!("metallic {metallic} roughness {roughness} cos {cos_theta}");
+            assert_draws_match(&l, PBR_CASES.len(), &what);
         }
     }
 
     #[test]
     fn the_transmission_sampler_draws_from_the_density_it_reports() {
-        use crate::stability::chi2::{PBR_DRAWS, PBR_THROUGH_CASES};
-        // The chi-square test over the sphere, on transmitting lobes; tests/pbr.rs runs the
-        // same cases on the WGSL sampler.
+        use crate::stability::chi2::PBR_THROUGH_CASES;
+        // Over the sphere, on transmitting lobes.
         for (roughness, cos_theta, eta) in PBR_THROUGH_CASES {
             let l = lobe_from(&transmitting(roughness, eta), cos_theta, eta < 1.0);
-            let draws = (0..PBR_DRAWS).map(|i| {
-                let s = sample(&l, &mut Rng::new(5, i, 3));
-                s.ok.then(|| s.dir.to_array())
-            });
-            let r = crate::stability::chi2::test(draws, |d| eval(&l, Vec3A::from(d)).1 as f64);
-            assert!(
-                r.p > 1e-3 / PBR_THROUGH_CASES.len() as f64,
-                "roughness {roughness} cos {cos_theta} eta {eta}: {r:?}"
-            );
+            let what = format!("roughness {roughness} cos {cos_theta} eta {eta}");
+            assert_draws_match(&l, PBR_THROUGH_CASES.len(), &what);
         }
     }
 
     #[test]
     fn the_coat_sampler_draws_from_the_density_it_reports() {
-        use crate::stability::chi2::{PBR_COAT_CASES, PBR_DRAWS};
+        use crate::stability::chi2::PBR_COAT_CASES;
         for (metallic, roughness, coat_roughness, cos_theta) in PBR_COAT_CASES {
             let l = lobe_at(&coated(metallic, roughness, coat_roughness), cos_theta);
-            let draws = (0..PBR_DRAWS).map(|i| {
-                let s = sample(&l, &mut Rng::new(5, i, 3));
-                s.ok.then(|| s.dir.to_array())
-            });
-            let r = crate::stability::chi2::test(draws, |d| eval(&l, Vec3A::from(d)).1 as f64);
-            assert!(
-                r.p > 1e-3 / PBR_COAT_CASES.len() as f64,
-                "metallic {metallic} roughness {roughness} coat {coat_roughness}: {r:?}"
-            );
+            let what = format!("metallic {metallic} roughness {roughness} coat {coat_roughness}");
+            assert_draws_match(&l, PBR_COAT_CASES.len(), &what);
         }
     }
 
