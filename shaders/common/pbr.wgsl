@@ -316,9 +316,7 @@ fn pbr_sample(l: PbrLobe, state: ptr<function, Rng>) -> PbrSample {
         if l.alpha < PBR_ALPHA_MIN {
             return pbr_mirror(l, nv, through);
         }
-        let b = basis(l.n);
-        let wo_local = vec3f(dot(b[0], l.wo), dot(b[1], l.wo), nv);
-        let h = b * pbr_visible_normal(wo_local, l.alpha, u);
+        let h = pbr_half_vector(l, nv, l.alpha, u);
         wi = reflect(-l.wo, h);
         if through {
             if l.eta == 0.0 {
@@ -337,6 +335,19 @@ fn pbr_sample(l: PbrLobe, state: ptr<function, Rng>) -> PbrSample {
         let r = sqrt(max(0.0, 1.0 - z * z));
         wi = normalize_or(l.n + vec3f(r * cos(phi), r * sin(phi), z), l.n);
     }
+    return pbr_drawn(l, wi, through);
+}
+
+// A visible normal of GGX of width `alpha` seen from wo, in world space.
+fn pbr_half_vector(l: PbrLobe, nv: f32, alpha: f32, u: vec2f) -> vec3f {
+    let b = basis(l.n);
+    let wo_local = vec3f(dot(b[0], l.wo), dot(b[1], l.wo), nv);
+    return b * pbr_visible_normal(wo_local, alpha, u);
+}
+
+// Drawn direction `wi` as a sample: its weight f·cos/pdf and density from pbr_eval, or refused
+// where it lies on the wrong side of the surface for its lobe (`through`) or has no density.
+fn pbr_drawn(l: PbrLobe, wi: vec3f, through: bool) -> PbrSample {
     if through != (dot(wi, l.n) < 0.0) {
         return PbrSample(wi, vec3f(0.0), 0.0, false, false);
     }
@@ -353,17 +364,7 @@ fn pbr_sample_coat(l: PbrLobe, nv: f32, u: vec2f) -> PbrSample {
     if l.coat_alpha < PBR_ALPHA_MIN {
         return PbrSample(reflect(-l.wo, l.n), vec3f(1.0), 0.0, true, false);
     }
-    let b = basis(l.n);
-    let wo_local = vec3f(dot(b[0], l.wo), dot(b[1], l.wo), nv);
-    let wi = reflect(-l.wo, b * pbr_visible_normal(wo_local, l.coat_alpha, u));
-    if dot(wi, l.n) <= 0.0 {
-        return PbrSample(wi, vec3f(0.0), 0.0, false, false);
-    }
-    let e = pbr_eval(l, wi);
-    if e.w <= 0.0 {
-        return PbrSample(wi, vec3f(0.0), 0.0, false, false);
-    }
-    return PbrSample(wi, e.xyz / e.w, e.w, true, false);
+    return pbr_drawn(l, reflect(-l.wo, pbr_half_vector(l, nv, l.coat_alpha, u)), false);
 }
 
 // The smooth lobes' deltas (α below PBR_ALPHA_MIN): the mirror, or straight through a thin

@@ -313,10 +313,7 @@ pub fn sample(l: &Lobe, rng: &mut Rng) -> Sample {
         if l.alpha < ALPHA_MIN {
             return mirror(l, nv, through);
         }
-        let [t, b, n] = basis(l.n);
-        let local = Vec3A::new(t.dot(l.wo), b.dot(l.wo), nv);
-        let m = visible_normal(local, l.alpha, u);
-        let h = t * m.x + b * m.y + n * m.z;
+        let h = half_vector(l, nv, l.alpha, u);
         if !through {
             reflect(-l.wo, h)
         } else if l.eta == 0.0 {
@@ -334,12 +331,34 @@ pub fn sample(l: &Lobe, rng: &mut Rng) -> Sample {
         let (s, c) = sin_cos_turns(u.1);
         normalize_or(l.n + Vec3A::new(r * c, r * s, z), l.n)
     };
+    drawn(l, wi, through)
+}
+
+/// A visible normal of GGX of width `alpha` seen from `wo`, in world space (pbr.wgsl:
+/// pbr_half_vector).
+fn half_vector(l: &Lobe, nv: f32, alpha: f32, u: (f32, f32)) -> Vec3A {
+    let [t, b, n] = basis(l.n);
+    let m = visible_normal(Vec3A::new(t.dot(l.wo), b.dot(l.wo), nv), alpha, u);
+    t * m.x + b * m.y + n * m.z
+}
+
+/// Drawn direction `wi` as a sample: its weight f·cos/pdf and density from [`eval`], or
+/// refused where it lies on the wrong side of the surface for its lobe (`through`) or has no
+/// density (pbr.wgsl: pbr_drawn).
+fn drawn(l: &Lobe, wi: Vec3A, through: bool) -> Sample {
+    let none = Sample {
+        dir: wi,
+        weight: Vec3A::ZERO,
+        pdf: 0.0,
+        ok: false,
+        through: false,
+    };
     if through != (wi.dot(l.n) < 0.0) {
-        return none(wi);
+        return none;
     }
     let (f, pdf) = eval(l, wi);
     if pdf <= 0.0 {
-        return none(wi);
+        return none;
     }
     Sample {
         dir: wi,
@@ -353,13 +372,6 @@ pub fn sample(l: &Lobe, rng: &mut Rng) -> Sample {
 /// A direction from the clear coat's GGX lobe, or its mirror below [`ALPHA_MIN`] (weight 1:
 /// the coat's Fresnel over the probability of drawing it) (pbr.wgsl: pbr_sample_coat).
 fn sample_coat(l: &Lobe, nv: f32, u: (f32, f32)) -> Sample {
-    let none = |dir| Sample {
-        dir,
-        weight: Vec3A::ZERO,
-        pdf: 0.0,
-        ok: false,
-        through: false,
-    };
     if l.coat_alpha < ALPHA_MIN {
         return Sample {
             dir: reflect(-l.wo, l.n),
@@ -369,24 +381,11 @@ fn sample_coat(l: &Lobe, nv: f32, u: (f32, f32)) -> Sample {
             through: false,
         };
     }
-    let [t, b, n] = basis(l.n);
-    let local = Vec3A::new(t.dot(l.wo), b.dot(l.wo), nv);
-    let m = visible_normal(local, l.coat_alpha, u);
-    let wi = reflect(-l.wo, t * m.x + b * m.y + n * m.z);
-    if wi.dot(l.n) <= 0.0 {
-        return none(wi);
-    }
-    let (f, pdf) = eval(l, wi);
-    if pdf <= 0.0 {
-        return none(wi);
-    }
-    Sample {
-        dir: wi,
-        weight: f / pdf,
-        pdf,
-        ok: true,
-        through: false,
-    }
+    drawn(
+        l,
+        reflect(-l.wo, half_vector(l, nv, l.coat_alpha, u)),
+        false,
+    )
 }
 
 /// The smooth lobes' deltas (α below [`ALPHA_MIN`]): the mirror, or straight through a thin
