@@ -31,6 +31,8 @@ override HAS_SMOOTH_NORMALS: bool = true;
 override HAS_ENV_MAP: bool = true;
 override HAS_PBR: bool = true;
 override HAS_LECTURE: bool = true;
+// Meshes drawn by instances: a two-level BVH (src/common/arrays.rs: gpu_bvh).
+override HAS_INSTANCES: bool = true;
 // Counting path segments costs an atomic per workgroup; only `bench` turns it on.
 override COUNT_SEGMENTS: bool = false;
 // Walk the BVH, or test every primitive in turn (tests compare the two; see src/common/features.rs).
@@ -59,6 +61,8 @@ var<private> tests: u32;
 @group(0) @binding(12) var<storage, read> lights: array<Light>;
 // Per-lane sums when a pixel's samples are traced by several lanes (see fn trace).
 @group(0) @binding(13) var<storage, read_write> scratch: array<u32>;
+// Copies of instanced meshes (one zeroed record where there are none).
+@group(0) @binding(16) var<storage, read> instances: array<Instance>;
 // Binding 14, the texture words, is declared in common/texture.wgsl; binding 15, the
 // environment map's, in common/envmap.wgsl.
 
@@ -76,11 +80,84 @@ const STACK_SIZE: u32 = 220u;
 const EMPTY_SLOT: u32 = 0xffffffffu;
 var<private> stack_node: array<u32, STACK_SIZE>;
 var<private> stack_t: array<f32, STACK_SIZE>;
+// Under the triangle kind, a reference with this bit names an instance (src/common/arrays.rs:
+// INSTANCE_BIT); a walk into its mesh keeps its own stack, and leaves the triangle it found.
+const INSTANCE_BIT: u32 = 0x20000000u;
+const NO_INSTANCE: u32 = 0xffffffffu;
+var<private> instance_stack_node: array<u32, STACK_SIZE>;
+var<private> instance_stack_t: array<f32, STACK_SIZE>;
+var<private> instance_triangle: u32;
 
+// A hit: its distance, kind and index in its kind's array; for a triangle of an instanced
+// mesh, the instance (else NO_INSTANCE).
 struct Hit {
     t: f32,
     kind: u32,
     index: u32,
+    instance: u32,
+}
+
+// The nearest of instance i's triangles before t_max, or NO_HIT; the triangle is left in
+// instance_triangle. The ray is taken into the mesh's coordinates without normalizing its
+// direction, so that distances along it are the world's (PBRT 4th ed. §7.1.4).
+fn hit_instance(i: u32, world: Ray, t_max: f32) -> f32 {
+    let inst = instances[i];
+    let ray = instance_ray(inst, world);
+    let inv = safe_inverse(ray.dir);
+    var best = t_max;
+    var found = false;
+    var sp = 0u;
+    var node = inst.root;
+    loop {
+        let n = nodes[node];
+        count_visit();
+        let s = slabs(n, ray.origin, inv, best);
+        var leaves = s.leaves;
+        while leaves != 0u {
+            let k = pop_slot(&leaves);
+            count_tests(n.count[k]);
+            for (var j = n.child[k]; j < n.child[k] + n.count[k]; j++) {
+                let index = refs[j] & 0x3fffffffu;
+                let tri = triangles[index];
+                var t = hit_triangle(tri, ray, best);
+                if HAS_CUTOUTS && t > 0.0 && tex_cut_out(tri, index, ray, t) {
+                    t = NO_HIT;
+                }
+                if t > 0.0 {
+                    best = t;
+                    found = true;
+                    instance_triangle = index;
+                }
+            }
+        }
+        var inner = s.inner;
+        while inner != 0u {
+            let k = pop_slot(&inner);
+            instance_stack_node[sp] = n.child[k];
+            instance_stack_t[sp] = s.near[k];
+            sp += 1u;
+        }
+        var next = false;
+        while !next && sp > 0u {
+            sp -= 1u;
+            if instance_stack_t[sp] < best {
+                node = instance_stack_node[sp];
+                next = true;
+            }
+        }
+        if !next {
+            break;
+        }
+    }
+    return select(NO_HIT, best, found);
+}
+
+// The hit of reference r at distance t: an instance's names the triangle its walk found.
+fn hit_of(r: u32, t: f32) -> Hit {
+    if HAS_INSTANCES && r >> 30u == 3u && (r & INSTANCE_BIT) != 0u {
+        return Hit(t, KIND_TRIANGLE, instance_triangle, r & (INSTANCE_BIT - 1u));
+    }
+    return Hit(t, (r >> 30u) + 1u, r & 0x3fffffffu, NO_INSTANCE);
 }
 
 // The distance to primitive `r` (a BVH reference) if nearer than t_max, else NO_HIT.
@@ -103,6 +180,9 @@ fn hit_primitive(r: u32, ray: Ray, t_max: f32) -> f32 {
             }
         }
         default: {
+            if HAS_INSTANCES && (index & INSTANCE_BIT) != 0u {
+                return hit_instance(index & (INSTANCE_BIT - 1u), ray, t_max);
+            }
             if HAS_TRIANGLES {
                 let tri = triangles[index];
                 let t = hit_triangle(tri, ray, t_max);
@@ -118,18 +198,31 @@ fn hit_primitive(r: u32, ray: Ray, t_max: f32) -> f32 {
 
 // The nearest hit by testing every primitive (USE_BVH = false).
 fn intersect_all(ray: Ray) -> Hit {
-    var hit = Hit(T_FAR, KIND_NONE, 0u);
-    let counts = array<u32, 4>(scene.n_spheres, scene.n_quads, scene.n_boxes, scene.n_triangles);
-    for (var kind = 0u; kind < 4u; kind++) {
-        for (var i = 0u; i < counts[kind]; i++) {
-            let r = kind << 30u | i;
+    var hit = Hit(T_FAR, KIND_NONE, 0u, NO_INSTANCE);
+    for (var k = 0u; k < 5u; k++) {
+        for (var i = 0u; i < brute_count(k); i++) {
+            let r = brute_ref(k, i);
             let t = hit_primitive(r, ray, hit.t);
             if t > 0.0 {
-                hit = Hit(t, kind + 1u, i);
+                hit = hit_of(r, t);
             }
         }
     }
     return hit;
+}
+
+// The walk without a BVH: of kind k (the four kinds, then instances), how many, and the
+// reference of the i-th.
+fn brute_count(k: u32) -> u32 {
+    let counts = array<u32, 5>(scene.n_spheres, scene.n_quads, scene.n_boxes, scene.n_triangles, scene.n_instances);
+    return counts[k];
+}
+
+fn brute_ref(k: u32, i: u32) -> u32 {
+    if k == 4u {
+        return 3u << 30u | INSTANCE_BIT | i;
+    }
+    return k << 30u | i;
 }
 
 // Tallies one BVH node visit (benchmarks only).
@@ -190,8 +283,8 @@ fn intersect_scene(ray: Ray) -> Hit {
     if !USE_BVH {
         return intersect_all(ray);
     }
-    var hit = Hit(T_FAR, KIND_NONE, 0u);
-    if scene.n_spheres + scene.n_quads + scene.n_boxes + scene.n_triangles == 0u {
+    var hit = Hit(T_FAR, KIND_NONE, 0u, NO_INSTANCE);
+    if scene.n_spheres + scene.n_quads + scene.n_boxes + scene.n_triangles + scene.n_instances == 0u {
         return hit;
     }
     let inv = safe_inverse(ray.dir);
@@ -209,7 +302,7 @@ fn intersect_scene(ray: Ray) -> Hit {
                 let r = refs[i];
                 let t = hit_primitive(r, ray, hit.t);
                 if t > 0.0 {
-                    hit = Hit(t, (r >> 30u) + 1u, r & 0x3fffffffu);
+                    hit = hit_of(r, t);
                 }
             }
         }
@@ -267,10 +360,9 @@ fn intersect_scene(ray: Ray) -> Hit {
 // first blocker, in any order, and never look past the light.
 fn occluded(ray: Ray, t_max: f32, skip: u32) -> bool {
     if !USE_BVH {
-        let counts = array<u32, 4>(scene.n_spheres, scene.n_quads, scene.n_boxes, scene.n_triangles);
-        for (var kind = 0u; kind < 4u; kind++) {
-            for (var i = 0u; i < counts[kind]; i++) {
-                let r = kind << 30u | i;
+        for (var k = 0u; k < 5u; k++) {
+            for (var i = 0u; i < brute_count(k); i++) {
+                let r = brute_ref(k, i);
                 if r != skip && hit_primitive(r, ray, t_max) > 0.0 {
                     return true;
                 }
@@ -310,10 +402,13 @@ fn occluded(ray: Ray, t_max: f32, skip: u32) -> bool {
     return false;
 }
 
-// The surface point, geometric normal and material of a hit.
+// The surface point, geometric normal and material of a hit, and the point in its mesh's
+// coordinates (where texture coordinates and shading frames are interpolated: an instance's
+// are its mesh's; elsewhere the point itself).
 struct Surface {
     point: SurfacePoint,
     material: u32,
+    local: vec3f,
 }
 
 // A hit's material with a glTF material's texture maps applied, and where they were read
@@ -332,7 +427,7 @@ fn material_at(hit: Hit, surf: Surface) -> Shading {
         s.rec = tex_record(surf.material);
         if s.rec != TEX_NONE {
             let tri = triangles[hit.index];
-            s.bary = triangle_barycentrics(tri, surf.point.position - tri.v0);
+            s.bary = triangle_barycentrics(tri, surf.local - tri.v0);
             s.uv = tex_uv_at(hit.index, s.bary);
             s.m = tex_material(s.m, s.rec, s.uv);
         }
@@ -343,9 +438,25 @@ fn material_at(hit: Hit, surf: Surface) -> Shading {
 // The shading normal on the side of n at point p: a normal map's where the hit has one
 // (docs/MODEL-NOTES.md, "Normal maps"), else the file's normals interpolated where its mesh
 // has them ("Smooth shading"), else n (src/cpu/trace.rs's `shading_normal_at`).
+// `p` is the point in the mesh's coordinates (Surface.local); an instance's frames are its
+// mesh's, brought into the world by its normal matrix.
 fn shading_normal_at(s: Shading, hit: Hit, p: vec3f, n_out: vec3f, n: vec3f) -> vec3f {
+    let instanced = HAS_INSTANCES && hit.instance != NO_INSTANCE;
+    var n_geo = n_out;
+    if instanced {
+        let tri = triangles[hit.index];
+        n_geo = normalize(cross(tri.e1, tri.e2));
+    }
     if HAS_NORMAL_MAPS && hit.kind == KIND_TRIANGLE && tex_has_normal_map(s.rec) {
-        let ns = tex_shading_normal(s.rec, hit.index, s.bary, s.uv, n_out);
+        var ns: vec3f;
+        if instanced {
+            // The frame brought into the world first, as a flattened mesh's frames are.
+            let inst = instances[hit.instance];
+            let nw = instance_normal(inst, tex_smooth_normal(hit.index, s.bary, n_geo));
+            ns = tex_perturbed(s.rec, s.uv, nw, instance_tangent(inst, tex_tangent(hit.index, s.bary)));
+        } else {
+            ns = tex_shading_normal(s.rec, hit.index, s.bary, s.uv, n_geo);
+        }
         return select(-ns, ns, dot(ns, n) >= 0.0);
     }
     if HAS_SMOOTH_NORMALS && hit.kind == KIND_TRIANGLE && tex_has_frames() {
@@ -354,27 +465,41 @@ fn shading_normal_at(s: Shading, hit: Hit, p: vec3f, n_out: vec3f, n: vec3f) -> 
             let tri = triangles[hit.index];
             b = triangle_barycentrics(tri, p - tri.v0);
         }
-        let ns = tex_smooth_normal(hit.index, b, n_out);
+        var ns = tex_smooth_normal(hit.index, b, n_geo);
+        if instanced {
+            ns = instance_normal(instances[hit.instance], ns);
+        }
         return select(-ns, ns, dot(ns, n) >= 0.0);
     }
     return n;
 }
 
+fn surface_in_place(p: SurfacePoint, material: u32) -> Surface {
+    return Surface(p, material, p.position);
+}
+
 fn surface_at(hit: Hit, ray: Ray) -> Surface {
     if hit.kind == KIND_SPHERE {
         let s = spheres[hit.index];
-        return Surface(sphere_surface(s, ray, hit.t), s.material);
+        return surface_in_place(sphere_surface(s, ray, hit.t), s.material);
     }
     if hit.kind == KIND_QUAD {
         let q = quads[hit.index];
-        return Surface(quad_surface(q, ray, hit.t), q.material);
+        return surface_in_place(quad_surface(q, ray, hit.t), q.material);
     }
     if hit.kind == KIND_BOX {
         let b = boxes[hit.index];
-        return Surface(box_surface(b, ray, hit.t), b.material);
+        return surface_in_place(box_surface(b, ray, hit.t), b.material);
     }
     let tri = triangles[hit.index];
-    return Surface(triangle_surface(tri, ray, hit.t), tri.material);
+    if HAS_INSTANCES && hit.instance != NO_INSTANCE {
+        // Found in the mesh's coordinates, and brought into the world's.
+        let inst = instances[hit.instance];
+        let local = triangle_surface(tri, instance_ray(inst, ray), hit.t);
+        let world = SurfacePoint(instance_point(inst, local.position), instance_normal(inst, local.normal));
+        return Surface(world, tri.material, local.position);
+    }
+    return surface_in_place(triangle_surface(tri, ray, hit.t), tri.material);
 }
 
 // The gradient sky with optional sun, or a uniform sky (MODEL.md "Sky").
@@ -742,7 +867,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         // A certain lobe takes no draw.
         let is_spec = !pbr && (m.specular >= 1.0 || (m.specular > 0.0 && rand(state) < m.specular));
         let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);
-        let ns = shading_normal_at(sh, hit, surf.point.position, n_out, n);
+        let ns = shading_normal_at(sh, hit, surf.local, n_out, n);
         var lobe = PbrLobe();
         // A lobe with a density light sampling can weigh: the Lambertian one, the lecture's
         // specular one at smoothness 0 (the same distribution, its own tint), or glTF's but
@@ -991,7 +1116,7 @@ fn guide_of(primary: Ray) -> Guide {
             ray = Ray(offset_ray(surf.point.position, side), dir);
             continue;
         }
-        let ns = shading_normal_at(sh, hit, surf.point.position, n_out, n);
+        let ns = shading_normal_at(sh, hit, surf.local, n_out, n);
         if m.specular >= 1.0 && m.smoothness >= 1.0 && m.absorption == 0.0 && !last {
             // A perfect mirror.
             tint *= m.specular_color;

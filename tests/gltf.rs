@@ -77,7 +77,14 @@ const TRIANGLE: [[f32; 3]; 3] = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.
 const PLAIN: &str = r#"{"name":"plain"}"#;
 
 fn import(bytes: &[u8]) -> Result<termtrace::scene::gltf::Imported, GltfError> {
-    import_slice(bytes, None, "test.gltf", DMat4::IDENTITY, None)
+    import_slice(
+        bytes,
+        None,
+        "test.gltf",
+        DMat4::IDENTITY,
+        None,
+        Default::default(),
+    )
 }
 
 fn triangles(o: &termtrace::scene::Object) -> Vec<[DVec3; 3]> {
@@ -244,15 +251,30 @@ fn cameras_are_found_by_name_and_look_down_minus_z() {
     assert!(close(first.look_at, DVec3::new(0.0, 0.0, 4.0)));
     assert!((first.vfov - 0.5f64.to_degrees()).abs() < 1e-5);
     // 90° about +Y turns −Z into −X: the side camera at x = 3 looks back toward the origin.
-    let side = import_slice(&bytes, None, "t.gltf", DMat4::IDENTITY, Some("side"))
-        .unwrap()
-        .camera
-        .unwrap();
+    let side = import_slice(
+        &bytes,
+        None,
+        "t.gltf",
+        DMat4::IDENTITY,
+        Some("side"),
+        Default::default(),
+    )
+    .unwrap()
+    .camera
+    .unwrap();
     assert!(close(
         side.look_at - side.look_from,
         DVec3::new(-1.0, 0.0, 0.0)
     ));
-    let e = import_slice(&bytes, None, "t.gltf", DMat4::IDENTITY, Some("top")).unwrap_err();
+    let e = import_slice(
+        &bytes,
+        None,
+        "t.gltf",
+        DMat4::IDENTITY,
+        Some("top"),
+        Default::default(),
+    )
+    .unwrap_err();
     assert!(
         e.message.contains("no camera `top`") && e.message.contains("front, side"),
         "{e}"
@@ -689,6 +711,7 @@ fn a_map_on_a_second_texture_coordinate_set_is_left_out_and_named() {
         std::path::Path::new("tests/gltf/MultiUVTest/MultiUVTest.glb"),
         glam::DMat4::IDENTITY,
         None,
+        Default::default(),
     )
     .unwrap();
     let said = i.skipped.join("\n");

@@ -112,6 +112,10 @@ const TWINS: &[Twin] = &[
         // the host's recursive walk differ in their plumbing, not in the model.
         wgsl_only: &[
             "add_u64",
+            // The walk without a BVH names references by kind and index (the host's
+            // `all_refs` iterates them); a surface of its primitive's own coordinates.
+            "brute_count",
+            "brute_ref",
             "count_tests",
             "count_visit",
             "fixed_load",
@@ -128,6 +132,7 @@ const TWINS: &[Twin] = &[
             "scratch_store",
             "slabs",
             "slot_bits",
+            "surface_in_place",
             "trace",
         ],
         rust_only: &[

@@ -12,5 +12,6 @@ fuzz_target!(|data: &[u8]| {
         "fuzz.gltf",
         glam::DMat4::IDENTITY,
         None,
+        Default::default(),
     );
 });

@@ -195,6 +195,38 @@ fn triangle_surface(tri: Triangle, ray: Ray, t: f32) -> SurfacePoint {
     return SurfacePoint(tri.v0 + b.x * tri.e1 + b.y * tri.e2, normalize(cross(tri.e1, tri.e2)));
 }
 
+// An instance's maps (common/types.wgsl: Instance): a world ray into its mesh's coordinates,
+// its direction not normalized so that distances along it stay the world's; a point of the
+// mesh into the world; a normal into the world by the inverse transpose (the transpose of
+// object_from_world's linear part), normalized.
+fn instance_ray(inst: Instance, ray: Ray) -> Ray {
+    let m = inst.object_from_world;
+    let o = vec4f(ray.origin, 1.0);
+    let d = vec4f(ray.dir, 0.0);
+    return Ray(vec3f(dot(m[0], o), dot(m[1], o), dot(m[2], o)), vec3f(dot(m[0], d), dot(m[1], d), dot(m[2], d)));
+}
+
+fn instance_point(inst: Instance, p: vec3f) -> vec3f {
+    let m = inst.world_from_object;
+    let q = vec4f(p, 1.0);
+    return vec3f(dot(m[0], q), dot(m[1], q), dot(m[2], q));
+}
+
+// A tangent of the mesh in the world (by the matrix), and whether the map mirrors (its
+// determinant's sign: a mirrored frame turns the bitangent over, as the flattened mesh's
+// frames do).
+fn instance_tangent(inst: Instance, t: vec4f) -> vec4f {
+    let m = inst.world_from_object;
+    let v = vec3f(dot(m[0].xyz, t.xyz), dot(m[1].xyz, t.xyz), dot(m[2].xyz, t.xyz));
+    let mirrors = dot(cross(m[0].xyz, m[1].xyz), m[2].xyz) < 0.0;
+    return vec4f(v, select(t.w, -t.w, mirrors));
+}
+
+fn instance_normal(inst: Instance, n: vec3f) -> vec3f {
+    let m = inst.object_from_world;
+    return normalize(n.x * m[0].xyz + n.y * m[1].xyz + n.z * m[2].xyz);
+}
+
 // 1 / dir with components too small to invert replaced by a tiny positive number: the slab
 // test then sees an axis-parallel ray, and nothing becomes infinite or NaN (WGSL may assume
 // neither occurs).

@@ -273,16 +273,27 @@ fn tex_has_normal_map(rec: u32) -> bool {
 // into it: N + (x·T + y·B) / z, normalised, B = N × T · w. A texel of (128, 128) leaves N as
 // it is. The caller turns the result to the side it needs.
 fn tex_shading_normal(rec: u32, index: u32, b: vec2f, uv: vec2f, n_geo: vec3f) -> vec3f {
+    return tex_perturbed(rec, uv, tex_smooth_normal(index, b, n_geo), tex_tangent(index, b));
+}
+
+// The corners' tangents of triangle `index` interpolated at barycentrics `b`, and (w) the
+// bitangent's sign.
+fn tex_tangent(index: u32, b: vec2f) -> vec4f {
     let at = tex[TEX_FRAMES] + TEX_FRAME_WORDS * index;
-    let n = tex_smooth_normal(index, b, n_geo);
     let t0 = tex_vec3(at + 9u);
-    var t = t0 + b.x * (tex_vec3(at + 13u) - t0) + b.y * (tex_vec3(at + 17u) - t0);
+    let t = t0 + b.x * (tex_vec3(at + 13u) - t0) + b.y * (tex_vec3(at + 17u) - t0);
+    return vec4f(t, select(1.0, -1.0, tex_f32(at + 12u) < 0.0));
+}
+
+// The normal map of record `rec` read at `uv` and taken into the frame of normal n and
+// tangent tw (tw.w: the bitangent's sign), as tex_shading_normal describes.
+fn tex_perturbed(rec: u32, uv: vec2f, n: vec3f, tw: vec4f) -> vec3f {
+    var t = tw.xyz;
     t -= n * dot(n, t);
     // A perpendicular of n when the tangent is missing or parallel to it.
     let other = select(vec3f(1.0, 0.0, 0.0), vec3f(0.0, 1.0, 0.0), abs(n.x) > 0.9);
     t = normalize_or(t, normalize(cross(other, n)));
-    let w = select(1.0, -1.0, tex_f32(at + 12u) < 0.0);
-    let bt = cross(n, t) * w;
+    let bt = cross(n, t) * tw.w;
     let s = tex_sample(tex[rec + TEX_NORMAL_MAP], tex_xform(rec, 3u, uv), TEX_SNORM);
     let scale = tex_f32(rec + TEX_NORMAL_MAP + 1u);
     let d = (s.x * scale * t + s.y * scale * bt) / max(s.z, TEX_NORMAL_MIN_Z);

@@ -8,7 +8,7 @@ struct SceneUniforms {
     cam_to_corner: vec3f,   //  16  upper-left corner of the focus plane, relative to cam_origin
     n_lights: u32,          //  28  lights sampled by next-event estimation (0: none)
     cam_horizontal: vec3f,  //  32  full width of the focus plane
-    _pad1: f32,             //  44
+    n_instances: u32,       //  44  copies of instanced meshes (the BVH's top level names them)
     cam_vertical: vec3f,    //  48  full height of the focus plane, pointing up
     _pad2: f32,             //  60
     cam_u: vec3f,           //  64  lens basis (right)
@@ -148,6 +148,18 @@ struct BvhNode4 {
     child: vec4u,           //  96
     count: vec4u,           // 112
 }                           // 128
+
+// A copy of a mesh (src/common/arrays.rs: instances): the bottom-level BVH from node `root`
+// over the mesh's triangles, in its own coordinates; rows of the affine maps into them and
+// back.
+struct Instance {
+    object_from_world: array<vec4f, 3>, //   0
+    world_from_object: array<vec4f, 3>, //  48
+    root: u32,              //  96
+    _pad0: u32,             // 100
+    _pad1: u32,             // 104
+    _pad2: u32,             // 108
+}                           // 112
 
 // A light for next-event estimation: an emissive sphere or quad, picked in proportion to its
 // power (src/common/arrays.rs: lights).

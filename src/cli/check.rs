@@ -147,10 +147,18 @@ pub fn summary(s: &Scene) -> String {
             }
         )
     });
+    let instanced = if n.instances > 0 {
+        format!(
+            "; {} instances draw {} triangles",
+            n.instances, n.drawn_triangles
+        )
+    } else {
+        String::new()
+    };
     format!(
         "{}: ok\n  camera     from {} to {}, vfov {}°, aperture {}, focus distance {}\n  \
          render     {}x{}, {} spp, max_bounces {}, seed {}\n  sky        {}\n  \
-         objects    {} ({} spheres, {} quads, {} boxes, {} meshes of {} triangles)\n  \
+         objects    {} ({} spheres, {} quads, {} boxes, {} meshes of {} triangles{instanced})\n  \
          materials  {} Lambertian, {} glossy/metal, {} dielectric, {} emitters, {} pbr; {} named{named}\n  \
          tracer     {}{env}{gltf}{tex}",
         s.origin,

@@ -6,7 +6,7 @@ use super::layout::*;
 use crate::bvh::wide::GpuBvhNode4;
 use crate::bvh::{Aabb, Bvh};
 use crate::scene::{Camera, MaterialModel, Object, Scene, Shape, Sky, euler_xyz};
-use glam::DVec3;
+use glam::{DMat4, DVec3};
 use std::hash::{Hash, Hasher};
 
 /// What the tracer needs besides the scene itself.
@@ -101,7 +101,18 @@ pub fn scene_uniforms(scene: &Scene, s: &FrameSettings, origin: DVec3) -> SceneU
     u.n_spheres = n.spheres as u32;
     u.n_quads = n.quads as u32;
     u.n_boxes = n.boxes as u32;
-    u.n_triangles = n.triangles as u32;
+    // The top level's: an instanced mesh's triangles are reached through its copies.
+    u.n_triangles = scene
+        .objects
+        .iter()
+        .map(|o| match &o.shape {
+            Shape::Mesh {
+                mesh, instances, ..
+            } if instances.is_empty() => mesh.triangles.len(),
+            _ => 0,
+        })
+        .sum::<usize>() as u32;
+    u.n_instances = n.instances as u32;
     u
 }
 
@@ -150,10 +161,31 @@ pub enum Kind {
 /// A BVH reference's index in its kind's array (below the kind's two bits).
 pub const REF_INDEX: u32 = (1 << 30) - 1;
 
+/// Under the triangle kind's two bits, this bit marks a copy of a mesh: the index below it is
+/// the instance's (`Primitives::instances`), whose own BVH holds the triangles.
+pub const INSTANCE_BIT: u32 = 1 << 29;
+
 /// A BVH reference: kind in the top two bits, index in its array below.
 pub fn encode_ref(kind: Kind, index: usize) -> u32 {
     assert!(index < 1 << 30, "more than 2^30 primitives of one kind");
+    assert!(
+        kind != Kind::Triangle || index < INSTANCE_BIT as usize,
+        "more than 2^29 triangles"
+    );
     (kind as u32) << 30 | index as u32
+}
+
+/// The reference of instance `index`.
+pub fn instance_ref(index: usize) -> u32 {
+    assert!(index < INSTANCE_BIT as usize, "more than 2^29 instances");
+    (Kind::Triangle as u32) << 30 | INSTANCE_BIT | index as u32
+}
+
+/// The triangles of a mesh drawn by instances: `count` of them from `first` in the triangle
+/// array, in the mesh's own coordinates, and their bounds; its BVH is built apart.
+pub struct MeshBlas {
+    pub first: usize,
+    pub bounds: Vec<Aabb>,
 }
 
 /// The primitive arrays (one material per object, primitives grouped by kind) and the
@@ -166,9 +198,21 @@ pub struct Primitives {
     pub boxes: Vec<GpuCuboid>,
     pub triangles: Vec<GpuTriangle>,
     pub lights: Vec<GpuLight>,
-    /// The reference and bounds of every primitive.
+    /// Copies of instanced meshes (`root` is the index of their mesh in `blas` until
+    /// [`gpu_bvh`] builds the trees), and those meshes.
+    pub instances: Vec<GpuInstance>,
+    pub blas: Vec<MeshBlas>,
+    /// Triangles named by the top level (those of instanced meshes follow them).
+    pub top_triangles: usize,
+    /// The reference and bounds of every primitive of the top level.
     pub refs: Vec<u32>,
     pub bounds: Vec<Aabb>,
+}
+
+/// The rows of an affine map as WGSL's `Instance` stores them.
+fn rows(m: DMat4) -> [[f32; 4]; 3] {
+    let r = m.transpose();
+    [r.x_axis, r.y_axis, r.z_axis].map(|v| v.as_vec4().to_array())
 }
 
 /// A vector (a direction or an extent) in f32: never moved by the origin.
@@ -201,6 +245,8 @@ impl Primitives {
         // Positions are taken relative to the origin (in f64, before rounding); directions
         // and extents go through `dir` unchanged.
         let pos = |v: DVec3| f(v - origin);
+        // The triangles of instanced meshes, which follow the top level's.
+        let mut instanced = Vec::new();
         for (i, o) in scene.objects.iter().enumerate() {
             p.materials.push(GpuMaterial {
                 light_slot: slots[i],
@@ -271,6 +317,65 @@ impl Primitives {
                     });
                 }
                 Shape::Mesh { .. } if !meshes => {}
+                Shape::Mesh {
+                    mesh,
+                    instances,
+                    translate,
+                    rotation,
+                    scale,
+                    ..
+                } if !instances.is_empty() => {
+                    // Stored once in the mesh's coordinates (its own placement goes into every
+                    // copy's transform); the top level holds the copies.
+                    use rayon::prelude::*;
+                    let (bounds, tris): (Vec<Aabb>, Vec<GpuTriangle>) = mesh
+                        .triangles
+                        .par_iter()
+                        .map(|&[a, b, c]| {
+                            let t = GpuTriangle {
+                                v0: f(a),
+                                material: mat,
+                                e1: dir(b - a),
+                                e2: dir(c - a),
+                                ..Default::default()
+                            };
+                            (Aabb::of_points(&[a, b, c]), t)
+                        })
+                        .unzip();
+                    let local = bounds.iter().fold(Aabb::EMPTY, |b, t| b.union(*t));
+                    let own = DMat4::from_translation(*translate)
+                        * DMat4::from_mat3(euler_xyz(*rotation))
+                        * DMat4::from_scale(*scale);
+                    let mesh_index = p.blas.len() as u32;
+                    p.blas.push(MeshBlas {
+                        first: instanced.len(),
+                        bounds,
+                    });
+                    instanced.extend(tris);
+                    for m in instances.iter() {
+                        let w = DMat4::from_translation(-origin) * *m * own;
+                        let corners: Vec<DVec3> = (0..8)
+                            .map(|k| {
+                                let pick = |bit: usize, lo: f64, hi: f64| {
+                                    if k & bit == 0 { lo } else { hi }
+                                };
+                                w.transform_point3(DVec3::new(
+                                    pick(1, local.min.x, local.max.x),
+                                    pick(2, local.min.y, local.max.y),
+                                    pick(4, local.min.z, local.max.z),
+                                ))
+                            })
+                            .collect();
+                        p.refs.push(instance_ref(p.instances.len()));
+                        p.bounds.push(Aabb::of_points(&corners));
+                        p.instances.push(GpuInstance {
+                            object_from_world: rows(w.inverse()),
+                            world_from_object: rows(w),
+                            root: mesh_index,
+                            ..Default::default()
+                        });
+                    }
+                }
                 Shape::Mesh { .. } => {
                     // In parallel: a mesh of 10⁶ triangles is a large part of a first frame.
                     use rayon::prelude::*;
@@ -298,7 +403,16 @@ impl Primitives {
                 }
             }
         }
+        p.push_instanced(instanced);
         p
+    }
+
+    fn push_instanced(&mut self, instanced: Vec<GpuTriangle>) {
+        self.top_triangles = self.triangles.len();
+        for b in &mut self.blas {
+            b.first += self.top_triangles;
+        }
+        self.triangles.extend(instanced);
     }
 
     fn push(&mut self, kind: Kind, index: usize, bounds: Aabb) {
@@ -377,15 +491,60 @@ pub fn lights(scene: &Scene, nee: bool) -> (Vec<GpuLight>, Vec<u32>) {
 }
 
 /// The BVH over `p`, as both tracers read it: four-wide nodes (`bvh::wide`), and the
-/// references in leaf order. A scene without primitives gets an empty list (the buffer then
-/// holds one zeroed node, which the tracer never reads: it checks the primitive counts first).
-pub fn gpu_bvh(p: &Primitives) -> (Vec<GpuBvhNode4>, Vec<u32>) {
+/// references in leaf order, and the instances with their roots. A scene without primitives
+/// gets an empty list (the buffer then holds one zeroed node, which the tracer never reads: it
+/// checks the primitive counts first).
+///
+/// With instanced meshes the tree has two levels, as in PBRT 4th ed. §7.1.4 (and DirectX's
+/// and Vulkan's acceleration structures): the top level, from node 0, over the primitives
+/// and the copies; after it, each mesh's own tree over its triangles in its coordinates,
+/// from the node a copy's `root` names. Its nodes and references follow the top level's.
+pub fn gpu_bvh(p: &Primitives) -> (Vec<GpuBvhNode4>, Vec<u32>, Vec<GpuInstance>) {
     if p.bounds.is_empty() {
-        return (Vec::new(), Vec::new());
+        return (Vec::new(), Vec::new(), Vec::new());
     }
     let bvh = Bvh::build(&p.bounds);
-    let refs = bvh.order.iter().map(|&i| p.refs[i as usize]).collect();
-    (crate::bvh::wide::collapse(&bvh), refs)
+    let mut refs: Vec<u32> = bvh.order.iter().map(|&i| p.refs[i as usize]).collect();
+    let mut nodes = crate::bvh::wide::collapse(&bvh);
+    use rayon::prelude::*;
+    let trees: Vec<(Vec<GpuBvhNode4>, Vec<u32>)> = p
+        .blas
+        .par_iter()
+        .map(|b| {
+            let bvh = Bvh::build(&b.bounds);
+            let refs = bvh
+                .order
+                .iter()
+                .map(|&i| encode_ref(Kind::Triangle, b.first + i as usize))
+                .collect();
+            (crate::bvh::wide::collapse(&bvh), refs)
+        })
+        .collect();
+    let mut roots = Vec::with_capacity(trees.len());
+    for (tree, tree_refs) in trees {
+        let (node_base, ref_base) = (nodes.len() as u32, refs.len() as u32);
+        roots.push(node_base);
+        nodes.extend(tree.into_iter().map(|mut n| {
+            for k in 0..4 {
+                match n.count[k] {
+                    crate::bvh::wide::EMPTY_SLOT => {}
+                    0 => n.child[k] += node_base,
+                    _ => n.child[k] += ref_base,
+                }
+            }
+            n
+        }));
+        refs.extend(tree_refs);
+    }
+    let instances = p
+        .instances
+        .iter()
+        .map(|i| GpuInstance {
+            root: roots[i.root as usize],
+            ..*i
+        })
+        .collect();
+    (nodes, refs, instances)
 }
 
 fn material(o: &Object) -> GpuMaterial {
@@ -455,6 +614,30 @@ fn shape_numbers(shape: &Shape) -> Vec<f64> {
             .chain(scale.to_array())
             .collect(),
     }
+}
+
+/// Why `scene`'s geometry cannot be bound where one storage buffer holds at most `limit`
+/// bytes: the triangle array (48 bytes a triangle, an instanced mesh's once) is the largest
+/// of its buffers. `None` when it fits.
+pub fn too_large(scene: &Scene, limit: u64) -> Option<String> {
+    let n = scene.counts();
+    let bytes = n.triangles as u64 * std::mem::size_of::<GpuTriangle>() as u64;
+    let mib = |b: u64| b as f64 / (1 << 20) as f64;
+    (bytes > limit).then(|| {
+        format!(
+            "its {} triangles take {:.1} MiB in one storage buffer, more than the {:.1} MiB \
+             this adapter binds; trace on the CPU (the adapter `cpu-native`), which has no \
+             such limit{}",
+            n.triangles,
+            mib(bytes),
+            mib(limit),
+            if n.drawn_triangles > n.triangles {
+                ""
+            } else {
+                ", or let repeated meshes be instanced (`instancing` on a `[[gltf]]` table)"
+            }
+        )
+    })
 }
 
 /// A hash of everything the BVH depends on: the shapes (not the materials, not the camera).

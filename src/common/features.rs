@@ -12,7 +12,7 @@ use crate::scene::{Scene, Shape, Sky};
 #[error(
     "unknown feature `{0}` (expected spheres, quads, boxes, triangles, dielectrics, emitters, \
      nee, dof, sun, textures, cutouts, normal_maps, smooth_normals, env_map, pbr, \
-     pbr_specular, pbr_transmission, pbr_clearcoat or lecture)"
+     pbr_specular, pbr_transmission, pbr_clearcoat, instances or lecture)"
 )]
 pub struct UnknownFeature(pub String);
 
@@ -52,6 +52,9 @@ pub struct Features {
     pub pbr_transmission: bool,
     /// A pbr material with a clear coat (KHR_materials_clearcoat).
     pub pbr_clearcoat: bool,
+    /// A mesh drawn by instances: the BVH's top level holds copies, walked into their
+    /// meshes' own trees.
+    pub instances: bool,
     /// The lecture's surface lobes (a non-emitting, non-dielectric material of its model):
     /// a scene of glTF materials alone compiles none of them. Without `pbr` too (the
     /// benchmarks' feature lists) the lecture's lobes are what every surface runs.
@@ -84,6 +87,7 @@ impl Features {
             pbr_specular: true,
             pbr_transmission: true,
             pbr_clearcoat: true,
+            instances: true,
             lecture: true,
             count_segments: false,
             bvh: true,
@@ -111,6 +115,7 @@ impl Features {
             pbr_specular: false,
             pbr_transmission: false,
             pbr_clearcoat: false,
+            instances: false,
             lecture: false,
             count_segments: false,
             bvh: false,
@@ -141,6 +146,7 @@ impl Features {
                 "pbr_specular" => &mut f.pbr_specular,
                 "pbr_transmission" => &mut f.pbr_transmission,
                 "pbr_clearcoat" => &mut f.pbr_clearcoat,
+                "instances" => &mut f.instances,
                 "lecture" => &mut f.lecture,
                 _ => return Err(UnknownFeature(name.to_string())),
             };
@@ -164,8 +170,11 @@ impl Features {
                 Shape::Sphere { .. } => f.spheres = true,
                 Shape::Quad { .. } => f.quads = true,
                 Shape::Box { .. } => f.boxes = true,
-                Shape::Mesh { mesh, .. } => {
+                Shape::Mesh {
+                    mesh, instances, ..
+                } => {
                     f.triangles = true;
+                    f.instances |= !instances.is_empty();
                     // Glass refracts about the geometric normal: only surfaces shade smooth.
                     f.smooth_normals |= !mesh.normals.is_empty() && !o.material.is_dielectric();
                 }
@@ -224,6 +233,7 @@ impl Features {
             pbr_specular: self.pbr_specular | other.pbr_specular,
             pbr_transmission: self.pbr_transmission | other.pbr_transmission,
             pbr_clearcoat: self.pbr_clearcoat | other.pbr_clearcoat,
+            instances: self.instances | other.instances,
             lecture: self.lecture | other.lecture,
             count_segments: self.count_segments | other.count_segments,
             bvh: self.bvh | other.bvh,
@@ -257,6 +267,7 @@ impl Features {
             ("HAS_PBR_SPECULAR", b(self.pbr_specular)),
             ("HAS_PBR_TRANSMISSION", b(self.pbr_transmission)),
             ("HAS_PBR_CLEARCOAT", b(self.pbr_clearcoat)),
+            ("HAS_INSTANCES", b(self.instances)),
             ("HAS_LECTURE", b(self.lecture)),
             ("COUNT_SEGMENTS", b(self.count_segments)),
             ("USE_BVH", b(self.bvh)),
@@ -284,6 +295,7 @@ impl Features {
             (self.pbr_specular, "pbr_specular"),
             (self.pbr_transmission, "pbr_transmission"),
             (self.pbr_clearcoat, "pbr_clearcoat"),
+            (self.instances, "instances"),
         ];
         let on: Vec<&str> = names.iter().filter(|(b, _)| *b).map(|(_, n)| *n).collect();
         if on.is_empty() {

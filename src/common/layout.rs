@@ -13,7 +13,7 @@ pub struct SceneUniforms {
     pub cam_to_corner: [f32; 3],
     pub n_lights: u32,
     pub cam_horizontal: [f32; 3],
-    pub _pad1: f32,
+    pub n_instances: u32,
     pub cam_vertical: [f32; 3],
     pub _pad2: f32,
     pub cam_u: [f32; 3],
@@ -155,6 +155,21 @@ pub struct GpuTriangle {
     pub _pad1: f32,
 }
 
+/// A copy of a mesh (an instance): its triangles (in the mesh's coordinates) are walked by
+/// the bottom-level BVH whose root is node `root`, after the ray is taken into the mesh's
+/// coordinates by `object_from_world` (three rows of an affine matrix); `world_from_object`
+/// takes hit points back.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
+pub struct GpuInstance {
+    pub object_from_world: [[f32; 4]; 3],
+    pub world_from_object: [[f32; 4]; 3],
+    pub root: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
+}
+
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable, PartialEq)]
 pub struct GpuLight {
@@ -185,6 +200,7 @@ pub fn mirrors() -> Vec<MirrorLayout> {
                 cam_to_corner,
                 n_lights,
                 cam_horizontal,
+                n_instances,
                 cam_vertical,
                 cam_u,
                 cam_v,
@@ -266,6 +282,11 @@ pub fn mirrors() -> Vec<MirrorLayout> {
             [min_x, min_y, min_z, max_x, max_y, max_z, child, count]
         ),
         m!("Light", GpuLight, [prim, cdf, pmf, area]),
+        m!(
+            "Instance",
+            GpuInstance,
+            [object_from_world, world_from_object, root]
+        ),
     ]
 }
 
@@ -280,4 +301,5 @@ const _: () = {
     assert!(std::mem::size_of::<GpuTriangle>() == 48);
     assert!(std::mem::size_of::<GpuBvhNode4>() == 128);
     assert!(std::mem::size_of::<GpuLight>() == 16);
+    assert!(std::mem::size_of::<GpuInstance>() == 112);
 };

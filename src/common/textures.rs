@@ -289,7 +289,7 @@ pub fn words(scene: &Scene) -> Option<Vec<u32>> {
     w[UV_BASE] = w.len() as u32;
     // Read only at a textured material's hits.
     if !l.records.is_empty() {
-        for o in &scene.objects {
+        for o in scene.triangle_order() {
             if let Shape::Mesh { mesh, .. } = &o.shape {
                 for k in 0..mesh.triangles.len() {
                     let uv = mesh.uvs.get(k).copied().unwrap_or([[0.0; 2]; 3]);
@@ -300,14 +300,14 @@ pub fn words(scene: &Scene) -> Option<Vec<u32>> {
     }
     if l.frames {
         w[FRAMES] = w.len() as u32;
-        for o in &scene.objects {
+        for o in scene.triangle_order() {
             frames(&o.shape, &mut w);
         }
     }
     Some(w)
 }
 
-/// A mesh's shading frames, its own transform applied (normals by the inverse transpose,
+/// A mesh's shading frames, its own transform applied (not an instanced one's) (normals by the inverse transpose,
 /// tangents by the matrix, the bitangent's sign turned over by a mirroring scale), appended
 /// to `w`: [`FRAME_WORDS`] per triangle, zero where the mesh has none.
 fn frames(shape: &Shape, w: &mut Vec<u32>) {
@@ -315,10 +315,17 @@ fn frames(shape: &Shape, w: &mut Vec<u32>) {
         mesh,
         rotation,
         scale,
+        instances,
         ..
     } = shape
     else {
         return;
+    };
+    // An instanced mesh's frames stay in its coordinates (the tracers transform them).
+    let (rotation, scale) = if instances.is_empty() {
+        (rotation, scale)
+    } else {
+        (&DVec3::ZERO, &DVec3::ONE)
     };
     let r = euler_xyz(*rotation);
     let flip = if scale.x * scale.y * scale.z < 0.0 {

@@ -257,6 +257,20 @@ impl Bvh4 {
         t_max: f32,
         tally: &mut Tally,
         stack: &mut Stack,
+        test: impl FnMut(u32, f32) -> f32,
+    ) -> Option<(f32, u32)> {
+        self.closest_from(0, ray, t_max, tally, stack, test)
+    }
+
+    /// [`Bvh4::closest`] in the tree whose root is node `root` (an instanced mesh's).
+    #[inline(always)]
+    pub fn closest_from(
+        &self,
+        root: usize,
+        ray: &Ray,
+        t_max: f32,
+        tally: &mut Tally,
+        stack: &mut Stack,
         mut test: impl FnMut(u32, f32) -> f32,
     ) -> Option<(f32, u32)> {
         if self.nodes.is_empty() {
@@ -264,7 +278,7 @@ impl Bvh4 {
         }
         let (o, inv) = Self::ray_terms(ray);
         let mut w = Walk::new(&mut *stack.0, t_max);
-        let mut node = 0usize;
+        let mut node = root;
         loop {
             let n = &self.nodes[node];
             tally.visits += 1;

@@ -1,7 +1,7 @@
 //! Ray/primitive intersection and self-intersection avoidance: shaders/common/intersect.wgsl
 //! in Rust, term for term (its comments give the sources and the reasoning).
 
-use glam::{IVec3, Vec3A};
+use glam::{IVec3, Vec3A, Vec4};
 
 /// Rays walked together: the camera rays of `LANES` neighbouring pixels (the packet walk,
 /// `trace::Tracer::camera_hits`).
@@ -43,10 +43,58 @@ pub struct Triangle {
     pub material: u32,
 }
 
+/// A copy of a mesh (`common::layout::GpuInstance`): rows of its affine maps, and the root of
+/// its mesh's tree.
+#[derive(Clone, Copy, Debug)]
+pub struct Instance {
+    pub object_from_world: [Vec4; 3],
+    pub world_from_object: [Vec4; 3],
+    pub root: u32,
+}
+
+/// A world ray in the mesh's coordinates, its direction not normalized (distances along it
+/// stay the world's).
+#[inline(always)]
+pub fn instance_ray(inst: &Instance, ray: &Ray) -> Ray {
+    let m = &inst.object_from_world;
+    let o = ray.origin.extend(1.0);
+    let d = ray.dir.extend(0.0);
+    Ray {
+        origin: Vec3A::new(m[0].dot(o), m[1].dot(o), m[2].dot(o)),
+        dir: Vec3A::new(m[0].dot(d), m[1].dot(d), m[2].dot(d)),
+    }
+}
+
+/// A point of the mesh in the world.
+#[inline(always)]
+pub fn instance_point(inst: &Instance, p: Vec3A) -> Vec3A {
+    let m = &inst.world_from_object;
+    let q = p.extend(1.0);
+    Vec3A::new(m[0].dot(q), m[1].dot(q), m[2].dot(q))
+}
+
+/// A tangent `(t, w)` of the mesh in the world (by the matrix), `w` turned over where the map
+/// mirrors (intersect.wgsl's `instance_tangent`).
+#[inline(always)]
+pub fn instance_tangent(inst: &Instance, (t, w): (Vec3A, f32)) -> (Vec3A, f32) {
+    let m = inst.world_from_object.map(Vec3A::from_vec4);
+    let v = Vec3A::new(m[0].dot(t), m[1].dot(t), m[2].dot(t));
+    let mirrors = m[0].cross(m[1]).dot(m[2]) < 0.0;
+    (v, if mirrors { -w } else { w })
+}
+
+/// A normal of the mesh in the world (by the inverse transpose), normalized.
+#[inline(always)]
+pub fn instance_normal(inst: &Instance, n: Vec3A) -> Vec3A {
+    let m = &inst.object_from_world;
+    (n.x * Vec3A::from_vec4(m[0]) + n.y * Vec3A::from_vec4(m[1]) + n.z * Vec3A::from_vec4(m[2]))
+        .normalize()
+}
+
 #[derive(Clone, Copy, Debug)]
 pub struct Ray {
     pub origin: Vec3A,
-    /// Unit length.
+    /// Unit length (but in an instance's coordinates: `Instance::ray`).
     pub dir: Vec3A,
 }
 

@@ -6,13 +6,13 @@
 use super::bvh::Bvh4;
 #[cfg(target_arch = "x86_64")]
 use super::bvh8::Bvh8;
-use super::intersect::{Cuboid, Quad, Sphere, Triangle};
+use super::intersect::{Cuboid, Instance, Quad, Sphere, Triangle};
 use crate::common::FrameSettings;
 use crate::common::arrays::{Primitives, geometry_hash, gpu_bvh, scene_uniforms};
 use crate::common::layout::{GpuLight, GpuMaterial, MODEL_PBR, SceneUniforms};
 use crate::scene::Scene;
 use crate::scene::envmap::EnvMap;
-use glam::{DVec3, Vec3A};
+use glam::{DVec3, Vec3A, Vec4};
 use std::sync::Arc;
 
 fn v(a: [f32; 3]) -> Vec3A {
@@ -134,6 +134,10 @@ pub struct CpuScene {
     pub boxes: Vec<Cuboid>,
     pub triangles: Vec<Triangle>,
     pub lights: Vec<GpuLight>,
+    /// Copies of instanced meshes, whose trees follow the top level in `bvh`.
+    pub instances: Vec<Instance>,
+    /// Triangles the top level names (an instanced mesh's follow them).
+    pub top_triangles: usize,
     pub bvh: Bvh4,
     /// The BVH collapsed to eight-wide nodes, for the single-ray walk on a CPU with AVX.
     #[cfg(target_arch = "x86_64")]
@@ -164,7 +168,7 @@ impl CpuScene {
         let origin = scene.camera.look_at;
         let p = Primitives::of(scene, origin, s.nee);
         let t = std::time::Instant::now();
-        let (nodes, refs) = gpu_bvh(&p);
+        let (nodes, refs, instances) = gpu_bvh(&p);
         let bvh = Bvh4::new(&nodes, refs);
         #[cfg(target_arch = "x86_64")]
         let bvh8 = std::arch::is_x86_feature_detected!("avx").then(|| Bvh8::new(&bvh));
@@ -177,6 +181,15 @@ impl CpuScene {
             boxes: Vec::new(),
             triangles: Vec::new(),
             lights: Vec::new(),
+            instances: instances
+                .iter()
+                .map(|i| Instance {
+                    object_from_world: i.object_from_world.map(Vec4::from_array),
+                    world_from_object: i.world_from_object.map(Vec4::from_array),
+                    root: i.root,
+                })
+                .collect(),
+            top_triangles: p.top_triangles,
             tex: Vec::new(),
             cutouts: false,
             normal_maps: false,

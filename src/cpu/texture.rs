@@ -294,15 +294,29 @@ pub fn shading_normal(
     uv: Vec2,
     n_geo: Vec3A,
 ) -> Vec3A {
+    let n = smooth_normal(tex, index, (b1, b2), n_geo);
+    perturbed(tex, rec, uv, n, tangent(tex, index, (b1, b2)))
+}
+
+/// The corners' tangents of triangle `index` interpolated at `(b1, b2)`, and the bitangent's
+/// sign (texture.wgsl's `tex_tangent`).
+#[inline(always)]
+pub fn tangent(tex: &[u32], index: u32, (b1, b2): (f32, f32)) -> (Vec3A, f32) {
     let at = tex[FRAMES] + FRAME_WORDS as u32 * index;
     let v3 = |k: u32| Vec3A::new(f(tex, at + k), f(tex, at + k + 1), f(tex, at + k + 2));
-    let n = smooth_normal(tex, index, (b1, b2), n_geo);
     let t0 = v3(9);
-    let mut t = t0 + b1 * (v3(13) - t0) + b2 * (v3(17) - t0);
+    let t = t0 + b1 * (v3(13) - t0) + b2 * (v3(17) - t0);
+    (t, if f(tex, at + 12) < 0.0 { -1.0 } else { 1.0 })
+}
+
+/// The normal map of record `rec` read at `uv`, taken into the frame of `n` and the tangent
+/// `(t, w)` (texture.wgsl's `tex_perturbed`).
+#[inline(always)]
+pub fn perturbed(tex: &[u32], rec: u32, uv: Vec2, n: Vec3A, (t, w): (Vec3A, f32)) -> Vec3A {
+    let mut t = t;
     t -= n * n.dot(t);
     let other = if n.x.abs() > 0.9 { Vec3A::Y } else { Vec3A::X };
     t = normalize_or(t, other.cross(n).normalize());
-    let w = if f(tex, at + 12) < 0.0 { -1.0 } else { 1.0 };
     let bt = n.cross(t) * w;
     let r = rec + NORMAL_MAP as u32;
     let s = sample(tex, tex[r as usize], xform(tex, rec, 3, uv), Decode::Snorm);

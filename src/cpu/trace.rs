@@ -22,6 +22,7 @@ use super::rng::Rng;
 use super::sampling::{PI, basis, random_in_disk, sin_cos_turns};
 use super::scene::{CpuScene, Material};
 use crate::common::Features;
+use crate::common::arrays::INSTANCE_BIT;
 use crate::common::arrays::REF_INDEX as INDEX;
 use crate::common::arrays::{ENV_NONE, ENV_VISIBLE};
 use crate::common::layout::GpuLight;
@@ -51,8 +52,75 @@ struct Mapped {
 #[derive(Clone, Copy)]
 struct Hit {
     t: f32,
-    /// A BVH reference: kind in the top two bits.
+    /// A BVH reference: kind in the top two bits (an instance's hit: its mesh's triangle).
     r: u32,
+    /// The instance whose mesh holds the triangle, or NONE.
+    inst: u32,
+}
+
+/// The hit of top-level reference `r` at `t`: an instance's names the triangle its walk found
+/// (`INSTANCE_WALK`).
+#[inline(always)]
+fn hit_of(t: f32, r: u32) -> Hit {
+    if r >> 30 == 3 && r & INSTANCE_BIT != 0 {
+        let tri = INSTANCE_WALK.with(|w| w.borrow().triangle);
+        return Hit {
+            t,
+            r: 3 << 30 | tri,
+            inst: r & (INSTANCE_BIT - 1),
+        };
+    }
+    Hit { t, r, inst: NONE }
+}
+
+/// The walk into an instanced mesh (a second stack, so that the top level's stays), and the
+/// triangle it found last, per thread.
+struct InstanceWalk {
+    stack: Stack,
+    tally: Tally,
+    triangle: u32,
+}
+
+thread_local! {
+    static INSTANCE_WALK: std::cell::RefCell<InstanceWalk> = std::cell::RefCell::new(InstanceWalk {
+        stack: Stack::default(),
+        tally: Tally::default(),
+        triangle: 0,
+    });
+}
+
+/// The nearest of instance `i`'s triangles before `t_max`, or NO_HIT; the triangle is left
+/// in `INSTANCE_WALK` (trace.wgsl's `hit_instance`).
+#[inline(never)]
+fn hit_instance(s: &CpuScene, i: usize, ray: &Ray, t_max: f32) -> f32 {
+    let inst = &s.instances[i];
+    let local = instance_ray(inst, ray);
+    INSTANCE_WALK.with(|w| {
+        let w = &mut *w.borrow_mut();
+        let found = s.bvh.closest_from(
+            inst.root as usize,
+            &local,
+            t_max,
+            &mut w.tally,
+            &mut w.stack,
+            |r, t| {
+                let k = r & INDEX;
+                let tri = &s.triangles[k as usize];
+                let th = hit_triangle(tri, &local, t);
+                if s.cutouts && th > 0.0 && super::texture::cut_out(&s.tex, tri, k, &local, th) {
+                    return NO_HIT;
+                }
+                th
+            },
+        );
+        match found {
+            Some((t, r)) => {
+                w.triangle = r & INDEX;
+                t
+            }
+            None => NO_HIT,
+        }
+    })
 }
 
 /// The distance to primitive `r` if nearer than t_max, else NO_HIT.
@@ -66,6 +134,7 @@ pub(super) fn hit_primitive<const P: u32>(s: &CpuScene, r: u32, ray: &Ray, t_max
         0 => hit_sphere(&s.spheres[i], ray, t_max),
         1 => hit_quad(&s.quads[i], ray, t_max),
         2 => hit_box(&s.boxes[i], ray, t_max),
+        _ if r & INSTANCE_BIT != 0 => hit_instance(s, i & (INSTANCE_BIT as usize - 1), ray, t_max),
         _ => {
             let tri = &s.triangles[i];
             let t = hit_triangle(tri, ray, t_max);
@@ -160,9 +229,11 @@ impl<'a> Tracer<'a> {
             s.spheres.len(),
             s.quads.len(),
             s.boxes.len(),
-            s.triangles.len(),
+            s.top_triangles,
         ];
-        (0..4u32).flat_map(move |k| (0..counts[k as usize] as u32).map(move |i| k << 30 | i))
+        (0..4u32)
+            .flat_map(move |k| (0..counts[k as usize] as u32).map(move |i| k << 30 | i))
+            .chain((0..s.instances.len() as u32).map(|i| 3 << 30 | INSTANCE_BIT | i))
     }
 
     /// The nearest hit of `ray`, primitive `skip` left out (the one the ray leaves, where it
@@ -175,7 +246,7 @@ impl<'a> Tracer<'a> {
             for r in self.all_refs().filter(|&r| r != skip) {
                 let t = hit_primitive::<P>(s, r, ray, best.map_or(T_FAR, |h| h.t));
                 if t > 0.0 {
-                    best = Some(Hit { t, r });
+                    best = Some(hit_of(t, r));
                 }
             }
             return best;
@@ -189,7 +260,14 @@ impl<'a> Tracer<'a> {
             |r, t| hit_except::<P>(s, r, ray, t, skip, &mut skipped),
         );
         self.tally.tests -= skipped;
-        hit.map(|(t, r)| Hit { t, r })
+        if !s.instances.is_empty() {
+            INSTANCE_WALK.with(|w| {
+                let w = &mut w.borrow_mut().tally;
+                self.tally.visits += std::mem::take(&mut w.visits);
+                self.tally.tests += std::mem::take(&mut w.tests);
+            });
+        }
+        hit.map(|(t, r)| hit_of(t, r))
     }
 
     /// The nearest hit the BVH walk finds, `test` giving a primitive's: through the
@@ -241,7 +319,7 @@ impl<'a> Tracer<'a> {
     fn material_at(
         &self,
         hit: Hit,
-        point: &SurfacePoint,
+        local: Vec3A,
         material: u32,
     ) -> (Option<Material>, Option<Mapped>) {
         if self.s.tex.is_empty() || hit.r >> 30 != 3 {
@@ -252,7 +330,7 @@ impl<'a> Tracer<'a> {
         };
         let i = hit.r & INDEX;
         let tri = &self.s.triangles[i as usize];
-        let bary = triangle_barycentrics(tri, point.position - tri.v0);
+        let bary = triangle_barycentrics(tri, local - tri.v0);
         let uv = super::texture::uv_at(&self.s.tex, i, bary);
         let m = &self.s.materials[material as usize];
         (
@@ -274,19 +352,30 @@ impl<'a> Tracer<'a> {
         n: Vec3A,
     ) -> Vec3A {
         let i = hit.r & INDEX;
+        // An instance's frames are its mesh's, brought into the world by its normal matrix.
+        let inst = self.s.instances.get(hit.inst as usize);
+        let n_geo = match inst {
+            Some(_) => {
+                let tri = &self.s.triangles[i as usize];
+                tri.e1.cross(tri.e2).normalize()
+            }
+            None => n_out,
+        };
         let toward = |ns: Vec3A| if ns.dot(n) < 0.0 { -ns } else { ns };
+        let tex = &self.s.tex;
         if self.s.normal_maps
             && let Some(Mapped { rec, bary, uv }) = mapped
-            && super::texture::has_normal_map(&self.s.tex, rec)
+            && super::texture::has_normal_map(tex, rec)
         {
-            toward(super::texture::shading_normal(
-                &self.s.tex,
-                rec,
-                i,
-                bary,
-                uv,
-                n_out,
-            ))
+            toward(match inst {
+                // The frame brought into the world first, as a flattened mesh's frames are.
+                Some(m) => {
+                    let nw = instance_normal(m, super::texture::smooth_normal(tex, i, bary, n_geo));
+                    let tw = instance_tangent(m, super::texture::tangent(tex, i, bary));
+                    super::texture::perturbed(tex, rec, uv, nw, tw)
+                }
+                None => super::texture::shading_normal(tex, rec, i, bary, uv, n_geo),
+            })
         } else if self.s.smooth_normals
             && hit.r >> 30 == 3
             && super::texture::has_frames(&self.s.tex)
@@ -298,28 +387,41 @@ impl<'a> Tracer<'a> {
                     triangle_barycentrics(tri, p - tri.v0)
                 }
             };
-            toward(super::texture::smooth_normal(&self.s.tex, i, bary, n_out))
+            let ns = super::texture::smooth_normal(tex, i, bary, n_geo);
+            toward(inst.map_or(ns, |m| instance_normal(m, ns)))
         } else {
             n
         }
     }
 
+    /// The hit's surface point, its material, and the point in its mesh's coordinates (an
+    /// instance's; elsewhere the point itself), as trace.wgsl's `surface_at`.
     #[inline(always)]
-    fn surface_at(&self, hit: Hit, ray: &Ray) -> (SurfacePoint, u32) {
+    fn surface_at(&self, hit: Hit, ray: &Ray) -> (SurfacePoint, u32, Vec3A) {
         let s = self.s;
         let i = (hit.r & INDEX) as usize;
-        match hit.r >> 30 {
+        let (p, m) = match hit.r >> 30 {
             0 => (
                 sphere_surface(&s.spheres[i], ray, hit.t),
                 s.spheres[i].material,
             ),
             1 => (quad_surface(&s.quads[i], ray, hit.t), s.quads[i].material),
             2 => (box_surface(&s.boxes[i], ray, hit.t), s.boxes[i].material),
+            _ if hit.inst != NONE => {
+                let inst = &s.instances[hit.inst as usize];
+                let local = triangle_surface(&s.triangles[i], &instance_ray(inst, ray), hit.t);
+                let world = SurfacePoint {
+                    position: instance_point(inst, local.position),
+                    normal: instance_normal(inst, local.normal),
+                };
+                return (world, s.triangles[i].material, local.position);
+            }
             _ => (
                 triangle_surface(&s.triangles[i], ray, hit.t),
                 s.triangles[i].material,
             ),
-        }
+        };
+        (p, m, p.position)
     }
 
     /// The gradient sky with optional sun, or a uniform sky (MODEL.md "Sky").
@@ -651,15 +753,15 @@ impl<'a> Tracer<'a> {
                 }
             });
             let found = match first.take() {
-                Some(known) => known.map(|(t, r)| Hit { t, r }),
+                Some(known) => known.map(|(t, r)| Hit { t, r, inst: NONE }),
                 None => self.intersect::<P>(&ray, skip),
             };
             let Some(hit) = found else {
                 radiance += throughput * self.escaped(ray.dir, bounce, prev_pdf);
                 break;
             };
-            let (point, material) = self.surface_at(hit, &ray);
-            let (textured, mapped) = self.material_at(hit, &point, material);
+            let (point, material, local) = self.surface_at(hit, &ray);
+            let (textured, mapped) = self.material_at(hit, local, material);
             let m = textured
                 .as_ref()
                 .unwrap_or(&self.s.materials[material as usize]);
@@ -697,7 +799,7 @@ impl<'a> Tracer<'a> {
                 let front = ray.dir.dot(n_out) < 0.0;
                 let n = if front { n_out } else { -n_out };
                 // The shading normal, on the side of n.
-                let ns = self.shading_normal_at(hit, mapped, point.position, n_out, n);
+                let ns = self.shading_normal_at(hit, mapped, local, n_out, n);
                 let lobe = pbr.then(|| pbr::lobe(m, -ray.dir, ns, front));
                 // A lobe with a density light sampling can weigh: the Lambertian one, the
                 // lecture's specular one at smoothness 0, or glTF's but for its mirror.
@@ -788,8 +890,8 @@ impl Tracer<'_> {
             let Some(hit) = self.intersect::<P>(&ray, skip) else {
                 return (tint.to_array(), [0.0; 3]);
             };
-            let (point, material) = self.surface_at(hit, &ray);
-            let (textured, mapped) = self.material_at(hit, &point, material);
+            let (point, material, local) = self.surface_at(hit, &ray);
+            let (textured, mapped) = self.material_at(hit, local, material);
             let m = textured
                 .as_ref()
                 .unwrap_or(&self.s.materials[material as usize]);
@@ -815,7 +917,7 @@ impl Tracer<'_> {
                 };
                 tint *= m.color;
             } else {
-                let ns = self.shading_normal_at(hit, mapped, point.position, n_out, n);
+                let ns = self.shading_normal_at(hit, mapped, local, n_out, n);
                 if !(m.specular >= 1.0 && m.smoothness >= 1.0 && m.absorption == 0.0) || last {
                     let s = m.specular.clamp(0.0, 1.0);
                     let albedo = tint * m.color.lerp(m.specular_color, s);

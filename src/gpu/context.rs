@@ -31,7 +31,7 @@ const HINT: &str = "How to fix: on a machine without a GPU install Mesa's softwa
     loader (`libvulkan1`). WGPU_BACKEND=vulkan|gl restricts the backends tried.";
 
 /// Storage buffers the tracer binds in one stage.
-const STORAGE_BUFFERS_NEEDED: u32 = 14;
+const STORAGE_BUFFERS_NEEDED: u32 = 15;
 
 /// One line naming an adapter: `NVIDIA H100 (Vulkan, DiscreteGpu, driver 550.1)`.
 pub fn describe(info: &wgpu::AdapterInfo) -> String {

@@ -44,6 +44,8 @@ pub struct SceneBuffers {
     pub nodes: wgpu::Buffer,
     pub refs: wgpu::Buffer,
     pub lights: wgpu::Buffer,
+    /// Copies of instanced meshes (one zeroed record when there are none).
+    pub instances: wgpu::Buffer,
     /// The texture words (`common::textures`; one word when the scene has none).
     pub tex: wgpu::Buffer,
     /// The environment map's words (`common::envmap::words`; one word without a map), and
@@ -74,7 +76,7 @@ impl SceneBuffers {
         let p = Primitives::of(scene, origin, s.nee);
         let primitives_seconds = start.elapsed().as_secs_f64();
         let t = std::time::Instant::now();
-        let (nodes, refs) = gpu_bvh(&p);
+        let (nodes, refs, instances) = gpu_bvh(&p);
         let build_seconds = t.elapsed().as_secs_f64();
         tracing::info!(
             "BVH over {} primitives: {} nodes in {:.1} ms",
@@ -120,6 +122,7 @@ impl SceneBuffers {
             nodes: storage(device, "scene.bvh_nodes", &nodes),
             refs: storage(device, "scene.bvh_refs", &refs),
             lights: storage(device, "scene.lights", &p.lights),
+            instances: storage(device, "scene.instances", &instances),
             nee: s.nee,
             geometry: geometry_hash(scene),
             anchor_target: scene.camera.look_at,

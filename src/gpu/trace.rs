@@ -118,6 +118,7 @@ impl TracePass {
                 entry(13, rw),
                 entry(14, ro),
                 entry(15, ro),
+                entry(16, ro),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -217,6 +218,7 @@ impl TracePass {
                 &accum.scratch,
                 &scene.tex,
                 &scene.env,
+                &scene.instances,
             ],
         )
     }

@@ -202,19 +202,21 @@ impl Backend {
     }
 
     /// Whether `scene` fits this backend: a GPU binds each storage buffer up to a size
-    /// (`max_storage_buffer_binding_size`, `max_buffer_size`); the texture words and an
-    /// environment map, one buffer each, are what a real scene can overrun. The CPU tracer has no such limit.
+    /// (`max_storage_buffer_binding_size`, `max_buffer_size`); the triangles, the texture words
+    /// and an environment map, one buffer each, are what a real scene can overrun. The CPU tracer has no such limit.
     pub fn check_fits(&self, scene: &Scene) -> Result<(), TooLarge> {
         let Backend::Gpu(ctx) = self else {
             return Ok(());
         };
         let l = ctx.device.limits();
         let limit = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
-        let why = crate::common::textures::too_large(scene, limit).or_else(|| {
-            scene.environment.as_ref().and_then(|e| {
-                crate::common::envmap::too_large(&e.map.distribution, &e.map.name, limit)
-            })
-        });
+        let why = crate::common::arrays::too_large(scene, limit)
+            .or_else(|| crate::common::textures::too_large(scene, limit))
+            .or_else(|| {
+                scene.environment.as_ref().and_then(|e| {
+                    crate::common::envmap::too_large(&e.map.distribution, &e.map.name, limit)
+                })
+            });
         match why {
             Some(why) => Err(TooLarge {
                 scene: scene.origin.clone(),

@@ -23,14 +23,16 @@ pub fn is_model(path: &Path) -> bool {
 }
 
 /// Imports a model file, glTF or OBJ by its extension, placed by `place`; `camera` picks a
-/// glTF camera by name (an OBJ file has none).
+/// glTF camera by name (an OBJ file has none); `instancing` chooses how a glTF file's
+/// repeated meshes are stored.
 pub fn import_model(
     path: &Path,
     place: glam::DMat4,
     camera: Option<&str>,
+    instancing: gltf::Instancing,
 ) -> Result<gltf::Imported, gltf::GltfError> {
     if !is_obj(path) {
-        return gltf::import(path, place, camera);
+        return gltf::import(path, place, camera, instancing);
     }
     if let Some(c) = camera {
         return Err(gltf::GltfError {

@@ -7,6 +7,8 @@
 //! (directional) or small emitting spheres of the same power (point, spot).
 
 use super::error::Malformed;
+use super::gltf_instances;
+pub use super::gltf_instances::Instancing;
 use super::mesh::Mesh;
 use super::model::{Camera, Material, MaterialModel, Object, Shape, Sun, Volume};
 use glam::{DMat4, DVec3, Vec3};
@@ -46,6 +48,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_materials_specular",
     "KHR_lights_punctual",
     "KHR_mesh_quantization",
+    "EXT_mesh_gpu_instancing",
 ];
 
 /// What one glTF file adds to a scene.
@@ -98,8 +101,14 @@ pub fn material_key(m: &gltf::Material) -> String {
 pub use super::error::GltfError;
 
 /// Imports the glTF file at `path` (its buffers beside it), placed by `place` (the TOML's
-/// transform; identity when the file is opened directly); `camera` picks a camera by name.
-pub fn import(path: &Path, place: DMat4, camera: Option<&str>) -> Result<Imported, GltfError> {
+/// transform; identity when the file is opened directly); `camera` picks a camera by name;
+/// `instancing` says how meshes drawn more than once are stored.
+pub fn import(
+    path: &Path,
+    place: DMat4,
+    camera: Option<&str>,
+    instancing: Instancing,
+) -> Result<Imported, GltfError> {
     let bytes = std::fs::read(path).map_err(|e| GltfError {
         path: path.display().to_string(),
         message: format!("cannot read it: {e}"),
@@ -110,6 +119,7 @@ pub fn import(path: &Path, place: DMat4, camera: Option<&str>) -> Result<Importe
         &path.display().to_string(),
         place,
         camera,
+        instancing,
     )
 }
 
@@ -121,6 +131,7 @@ pub fn import_slice(
     name: &str,
     place: DMat4,
     camera: Option<&str>,
+    instancing: Instancing,
 ) -> Result<Imported, GltfError> {
     let err = |message: Malformed| GltfError {
         path: name.to_string(),
@@ -165,6 +176,9 @@ pub fn import_slice(
     // or a node with two parents, which would walk forever or import twice (`fuzz/` found a
     // cycle).
     let mut reached = vec![false; doc.nodes().len()];
+    // The nodes that draw a mesh, in the hierarchy's order, each with its world transforms
+    // (several under EXT_mesh_gpu_instancing).
+    let mut drawn: Vec<(gltf::Mesh, Vec<DMat4>)> = Vec::new();
     while let Some((node, parent)) = stack.pop() {
         if std::mem::replace(&mut reached[node.index()], true) {
             return Err(err(Malformed(format!(
@@ -182,7 +196,11 @@ pub fn import_slice(
             ))));
         }
         if let Some(mesh) = node.mesh() {
-            import_mesh(&mesh, world, &buffers, &materials, &mut out).map_err(err)?;
+            let worlds = match gltf_instances::gpu_instances(&node, doc, &buffers).map_err(err)? {
+                Some(each) => each.into_iter().map(|m| world * m).collect(),
+                None => vec![world],
+            };
+            drawn.push((mesh, worlds));
         }
         if let Some(cam) = node.camera() {
             cameras.push((cam, world));
@@ -193,6 +211,7 @@ pub fn import_slice(
         let children: Vec<_> = node.children().map(|c| (c, world)).collect();
         stack.extend(children.into_iter().rev());
     }
+    import_drawn(&drawn, instancing, &buffers, &materials, &mut out).map_err(err)?;
     if out.objects.is_empty() {
         return Err(err(Malformed(format!(
             "the scene has no triangles{}",
@@ -209,6 +228,92 @@ pub fn import_slice(
         add_light(&light, world, diagonal, &mut out);
     }
     Ok(out)
+}
+
+/// Imports the meshes `drawn` in the hierarchy's order: each copy of a mesh flattened into
+/// world space, or (where `instancing` chooses it) the mesh once, in its own coordinates, with
+/// every copy's transform as an instance, at the place of its first copy.
+fn import_drawn(
+    drawn: &[(gltf::Mesh, Vec<DMat4>)],
+    instancing: Instancing,
+    buffers: &[gltf::buffer::Data],
+    materials: &[Material],
+    out: &mut Imported,
+) -> Result<(), Malformed> {
+    // Per mesh: its copies and triangles.
+    let mut copies = std::collections::HashMap::<usize, (usize, usize)>::new();
+    for (mesh, worlds) in drawn {
+        copies
+            .entry(mesh.index())
+            .or_insert((0, gltf_instances::triangle_estimate(mesh)))
+            .0 += worlds.len();
+    }
+    // The memory guard, before anything is read: what the chosen storage will take.
+    let stored: u64 = copies
+        .values()
+        .map(|&(n, tris)| {
+            let n = if instancing.instances(n, tris) { 1 } else { n };
+            (tris as u64).saturating_mul(n as u64)
+        })
+        .sum();
+    gltf_instances::check_memory(stored, gltf_instances::available_memory())?;
+    // Per instanced mesh: its objects and every copy's transform.
+    let mut instanced = std::collections::HashMap::<usize, (Vec<usize>, Vec<DMat4>)>::new();
+    let mut order = Vec::new();
+    for (mesh, worlds) in drawn {
+        let i = mesh.index();
+        let (n, tris) = copies[&i];
+        if !instancing.instances(n, tris) {
+            for world in worlds {
+                import_mesh(mesh, *world, buffers, materials, out)?;
+            }
+            continue;
+        }
+        let entry = match instanced.entry(i) {
+            std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
+            std::collections::hash_map::Entry::Vacant(e) => {
+                // In the mesh's own coordinates; its bounds count once per copy, below.
+                let (first, bounds) = (out.objects.len(), out.bounds);
+                import_mesh(mesh, DMat4::IDENTITY, buffers, materials, out)?;
+                out.bounds = bounds;
+                order.push(i);
+                e.insert(((first..out.objects.len()).collect(), Vec::new()))
+            }
+        };
+        entry.1.extend_from_slice(worlds);
+    }
+    for i in order {
+        let (objects, worlds) = instanced.remove(&i).unwrap();
+        let worlds = Arc::new(worlds);
+        for k in objects {
+            let Shape::Mesh {
+                mesh, instances, ..
+            } = &mut out.objects[k].shape
+            else {
+                continue;
+            };
+            let local = mesh
+                .triangles
+                .iter()
+                .flatten()
+                .fold(crate::bvh::Aabb::EMPTY, |b, p| b.grow(*p));
+            for w in worlds.iter() {
+                for c in 0..8 {
+                    let pick = |bit: usize, lo: f64, hi: f64| if c & bit == 0 { lo } else { hi };
+                    let corner = DVec3::new(
+                        pick(1, local.min.x, local.max.x),
+                        pick(2, local.min.y, local.max.y),
+                        pick(4, local.min.z, local.max.z),
+                    );
+                    let p = w.transform_point3(corner);
+                    out.bounds.0 = out.bounds.0.min(p);
+                    out.bounds.1 = out.bounds.1.max(p);
+                }
+            }
+            *instances = worlds.clone();
+        }
+    }
+    Ok(())
 }
 
 /// Bytes of a GLB file's header (magic, version, length).
@@ -534,6 +639,7 @@ fn import_mesh(
                 translate: DVec3::ZERO,
                 rotation: DVec3::ZERO,
                 scale: DVec3::ONE,
+                instances: Default::default(),
             },
             material: mapped,
             material_name: Some(key),
@@ -545,7 +651,7 @@ fn import_mesh(
 
 /// Checks that `a`'s elements lie inside its buffer's data: the crate's reader slices without
 /// checking, so a view or accessor that overruns its buffer would otherwise panic.
-fn accessor_fits(
+pub(super) fn accessor_fits(
     a: &gltf::Accessor,
     buffers: &[gltf::buffer::Data],
     sparse_ok: bool,

@@ -14,6 +14,7 @@ pub mod generate;
 pub mod gltf;
 mod gltf_accessors;
 mod gltf_frames;
+mod gltf_instances;
 mod gltf_textures;
 pub mod mesh;
 mod model;
@@ -92,7 +93,7 @@ impl Scene {
     /// frames it), its directional light as the sun over the default sky, and the default
     /// render settings.
     pub fn from_model(path: &Path, camera: Option<&str>) -> Result<Scene, SceneError> {
-        let imported = import_model(path, glam::DMat4::IDENTITY, camera)?;
+        let imported = import_model(path, glam::DMat4::IDENTITY, camera, Default::default())?;
         imported.log_left_out(&path.display().to_string());
         let file = path.file_name().map_or_else(
             || path.display().to_string(),
@@ -121,6 +122,7 @@ impl Scene {
                 translate: glam::DVec3::ZERO,
                 rotation: glam::DVec3::ZERO,
                 scale: glam::DVec3::ONE,
+                instancing: Default::default(),
                 materials: imported.materials,
                 left_out: imported.skipped,
             }],

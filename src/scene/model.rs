@@ -3,7 +3,7 @@
 
 use super::mesh::Mesh;
 use super::texture::TexturedRef;
-use glam::{DMat3, DVec3, Vec3};
+use glam::{DMat3, DMat4, DVec3, Vec3};
 use std::path::Path;
 use std::sync::Arc;
 
@@ -317,6 +317,11 @@ pub enum Shape {
         translate: DVec3,
         rotation: DVec3,
         scale: DVec3,
+        /// Where the mesh is drawn more than once: one world-from-mesh transform per copy,
+        /// applied after `translate`, `rotation` and `scale` (glTF nodes that share a mesh,
+        /// `EXT_mesh_gpu_instancing`). Empty: once, in place. The tracers store the triangles
+        /// once and walk a two-level BVH (docs/MODEL-NOTES.md, "Instancing").
+        instances: Arc<Vec<DMat4>>,
     },
 }
 
@@ -331,7 +336,7 @@ impl Shape {
         }
     }
 
-    /// A mesh's triangles in world space (empty for other shapes).
+    /// A mesh's triangles in world space, every instance's in turn (empty for other shapes).
     pub fn world_triangles(&self) -> Vec<[DVec3; 3]> {
         match self {
             Shape::Mesh {
@@ -339,14 +344,33 @@ impl Shape {
                 translate,
                 rotation,
                 scale,
+                instances,
                 ..
             } => {
                 use rayon::prelude::*;
                 let r = euler_xyz(*rotation);
                 let f = |p: DVec3| *translate + r * (*scale * p);
-                mesh.triangles.par_iter().map(|t| t.map(f)).collect()
+                if instances.is_empty() {
+                    return mesh.triangles.par_iter().map(|t| t.map(f)).collect();
+                }
+                instances
+                    .par_iter()
+                    .flat_map_iter(|m| {
+                        mesh.triangles
+                            .iter()
+                            .map(|t| t.map(|p| m.transform_point3(f(p))))
+                    })
+                    .collect()
             }
             _ => Vec::new(),
+        }
+    }
+
+    /// How many times the shape is drawn: a mesh's instances, else 1.
+    pub fn copies(&self) -> usize {
+        match self {
+            Shape::Mesh { instances, .. } => instances.len().max(1),
+            _ => 1,
         }
     }
 }
@@ -382,6 +406,8 @@ pub struct GltfPlacement {
     pub translate: DVec3,
     pub rotation: DVec3,
     pub scale: DVec3,
+    /// How the file's repeated meshes are stored (`instancing`: auto, always, never).
+    pub instancing: super::gltf::Instancing,
     /// Each glTF material's key (its name, `#INDEX` when unnamed) and the material it maps to
     /// as the file gives it, before the scene's overrides: writing back writes each material
     /// whose objects differ from this as an override.
@@ -409,7 +435,12 @@ pub struct Counts {
     pub quads: usize,
     pub boxes: usize,
     pub meshes: usize,
+    /// Triangles stored (an instanced mesh's once).
     pub triangles: usize,
+    /// Triangles drawn (an instanced mesh's once per instance).
+    pub drawn_triangles: usize,
+    /// Copies of instanced meshes.
+    pub instances: usize,
 }
 
 /// A validated scene.
@@ -452,6 +483,16 @@ impl Scene {
             .collect()
     }
 
+    /// The objects in the order the tracers store their triangles (`common::arrays`): meshes
+    /// drawn once (and the other shapes), then instanced meshes.
+    pub fn triangle_order(&self) -> impl Iterator<Item = &Object> {
+        let instanced = |o: &&Object| matches!(&o.shape, Shape::Mesh { instances, .. } if !instances.is_empty());
+        self.objects
+            .iter()
+            .filter(move |o| !instanced(o))
+            .chain(self.objects.iter().filter(instanced))
+    }
+
     /// How many objects of each kind, and triangles in all meshes.
     pub fn counts(&self) -> Counts {
         let mut c = Counts::default();
@@ -460,9 +501,13 @@ impl Scene {
                 Shape::Sphere { .. } => c.spheres += 1,
                 Shape::Quad { .. } => c.quads += 1,
                 Shape::Box { .. } => c.boxes += 1,
-                Shape::Mesh { mesh, .. } => {
+                Shape::Mesh {
+                    mesh, instances, ..
+                } => {
                     c.meshes += 1;
                     c.triangles += mesh.triangles.len();
+                    c.drawn_triangles += mesh.triangles.len() * o.shape.copies();
+                    c.instances += instances.len();
                 }
             }
         }

@@ -296,6 +296,7 @@ pub fn import_from(
                 translate: DVec3::ZERO,
                 rotation: DVec3::ZERO,
                 scale: DVec3::ONE,
+                instances: Default::default(),
             },
             material,
             material_name: Some(key),

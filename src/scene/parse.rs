@@ -2,6 +2,7 @@
 
 use super::error::Malformed;
 use super::error::SceneError;
+use super::gltf::Instancing;
 use super::model::*;
 use super::params::{self, Param};
 use super::reader::{Sink, Table};
@@ -50,6 +51,7 @@ const GLTF_KEYS: &[&str] = &[
     "rotation",
     "scale",
     "camera",
+    "instancing",
     "materials",
 ];
 /// The keys of a material: its colours and the numbers the parameter table declares.
@@ -597,6 +599,7 @@ fn read_mesh(t: &Table, origin: &str) -> Option<Shape> {
             translate,
             rotation,
             scale,
+            instances: Default::default(),
         }),
         Err(e) => {
             t.error("file", format!("mesh `{file}`: {e}"), None);
@@ -625,23 +628,38 @@ fn read_gltf(
         return None;
     }
     let camera_name = t.string("camera");
+    let instancing = match t.string("instancing") {
+        None => Instancing::default(),
+        Some(name) => match Instancing::named(&name) {
+            Some(i) => i,
+            None => {
+                t.error(
+                    "instancing",
+                    format!("unknown instancing `{name}`"),
+                    Some(format!("expected one of {}", Instancing::NAMES.join(", "))),
+                );
+                return None;
+            }
+        },
+    };
     let path = std::path::Path::new(origin)
         .parent()
         .unwrap_or(std::path::Path::new("."))
         .join(&file);
     let place = placement_matrix(translate, rotation, scale);
-    let imported = match super::files::import_model(&path, place, camera_name.as_deref()) {
-        Ok(i) => i,
-        Err(e) => {
-            let kind = if super::files::is_obj(&path) {
-                "OBJ"
-            } else {
-                "glTF"
-            };
-            t.error("file", format!("{kind} `{file}`: {}", e.message), None);
-            return None;
-        }
-    };
+    let imported =
+        match super::files::import_model(&path, place, camera_name.as_deref(), instancing) {
+            Ok(i) => i,
+            Err(e) => {
+                let kind = if super::files::is_obj(&path) {
+                    "OBJ"
+                } else {
+                    "glTF"
+                };
+                t.error("file", format!("{kind} `{file}`: {}", e.message), None);
+                return None;
+            }
+        };
     imported.log_left_out(&path.display().to_string());
     let overrides = t.named_tables("materials", &material_keys());
     let keys: Vec<&str> = imported.materials.iter().map(|(k, _)| k.as_str()).collect();
@@ -694,6 +712,7 @@ fn read_gltf(
             translate,
             rotation,
             scale,
+            instancing,
             materials: imported.materials,
             left_out: imported.skipped,
         },

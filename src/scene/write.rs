@@ -182,6 +182,9 @@ pub fn to_toml(scene: &Scene) -> String {
             v3(g.rotation),
             v3(g.scale)
         );
+        if g.instancing != Default::default() {
+            let _ = writeln!(o, "instancing = {:?}", g.instancing.name());
+        }
         // A material whose objects differ from the file's is written as an override of the
         // keys that differ (the preview edits every object of a glTF material as one).
         for (key, imported) in &g.materials {

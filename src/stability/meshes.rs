@@ -95,6 +95,7 @@ fn mesh_object(mesh: Mesh, translate: DVec3) -> Object {
             translate,
             rotation: DVec3::ZERO,
             scale: DVec3::ONE,
+            instances: Default::default(),
         },
         material: Material::default(),
         material_name: None,
@@ -262,6 +263,7 @@ fn gltf_square(
         "stress.gltf",
         DMat4::IDENTITY,
         None,
+        Default::default(),
     )
     .expect("the stress square imports");
     let mut s = scene_looking(DVec3::new(0.4, 0.3, 3.0), DVec3::ZERO);
