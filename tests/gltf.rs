@@ -798,3 +798,49 @@ fn sparse_positions_are_substituted() {
         .to_string();
     assert!(e.contains("accessor 1 is sparse"), "{e}");
 }
+
+#[test]
+fn a_webp_texture_renders_like_its_png_original() {
+    // glTF-Transform's lossless WebP twin of BoxTextured (EXT_texture_webp required, no PNG
+    // fallback). Its encoder (sharp) applied the PNG's ICC profile (Apple's Generic RGB), so
+    // the texels moved by up to 19 levels of 255 (mean 8): the image is compared with its
+    // own independent decode, and the render with the original's within 3 %.
+    let original = Scene::load("tests/gltf/BoxTextured/BoxTextured.gltf").unwrap();
+    let webp = Scene::load("tests/gltf/BoxTextured-webp/BoxTextured-webp.glb").unwrap();
+    assert!(
+        webp.gltf[0].left_out.is_empty(),
+        "{:?}",
+        webp.gltf[0].left_out
+    );
+    let t = |s: &Scene| {
+        s.objects[0]
+            .material
+            .textured
+            .as_ref()
+            .and_then(|t| t.0.base_color.clone())
+            .expect("a base colour map")
+    };
+    // The texels are the WebP's as an independent decoder reads it (ImageMagick's decode,
+    // committed beside the file), exactly.
+    let png = image::open("tests/gltf/BoxTextured-webp/decoded-by-imagemagick.png")
+        .unwrap()
+        .to_rgba8();
+    let b = t(&webp);
+    assert_eq!((b.width, b.height), png.dimensions());
+    let same = b
+        .texels
+        .iter()
+        .zip(png.pixels())
+        .filter(|(t, p)| t.to_le_bytes() == p.0)
+        .count();
+    assert_eq!(same, b.texels.len(), "texels equal to ImageMagick's");
+    on_both(|| {
+        let a = snapshot(&original, settings(32, 32, 3), 4).image();
+        let b = snapshot(&webp, settings(32, 32, 3), 4).image();
+        let mean = |i: &termtrace::output::LinearImage| {
+            i.pixels.iter().flatten().map(|&c| c as f64).sum::<f64>() / (i.pixels.len() * 3) as f64
+        };
+        let (ma, mb) = (mean(&a), mean(&b));
+        assert!((ma - mb).abs() <= 0.03 * ma, "means {ma} and {mb}");
+    });
+}

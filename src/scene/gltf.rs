@@ -49,6 +49,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_lights_punctual",
     "KHR_mesh_quantization",
     "EXT_mesh_gpu_instancing",
+    "EXT_texture_webp",
 ];
 
 /// What one glTF file adds to a scene.

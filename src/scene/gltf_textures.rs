@@ -47,7 +47,10 @@ pub fn decode(
     let mut images: Vec<usize> = doc
         .textures()
         .filter(|t| used[t.index()])
-        .map(|t| t.source().index())
+        .map(|t| image_of(&t, doc))
+        .collect::<Result<Vec<_>, _>>()?
+        .into_iter()
+        .flatten()
         .collect();
     images.sort_unstable();
     images.dedup();
@@ -81,7 +84,7 @@ pub fn decode(
     Ok(doc
         .textures()
         .map(|t| {
-            let (img, what) = by_image.get(&t.source().index())?;
+            let (img, what) = by_image.get(&image_of(&t, doc).ok()??)?;
             let wrap = |w: gltf::texture::WrappingMode| match w {
                 gltf::texture::WrappingMode::Repeat => Wrap::Repeat,
                 gltf::texture::WrappingMode::ClampToEdge => Wrap::Clamp,
@@ -101,6 +104,22 @@ pub fn decode(
 
 /// The textures the maps of KHR_materials_transmission, _specular and _clearcoat name (the
 /// last from its JSON, which the crate does not type).
+/// The image a texture shows: its `EXT_texture_webp` source where it has one (WebP, which
+/// termtrace decodes, in preference to a fallback), else its own source (`None`: neither).
+fn image_of(t: &gltf::Texture, doc: &gltf::Document) -> Result<Option<usize>, Malformed> {
+    if let Some(ext) = t.extension_value("EXT_texture_webp") {
+        let i = ext.get("source").and_then(|v| v.as_u64());
+        return match i {
+            Some(i) if (i as usize) < doc.images().len() => Ok(Some(i as usize)),
+            _ => Err(Malformed(format!(
+                "textures[{}].extensions.EXT_texture_webp.source is not an image",
+                t.index()
+            ))),
+        };
+    }
+    Ok(t.source().map(|i| i.index()))
+}
+
 fn extension_textures(m: &gltf::Material) -> Vec<usize> {
     let mut out = Vec::new();
     if let Some(i) = m.transmission().and_then(|t| t.transmission_texture()) {
