@@ -597,15 +597,14 @@ fn missing_files_and_required_extensions_are_named() {
     // A required extension termtrace does not read; an optional one is only logged.
     let required = text.replacen(
         "\"asset\"",
-        "\"extensionsUsed\": [\"KHR_draco_mesh_compression\"], \"extensionsRequired\": [\"KHR_draco_mesh_compression\"], \"asset\"",
+        "\"extensionsUsed\": [\"KHR_texture_basisu\"], \"extensionsRequired\": [\"KHR_texture_basisu\"], \"asset\"",
         1,
     );
     // (Said once, by termtrace rather than the glTF crate's validation.)
     let e = import(required.as_bytes()).unwrap_err().to_string();
     assert!(
-        e.contains(
-            "requires the extension KHR_draco_mesh_compression, which termtrace does not read"
-        ) && e.matches("KHR_draco_mesh_compression").count() == 1,
+        e.contains("requires the extension KHR_texture_basisu, which termtrace does not read")
+            && e.matches("KHR_texture_basisu").count() == 1,
         "{e}"
     );
     let optional = text.replacen(
@@ -737,9 +736,15 @@ fn a_quantized_file_renders_like_its_original() {
         "{:?}",
         quantized.gltf[0].left_out
     );
+    renders_alike(&original, &quantized);
+}
+
+/// Both tracers render `a` and `b` alike, with the same random streams: the images' means
+/// within 0.5 %, and 95 % of their pixels within 0.02 (quantized geometry moves edges).
+fn renders_alike(a: &Scene, b: &Scene) {
     on_both(|| {
-        let a = snapshot(&original, settings(48, 48, 4), 16).image();
-        let b = snapshot(&quantized, settings(48, 48, 4), 16).image();
+        let a = snapshot(a, settings(48, 48, 4), 16).image();
+        let b = snapshot(b, settings(48, 48, 4), 16).image();
         let mean = |i: &termtrace::output::LinearImage| {
             i.pixels.iter().flatten().map(|&c| c as f64).sum::<f64>() / (i.pixels.len() * 3) as f64
         };
@@ -757,6 +762,122 @@ fn a_quantized_file_renders_like_its_original() {
             a.pixels.len()
         );
     });
+}
+
+#[test]
+fn meshopt_compressed_files_render_like_their_originals() {
+    // gltfpack's EXT_meshopt_compression twins (tests/gltf/BoxTextured-meshopt/LICENSE.md):
+    // every mode and filter the extension has but INDICES (TRIANGLES, and the OCTAHEDRAL,
+    // EXPONENTIAL and QUATERNION filters), the last through EXT_mesh_gpu_instancing.
+    let original = Scene::load("tests/gltf/BoxTextured/BoxTextured.gltf").unwrap();
+    let packed = Scene::load("tests/gltf/BoxTextured-meshopt/BoxTextured-meshopt.glb").unwrap();
+    assert!(
+        packed.gltf[0].left_out.is_empty(),
+        "{:?}",
+        packed.gltf[0].left_out
+    );
+    renders_alike(&original, &packed);
+    let nodes = Scene::load("tests/gltf/BoxTextured-instanced/BoxTextured-instanced.glb").unwrap();
+    let packed =
+        Scene::load("tests/gltf/BoxTextured-meshopt/BoxTextured-meshopt-instancing.glb").unwrap();
+    assert_eq!(packed.objects.len(), 9, "nine copies, flattened");
+    renders_alike(&nodes, &packed);
+}
+
+#[test]
+fn a_draco_compressed_file_renders_like_its_original() {
+    // glTF-Transform's KHR_draco_mesh_compression twin of BoxTextured (positions, normals and
+    // texture coordinates quantized by Draco's defaults), decoded by draco-core.
+    let original = Scene::load("tests/gltf/BoxTextured/BoxTextured.gltf").unwrap();
+    let draco = Scene::load("tests/gltf/BoxTextured-draco/BoxTextured-draco.glb").unwrap();
+    assert!(
+        draco.gltf[0].left_out.is_empty(),
+        "{:?}",
+        draco.gltf[0].left_out
+    );
+    assert_eq!(draco.counts().triangles, original.counts().triangles);
+    renders_alike(&original, &draco);
+}
+
+/// `path`'s GLB with its JSON chunk changed by `edit`.
+fn glb_edited(path: &str, edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
+    let glb = std::fs::read(path).unwrap();
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let mut doc: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    edit(&mut doc);
+    let mut text = serde_json::to_vec(&doc).unwrap();
+    text.resize(text.len().next_multiple_of(4), b' ');
+    let rest = &glb[20 + json_len..];
+    let mut out = b"glTF".to_vec();
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&((20 + text.len() + rest.len()) as u32).to_le_bytes());
+    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&text);
+    out.extend_from_slice(rest);
+    out
+}
+
+#[test]
+fn a_corrupt_draco_stream_is_refused_naming_its_primitive() {
+    // The Draco stream's view cut to 20 bytes, then its accessor's count made wrong: each is
+    // refused by name, never a panic.
+    let cut = glb_edited(
+        "tests/gltf/BoxTextured-draco/BoxTextured-draco.glb",
+        |doc| {
+            let v = doc["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]
+            ["bufferView"]
+            .as_u64()
+            .unwrap() as usize;
+            doc["bufferViews"][v]["byteLength"] = 20.into();
+        },
+    );
+    let e = import(&cut).unwrap_err().message;
+    assert!(
+        e.starts_with(
+            "meshes[0].primitives[0] (KHR_draco_mesh_compression): the Draco stream does not decode"
+        ),
+        "{e}"
+    );
+    let miscounted = glb_edited(
+        "tests/gltf/BoxTextured-draco/BoxTextured-draco.glb",
+        |doc| {
+            let a = doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+                .as_u64()
+                .unwrap() as usize;
+            doc["accessors"][a]["count"] = 5.into();
+        },
+    );
+    let e = import(&miscounted).unwrap_err().message;
+    assert!(
+        e.contains("declares 5 of") && e.contains("Draco decodes"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_corrupt_meshopt_stream_is_refused_naming_its_view() {
+    let mut k = 0;
+    // The first compressed view's stream cut to 8 bytes.
+    let out = glb_edited(
+        "tests/gltf/BoxTextured-meshopt/BoxTextured-meshopt.glb",
+        |doc| {
+            let views = doc["bufferViews"].as_array_mut().unwrap();
+            let (i, view) = views
+                .iter_mut()
+                .enumerate()
+                .find(|(_, v)| v.pointer("/extensions/EXT_meshopt_compression").is_some())
+                .unwrap();
+            view["extensions"]["EXT_meshopt_compression"]["byteLength"] = 8.into();
+            k = i;
+        },
+    );
+    let e = import(&out).unwrap_err().message;
+    assert!(
+        e.starts_with(&format!("bufferViews[{k}] (meshopt): its "))
+            && e.contains("does not decode"),
+        "{e}"
+    );
 }
 
 #[test]

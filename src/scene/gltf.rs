@@ -50,6 +50,9 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_mesh_quantization",
     "EXT_mesh_gpu_instancing",
     "EXT_texture_webp",
+    "EXT_meshopt_compression",
+    "KHR_meshopt_compression",
+    "KHR_draco_mesh_compression",
 ];
 
 /// What one glTF file adds to a scene.
@@ -138,18 +141,9 @@ pub fn import_slice(
         path: name.to_string(),
         message: message.0,
     };
-    let gltf = parse(bytes).map_err(err)?;
-    let buffers = read_buffers(&gltf, base).map_err(err)?;
+    let (gltf, buffers) = parse(bytes, base).map_err(err)?;
     let doc = &gltf.document;
     let mut skipped = Vec::new();
-    for ext in doc.extensions_required() {
-        if !SUPPORTED_EXTENSIONS.contains(&ext) {
-            return Err(err(Malformed(format!(
-                "it requires the extension {ext}, which termtrace does not read (it reads {})",
-                SUPPORTED_EXTENSIONS.join(", ")
-            ))));
-        }
-    }
     for ext in doc.extensions_used() {
         if !SUPPORTED_EXTENSIONS.contains(&ext) {
             skipped.push(format!("the extension {ext} (optional; not read)"));
@@ -324,7 +318,10 @@ const GLB_HEADER: u32 = 12;
 /// while it validates a primitive's POSITION (its mesh.rs:151), so a file whose attribute
 /// names an accessor it does not have would panic there (found by `fuzz/`): the references
 /// are checked first, and the validation runs only on a file that passes.
-fn parse(bytes: &[u8]) -> Result<gltf::Gltf, Malformed> {
+fn parse(
+    bytes: &[u8],
+    base: Option<&Path>,
+) -> Result<(gltf::Gltf, Vec<gltf::buffer::Data>), Malformed> {
     // The crate subtracts the header's size from the GLB's stated length unchecked (its
     // binary.rs:252, also found by `fuzz/`).
     if let Some(len) = bytes
@@ -340,6 +337,16 @@ fn parse(bytes: &[u8]) -> Result<gltf::Gltf, Malformed> {
     }
     let unchecked = gltf::Gltf::from_slice_without_validation(bytes)
         .map_err(|e| Malformed(format!("not a valid glTF file: {e}")))?;
+    // Before the validation: a file in a form termtrace does not read (Draco's accessors have
+    // no buffer views) is named by that form, not by what the validation trips on.
+    for ext in unchecked.document.extensions_required() {
+        if !SUPPORTED_EXTENSIONS.contains(&ext) {
+            return Err(Malformed(format!(
+                "it requires the extension {ext}, which termtrace does not read (it reads {})",
+                SUPPORTED_EXTENSIONS.join(", ")
+            )));
+        }
+    }
     let root = unchecked.document.as_json();
     let n = root.accessors.len();
     for (mi, m) in root.meshes.iter().enumerate() {
@@ -352,10 +359,20 @@ fn parse(bytes: &[u8]) -> Result<gltf::Gltf, Malformed> {
             }
         }
     }
-    // The crate's validation, without its refusal of the required extensions it does not
-    // type (KHR_mesh_quantization among them): `import` checks those against what termtrace
-    // reads, and names the one it cannot.
+    // The buffers' bytes, and Draco's primitives decoded into accessors of their own, before
+    // the validation (it refuses their accessors without buffer views).
+    let mut buffers = read_buffers(&unchecked.document, unchecked.blob.clone(), base)?;
     let mut root = unchecked.document.into_json();
+    if root
+        .extensions_used
+        .iter()
+        .any(|e| e == super::gltf_draco::NAME)
+    {
+        super::gltf_draco::decode(&mut root, &mut buffers)?;
+    }
+    // The crate's validation, without its refusal of the required extensions it does not
+    // type (KHR_mesh_quantization among them): they were checked above against what
+    // termtrace reads.
     let required = std::mem::take(&mut root.extensions_required);
     let mut root = gltf::Document::from_json(root)
         .map_err(|e| Malformed(format!("not a valid glTF file: {e}")))?
@@ -383,25 +400,37 @@ fn parse(bytes: &[u8]) -> Result<gltf::Gltf, Malformed> {
             _ => {}
         }
     }
-    Ok(gltf)
+    super::gltf_meshopt::decode(&gltf.document, &mut buffers)?;
+    Ok((gltf, buffers))
 }
 
 /// The file's buffers (the GLB's binary chunk, `data:` URIs, files beside it), each checked
 /// against its declared length; an error names the buffer.
 fn read_buffers(
-    gltf: &gltf::Gltf,
+    doc: &gltf::Document,
+    mut blob: Option<Vec<u8>>,
     base: Option<&Path>,
 ) -> Result<Vec<gltf::buffer::Data>, Malformed> {
-    let mut blob = gltf.blob.clone();
     let mut out = Vec::new();
-    for b in gltf.document.buffers() {
+    for b in doc.buffers() {
         let what = match b.source() {
             gltf::buffer::Source::Uri(u) if !u.starts_with("data:") => {
                 format!("buffers[{}] (`{u}`)", b.index())
             }
             _ => format!("buffers[{}]", b.index()),
         };
+        let fallback = super::gltf_meshopt::is_fallback(&b);
+        if fallback
+            && b.length() as u64 > super::gltf_instances::available_memory().unwrap_or(u64::MAX) / 2
+        {
+            return Err(Malformed(format!(
+                "{what}: a meshopt fallback of {} bytes, more than half the memory available",
+                b.length()
+            )));
+        }
         let mut bytes = match b.source() {
+            // Filled by the compressed views that decode into it.
+            _ if fallback => vec![0; b.length()],
             gltf::buffer::Source::Bin => blob
                 .take()
                 .ok_or_else(|| Malformed(format!("{what}: the GLB file has no binary chunk")))?,
