@@ -393,6 +393,48 @@ fn thousands_of_mutated_files_never_panic() {
     assert!(ok > 0 && refused > 0, "{ok} imported, {refused} refused");
 }
 
+/// Deterministic mutations of the compressed streams (the BIN chunks of the Draco and meshopt
+/// twins of BoxTextured, where their decoders read): every one is imported or refused.
+#[test]
+fn mutated_compressed_streams_never_panic() {
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut next = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        seed
+    };
+    for file in [
+        "tests/gltf/BoxTextured-draco/BoxTextured-draco.glb",
+        "tests/gltf/BoxTextured-meshopt/BoxTextured-meshopt.glb",
+        "tests/gltf/BoxTextured-meshopt/BoxTextured-meshopt-instancing.glb",
+    ] {
+        let glb = std::fs::read(file).unwrap();
+        let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+        let bin = 20 + json_len + 8;
+        let (mut ok, mut refused) = (0, 0);
+        for round in 0..1000 {
+            let mut b = glb.clone();
+            for _ in 0..1 + next() % 4 {
+                // Mostly the geometry's streams, which come first in the chunk.
+                let span = (b.len() - bin).min(if round % 2 == 0 { 2000 } else { usize::MAX });
+                let at = bin + (next() % span as u64) as usize;
+                b[at] = next() as u8;
+            }
+            match std::panic::catch_unwind(|| import(&b)) {
+                Ok(Ok(_)) => ok += 1,
+                Ok(Err(e)) => {
+                    assert!(!e.message.is_empty());
+                    refused += 1
+                }
+                Err(_) => panic!("{file}, round {round}: the import panicked"),
+            }
+        }
+        eprintln!("{file}: {ok} imported, {refused} refused");
+        assert!(ok > 0, "{file}: {ok} imported, {refused} refused");
+    }
+}
+
 /// The same glTF as a binary GLB: its embedded buffer moved into the BIN chunk.
 fn to_glb(json: &[u8]) -> Vec<u8> {
     let text = String::from_utf8(json.to_vec()).unwrap();
