@@ -841,6 +841,17 @@ fn a_draco_compressed_file_renders_like_its_original() {
     renders_alike(&original, &draco);
 }
 
+#[test]
+fn khronos_draco_sample_renders_like_its_plain_twin() {
+    // Khronos's own BoomBox and its glTF-Draco twin (Google's encoder, edgebreaker
+    // connectivity; tests/gltf/BoomBox/SOURCE.md): the same 6 036 triangles, rendered alike.
+    let plain = Scene::load("tests/gltf/BoomBox/BoomBox.gltf").unwrap();
+    let draco = Scene::load("tests/gltf/BoomBox/BoomBox-draco.gltf").unwrap();
+    assert_eq!(draco.counts().triangles, 6036);
+    assert_eq!(plain.counts().triangles, 6036);
+    renders_alike(&plain, &draco);
+}
+
 /// `path`'s GLB with its JSON chunk changed by `edit`.
 fn glb_edited(path: &str, edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
     let glb = std::fs::read(path).unwrap();
