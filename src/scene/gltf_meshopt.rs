@@ -68,6 +68,8 @@ fn read(view: &gltf::buffer::View, ext: &gltf::json::Value) -> Result<Compressed
 
 /// Decodes every compressed view of `doc` into its buffer in `buffers`.
 pub fn decode(doc: &gltf::Document, buffers: &mut [gltf::buffer::Data]) -> Result<(), Malformed> {
+    let start = std::time::Instant::now();
+    let (mut views, mut bytes) = (0, 0);
     for view in doc.views() {
         let Some(ext) = NAMES.iter().find_map(|n| view.extension_value(n)) else {
             continue;
@@ -93,6 +95,15 @@ pub fn decode(doc: &gltf::Document, buffers: &mut [gltf::buffer::Data]) -> Resul
             })
             .ok_or_else(|| Malformed(format!("{what}: the view lies outside its buffer")))?;
         dst.copy_from_slice(&out);
+        views += 1;
+        bytes += out.len();
+    }
+    if views > 0 {
+        tracing::info!(
+            "meshopt: {views} buffer views ({:.1} MiB) decoded in {:.1} ms",
+            bytes as f64 / (1 << 20) as f64,
+            start.elapsed().as_secs_f64() * 1e3
+        );
     }
     Ok(())
 }
