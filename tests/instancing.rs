@@ -322,3 +322,23 @@ fn a_file_too_large_to_flatten_is_refused_with_its_figure() {
     assert!(why.contains("20000 triangles take 0.9 MiB"), "{why}");
     assert!(termtrace::common::arrays::too_large(&s, 1 << 20).is_none());
 }
+
+#[test]
+fn the_geometry_hashes_see_the_copies() {
+    // The shards' scene hash and the BVH's cache key both change when one copy moves (and
+    // the content hash is the same for the same file loaded twice).
+    use termtrace::common::arrays::{geometry_content_hash, geometry_hash};
+    let a = placed(NODES, "always");
+    let b = placed(NODES, "always");
+    assert_eq!(geometry_content_hash(&a), geometry_content_hash(&b));
+    let mut moved = a.clone();
+    if let Shape::Mesh { instances, .. } = &mut moved.objects[1].shape {
+        let mut m = instances.as_ref().clone();
+        m[3] = DMat4::from_translation(glam::DVec3::X) * m[3];
+        *instances = std::sync::Arc::new(m);
+    } else {
+        panic!("the second object is the instanced mesh");
+    }
+    assert_ne!(geometry_content_hash(&a), geometry_content_hash(&moved));
+    assert_ne!(geometry_hash(&a), geometry_hash(&moved));
+}

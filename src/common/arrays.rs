@@ -646,8 +646,15 @@ pub fn too_large(scene: &Scene, limit: u64) -> Option<String> {
 pub fn geometry_hash(scene: &Scene) -> u64 {
     let mut h = std::collections::hash_map::DefaultHasher::new();
     for o in &scene.objects {
-        if let Shape::Mesh { mesh, .. } = &o.shape {
+        if let Shape::Mesh {
+            mesh, instances, ..
+        } = &o.shape
+        {
             (std::sync::Arc::as_ptr(mesh) as usize).hash(&mut h);
+            // (Only where there are copies: the hash of every other scene is as before.)
+            if !instances.is_empty() {
+                (std::sync::Arc::as_ptr(instances) as usize).hash(&mut h);
+            }
         }
         for x in shape_numbers(&o.shape) {
             x.to_bits().hash(&mut h);
@@ -674,6 +681,13 @@ pub fn geometry_content_hash(scene: &Scene) -> u32 {
             h.update(bytemuck::cast_slice(&mesh.uvs));
             h.update(bytemuck::cast_slice(&mesh.normals));
             h.update(bytemuck::cast_slice(&mesh.tangents));
+        }
+        if let Shape::Mesh { instances, .. } = &o.shape {
+            for m in instances.iter() {
+                for x in m.to_cols_array() {
+                    h.update(&x.to_bits().to_le_bytes());
+                }
+            }
         }
     }
     h.finalize()

@@ -334,6 +334,16 @@ impl App {
         let center = match &obj.shape {
             Shape::Sphere { center, .. } | Shape::Box { center, .. } => *center,
             Shape::Quad { q, u, v } => *q + 0.5 * (*u + *v),
+            Shape::Mesh {
+                mesh, instances, ..
+            } if !instances.is_empty() => {
+                // The copies' centre, from the mesh's own centroid: never the flattened copies
+                // (2·10⁸ triangles for the forest).
+                let sum: DVec3 = mesh.triangles.iter().flatten().copied().sum();
+                let c = sum / (3 * mesh.triangles.len()).max(1) as f64;
+                let at = |m: &glam::DMat4| m.transform_point3(c);
+                instances.iter().map(at).sum::<DVec3>() / instances.len() as f64
+            }
             Shape::Mesh { .. } => {
                 let t = obj.shape.world_triangles();
                 let sum: DVec3 = t.iter().flatten().copied().sum();
