@@ -160,6 +160,17 @@ fn hit_of(r: u32, t: f32) -> Hit {
     return Hit(t, (r >> 30u) + 1u, r & 0x3fffffffu, NO_INSTANCE);
 }
 
+// The distance to what BVH reference `r` names if nearer than t_max, else NO_HIT: a
+// primitive, or (HAS_INSTANCES) the nearest of an instance's triangles. (The instance's walk is
+// kept out of hit_primitive: inlined into the test of every primitive, the generic pipeline
+// without a BVH lost samples on lavapipe.)
+fn hit_ref(r: u32, ray: Ray, t_max: f32) -> f32 {
+    if HAS_INSTANCES && r >> 30u == 3u && (r & INSTANCE_BIT) != 0u {
+        return hit_instance(r & (INSTANCE_BIT - 1u), ray, t_max);
+    }
+    return hit_primitive(r, ray, t_max);
+}
+
 // The distance to primitive `r` (a BVH reference) if nearer than t_max, else NO_HIT.
 fn hit_primitive(r: u32, ray: Ray, t_max: f32) -> f32 {
     let index = r & 0x3fffffffu;
@@ -180,9 +191,6 @@ fn hit_primitive(r: u32, ray: Ray, t_max: f32) -> f32 {
             }
         }
         default: {
-            if HAS_INSTANCES && (index & INSTANCE_BIT) != 0u {
-                return hit_instance(index & (INSTANCE_BIT - 1u), ray, t_max);
-            }
             if HAS_TRIANGLES {
                 let tri = triangles[index];
                 let t = hit_triangle(tri, ray, t_max);
@@ -199,30 +207,26 @@ fn hit_primitive(r: u32, ray: Ray, t_max: f32) -> f32 {
 // The nearest hit by testing every primitive (USE_BVH = false).
 fn intersect_all(ray: Ray) -> Hit {
     var hit = Hit(T_FAR, KIND_NONE, 0u, NO_INSTANCE);
-    for (var k = 0u; k < 5u; k++) {
-        for (var i = 0u; i < brute_count(k); i++) {
-            let r = brute_ref(k, i);
+    let counts = array<u32, 4>(scene.n_spheres, scene.n_quads, scene.n_boxes, scene.n_triangles);
+    for (var kind = 0u; kind < 4u; kind++) {
+        for (var i = 0u; i < counts[kind]; i++) {
+            let r = kind << 30u | i;
             let t = hit_primitive(r, ray, hit.t);
+            if t > 0.0 {
+                hit = Hit(t, kind + 1u, i, NO_INSTANCE);
+            }
+        }
+    }
+    if HAS_INSTANCES {
+        for (var i = 0u; i < scene.n_instances; i++) {
+            let r = 3u << 30u | INSTANCE_BIT | i;
+            let t = hit_ref(r, ray, hit.t);
             if t > 0.0 {
                 hit = hit_of(r, t);
             }
         }
     }
     return hit;
-}
-
-// The walk without a BVH: of kind k (the four kinds, then instances), how many, and the
-// reference of the i-th.
-fn brute_count(k: u32) -> u32 {
-    let counts = array<u32, 5>(scene.n_spheres, scene.n_quads, scene.n_boxes, scene.n_triangles, scene.n_instances);
-    return counts[k];
-}
-
-fn brute_ref(k: u32, i: u32) -> u32 {
-    if k == 4u {
-        return 3u << 30u | INSTANCE_BIT | i;
-    }
-    return k << 30u | i;
 }
 
 // Tallies one BVH node visit (benchmarks only).
@@ -300,7 +304,7 @@ fn intersect_scene(ray: Ray) -> Hit {
             count_tests(n.count[k]);
             for (var i = n.child[k]; i < n.child[k] + n.count[k]; i++) {
                 let r = refs[i];
-                let t = hit_primitive(r, ray, hit.t);
+                let t = hit_ref(r, ray, hit.t);
                 if t > 0.0 {
                     hit = hit_of(r, t);
                 }
@@ -360,10 +364,18 @@ fn intersect_scene(ray: Ray) -> Hit {
 // first blocker, in any order, and never look past the light.
 fn occluded(ray: Ray, t_max: f32, skip: u32) -> bool {
     if !USE_BVH {
-        for (var k = 0u; k < 5u; k++) {
-            for (var i = 0u; i < brute_count(k); i++) {
-                let r = brute_ref(k, i);
+        let counts = array<u32, 4>(scene.n_spheres, scene.n_quads, scene.n_boxes, scene.n_triangles);
+        for (var kind = 0u; kind < 4u; kind++) {
+            for (var i = 0u; i < counts[kind]; i++) {
+                let r = kind << 30u | i;
                 if r != skip && hit_primitive(r, ray, t_max) > 0.0 {
+                    return true;
+                }
+            }
+        }
+        if HAS_INSTANCES {
+            for (var i = 0u; i < scene.n_instances; i++) {
+                if hit_ref(3u << 30u | INSTANCE_BIT | i, ray, t_max) > 0.0 {
                     return true;
                 }
             }
@@ -383,7 +395,7 @@ fn occluded(ray: Ray, t_max: f32, skip: u32) -> bool {
             count_tests(n.count[k]);
             for (var i = n.child[k]; i < n.child[k] + n.count[k]; i++) {
                 let r = refs[i];
-                if r != skip && hit_primitive(r, ray, t_max) > 0.0 {
+                if r != skip && hit_ref(r, ray, t_max) > 0.0 {
                     return true;
                 }
             }

@@ -112,10 +112,9 @@ const TWINS: &[Twin] = &[
         // the host's recursive walk differ in their plumbing, not in the model.
         wgsl_only: &[
             "add_u64",
-            // The walk without a BVH names references by kind and index (the host's
-            // `all_refs` iterates them); a surface of its primitive's own coordinates.
-            "brute_count",
-            "brute_ref",
+            // A surface of its primitive's own coordinates; an instance's walk kept out of
+            // the primitive test (the host's `hit_primitive` holds both).
+            "hit_ref",
             "count_tests",
             "count_visit",
             "fixed_load",

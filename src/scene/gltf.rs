@@ -546,7 +546,7 @@ fn import_mesh(
                 }
                 // Indices are read by the crate's reader, which does not check sparse data.
                 let sparse_ok = prim.indices().is_none_or(|i| i.index() != a.index());
-                accessor_fits(&a, buffers, sparse_ok)
+                super::gltf_accessors::fits(&a, buffers, sparse_ok)
                     .map_err(|e| Malformed(format!("{what}: {e}")))?;
             }
         }
@@ -677,89 +677,6 @@ fn import_mesh(
         });
     }
     Ok(())
-}
-
-/// Checks that `a`'s elements lie inside its buffer's data: the crate's reader slices without
-/// checking, so a view or accessor that overruns its buffer would otherwise panic.
-pub(super) fn accessor_fits(
-    a: &gltf::Accessor,
-    buffers: &[gltf::buffer::Data],
-    sparse_ok: bool,
-) -> Result<(), Malformed> {
-    let name = format!("accessor {}", a.index());
-    // The specification's minimum; the crate's reader computes `count - 1` unchecked (its
-    // accessor/util.rs:384, found by `fuzz/`).
-    if a.count() == 0 {
-        return Err(Malformed(format!(
-            "{name} has a count of 0 (at least 1 is required)"
-        )));
-    }
-    // A sparse attribute (its base, if any, then its substitutions) is read by
-    // `gltf_accessors`; sparse indices are not read.
-    if let Some(s) = a.sparse() {
-        if !sparse_ok {
-            return Err(Malformed(format!(
-                "{name} is sparse, which termtrace does not read for indices"
-            )));
-        }
-        let index_size = match s.indices().index_type() {
-            gltf::accessor::sparse::IndexType::U8 => 1,
-            gltf::accessor::sparse::IndexType::U16 => 2,
-            gltf::accessor::sparse::IndexType::U32 => 4,
-        };
-        for (what, view, offset, elem) in [
-            (
-                "indices",
-                s.indices().view(),
-                s.indices().offset(),
-                index_size,
-            ),
-            ("values", s.values().view(), s.values().offset(), a.size()),
-        ] {
-            let data = buffers.get(view.buffer().index()).ok_or_else(|| {
-                Malformed(format!(
-                    "{name}'s sparse {what}: no buffer {}",
-                    view.buffer().index()
-                ))
-            })?;
-            let span = elem
-                .checked_mul(s.count())
-                .and_then(|x| x.checked_add(offset));
-            let end = view.offset().checked_add(view.length());
-            if !matches!((span, end), (Some(span), Some(end)) if span <= view.length() && end <= data.len())
-            {
-                return Err(Malformed(format!(
-                    "{name}'s sparse {what} reach past the end of their buffer view or buffer"
-                )));
-            }
-        }
-        if a.view().is_none() {
-            return Ok(());
-        }
-    }
-    let Some(view) = a.view() else {
-        return Err(Malformed(format!("{name} has no buffer view")));
-    };
-    let data = buffers
-        .get(view.buffer().index())
-        .ok_or_else(|| Malformed(format!("{name}: no buffer {}", view.buffer().index())))?;
-    let elem = a.size();
-    let stride = view.stride().unwrap_or(elem).max(elem);
-    let span = match a.count() {
-        0 => Some(0),
-        n => stride
-            .checked_mul(n - 1)
-            .and_then(|x| x.checked_add(elem))
-            .and_then(|x| x.checked_add(a.offset())),
-    };
-    let view_end = view.offset().checked_add(view.length());
-    match (span, view_end) {
-        (Some(span), Some(end)) if span <= view.length() && end <= data.len() => Ok(()),
-        _ => Err(Malformed(format!(
-            "{name} reaches past the end of its buffer view or buffer ({} bytes)",
-            data.len()
-        ))),
-    }
 }
 
 /// glTF's metallic-roughness material as the `pbr` model renders it (docs/MODEL-NOTES.md,

@@ -157,7 +157,7 @@ pub fn gpu_instances(
                     a.data_type()
                 )));
             }
-            super::gltf::accessor_fits(&a, buffers, true)
+            super::gltf_accessors::fits(&a, buffers, true)
                 .map_err(|e| Malformed(format!("{what}.attributes.{key}: {e}")))?;
             Ok(Some(if n == 3 {
                 super::gltf_accessors::read::<3>(&a, buffers)

@@ -32,19 +32,19 @@ struct Compressed {
     filter: String,
 }
 
-fn read(view: &gltf::buffer::View, ext: &gltf::json::Value) -> Result<Compressed, String> {
+fn read(view: &gltf::buffer::View, ext: &gltf::json::Value) -> Result<Compressed, Malformed> {
     let int = |k: &str, default: Option<u64>| {
         ext.get(k)
             .and_then(|v| v.as_u64())
             .or(default)
             .map(|v| v as usize)
-            .ok_or_else(|| format!("no `{k}`"))
+            .ok_or_else(|| Malformed(format!("no `{k}`")))
     };
     let text = |k: &str, default: &str| {
         ext.get(k)
             .map_or(Some(default), |v| v.as_str())
             .map(str::to_string)
-            .ok_or_else(|| format!("`{k}` is not a string"))
+            .ok_or_else(|| Malformed(format!("`{k}` is not a string")))
     };
     let c = Compressed {
         buffer: int("buffer", None)?,
@@ -56,12 +56,12 @@ fn read(view: &gltf::buffer::View, ext: &gltf::json::Value) -> Result<Compressed
         filter: text("filter", "NONE")?,
     };
     if c.count.checked_mul(c.stride) != Some(view.length()) {
-        return Err(format!(
+        return Err(Malformed(format!(
             "{} elements of {} bytes, but the view has {} bytes",
             c.count,
             c.stride,
             view.length()
-        ));
+        )));
     }
     Ok(c)
 }
@@ -75,7 +75,7 @@ pub fn decode(doc: &gltf::Document, buffers: &mut [gltf::buffer::Data]) -> Resul
             continue;
         };
         let what = format!("bufferViews[{}] (meshopt)", view.index());
-        let c = read(&view, ext).map_err(|e| Malformed(format!("{what}: {e}")))?;
+        let c = read(&view, ext).map_err(|e| Malformed(format!("{what}: {}", e.0)))?;
         let src = buffers
             .get(c.buffer)
             .and_then(|b| b.get(c.offset..c.offset.checked_add(c.length)?))
@@ -87,7 +87,7 @@ pub fn decode(doc: &gltf::Document, buffers: &mut [gltf::buffer::Data]) -> Resul
             })?
             .to_vec();
         let mut out = vec![0u8; view.length()];
-        decode_view(&c, &src, &mut out).map_err(|e| Malformed(format!("{what}: {e}")))?;
+        decode_view(&c, &src, &mut out).map_err(|e| Malformed(format!("{what}: {}", e.0)))?;
         let dst = buffers
             .get_mut(view.buffer().index())
             .and_then(|b| {
@@ -109,7 +109,7 @@ pub fn decode(doc: &gltf::Document, buffers: &mut [gltf::buffer::Data]) -> Resul
 }
 
 /// One view's stream decoded into `out` (`count × stride` bytes), its filter applied.
-fn decode_view(c: &Compressed, src: &[u8], out: &mut [u8]) -> Result<(), String> {
+fn decode_view(c: &Compressed, src: &[u8], out: &mut [u8]) -> Result<(), Malformed> {
     use meshopt::ffi;
     let dst = out.as_mut_ptr() as *mut c_void;
     // SAFETY (every call below): `out` holds count × stride bytes, checked by `read`, and
@@ -126,14 +126,17 @@ fn decode_view(c: &Compressed, src: &[u8], out: &mut [u8]) -> Result<(), String>
             ffi::meshopt_decodeIndexSequence(dst, c.count, c.stride, src.as_ptr(), src.len())
         },
         m => {
-            return Err(format!(
+            return Err(Malformed(format!(
                 "mode `{m}` with a stride of {} and {} elements is not one the extension allows",
                 c.stride, c.count
-            ));
+            )));
         }
     };
     if rc != 0 {
-        return Err(format!("its {} stream does not decode (code {rc})", c.mode));
+        return Err(Malformed(format!(
+            "its {} stream does not decode (code {rc})",
+            c.mode
+        )));
     }
     match (c.filter.as_str(), c.mode.as_str()) {
         ("NONE", _) => {}
@@ -147,10 +150,10 @@ fn decode_view(c: &Compressed, src: &[u8], out: &mut [u8]) -> Result<(), String>
             ffi::meshopt_decodeFilterExp(dst, c.count, c.stride)
         },
         (f, _) => {
-            return Err(format!(
+            return Err(Malformed(format!(
                 "filter `{f}` on a {} stream of stride {} is not one the extension allows",
                 c.mode, c.stride
-            ));
+            )));
         }
     }
     Ok(())

@@ -407,7 +407,7 @@ pub struct GltfPlacement {
     pub rotation: DVec3,
     pub scale: DVec3,
     /// How the file's repeated meshes are stored (`instancing`: auto, always, never).
-    pub instancing: super::gltf::Instancing,
+    pub instancing: super::gltf_instances::Instancing,
     /// Each glTF material's key (its name, `#INDEX` when unnamed) and the material it maps to
     /// as the file gives it, before the scene's overrides: writing back writes each material
     /// whose objects differ from this as an override.
