@@ -852,25 +852,6 @@ fn khronos_draco_sample_renders_like_its_plain_twin() {
     renders_alike(&plain, &draco);
 }
 
-/// `path`'s GLB with its JSON chunk changed by `edit`.
-fn glb_edited(path: &str, edit: impl FnOnce(&mut serde_json::Value)) -> Vec<u8> {
-    let glb = std::fs::read(path).unwrap();
-    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-    let mut doc: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
-    edit(&mut doc);
-    let mut text = serde_json::to_vec(&doc).unwrap();
-    text.resize(text.len().next_multiple_of(4), b' ');
-    let rest = &glb[20 + json_len..];
-    let mut out = b"glTF".to_vec();
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&((20 + text.len() + rest.len()) as u32).to_le_bytes());
-    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&text);
-    out.extend_from_slice(rest);
-    out
-}
-
 #[test]
 fn a_corrupt_draco_stream_is_refused_naming_its_primitive() {
     // The Draco stream's view cut to 20 bytes, then its accessor's count made wrong: each is

@@ -130,29 +130,19 @@ fn instanced_and_flattened_twins_render_the_same_image_on_both_tracers() {
 /// Khronos's NormalTangentMirrorTest (normal maps, the file's tangents, mirrored UVs), drawn
 /// twice: in place, and by a second node that rotates, scales unevenly and mirrors it.
 fn mirrored_twice(instancing: Instancing) -> Scene {
-    let glb =
-        std::fs::read("tests/gltf/NormalTangentMirrorTest/NormalTangentMirrorTest.glb").unwrap();
-    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-    let mut doc: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
-    let copy = serde_json::json!({
-        "mesh": doc["nodes"][0]["mesh"],
-        "rotation": [0.0, 0.3826834, 0.0, 0.9238795],
-        "scale": [-0.7, 1.3, 0.9],
-        "translation": [0.0, 0.0, -2.0]
-    });
-    doc["nodes"].as_array_mut().unwrap().push(copy);
-    doc["scenes"][0]["nodes"] = serde_json::json!([0, 1]);
-    let mut text = serde_json::to_vec(&doc).unwrap();
-    text.resize(text.len().next_multiple_of(4), b' ');
-    let rest = &glb[20 + json_len..];
-    let mut out = Vec::new();
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&((12 + 8 + text.len() + rest.len()) as u32).to_le_bytes());
-    out.extend_from_slice(&(text.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&text);
-    out.extend_from_slice(rest);
+    let out = glb_edited(
+        "tests/gltf/NormalTangentMirrorTest/NormalTangentMirrorTest.glb",
+        |doc| {
+            let copy = serde_json::json!({
+                "mesh": doc["nodes"][0]["mesh"],
+                "rotation": [0.0, 0.3826834, 0.0, 0.9238795],
+                "scale": [-0.7, 1.3, 0.9],
+                "translation": [0.0, 0.0, -2.0]
+            });
+            doc["nodes"].as_array_mut().unwrap().push(copy);
+            doc["scenes"][0]["nodes"] = serde_json::json!([0, 1]);
+        },
+    );
     let imported = import_slice(&out, None, "twice.glb", DMat4::IDENTITY, None, instancing)
         .expect("the doubled file imports");
     let mut s = scene(
@@ -241,20 +231,26 @@ fn forest(copies: usize, n: usize) -> String {
     )
 }
 
-#[test]
-fn ten_thousand_copies_are_stored_once() {
-    // A grid of 2 048 triangles drawn by 10 000 nodes: `auto` instances it (flattened it would
-    // be 2·10⁷ triangles), so the scene holds the mesh once and the top level 10 000 copies.
-    let json = forest(10_000, 32);
-    let imported = import_slice(
+/// A `forest` file imported with `instancing`.
+fn import_forest(
+    json: &str,
+    instancing: Instancing,
+) -> Result<termtrace::scene::gltf::Imported, termtrace::scene::gltf::GltfError> {
+    import_slice(
         json.as_bytes(),
         None,
         "forest.gltf",
         DMat4::IDENTITY,
         None,
-        Instancing::Auto,
+        instancing,
     )
-    .unwrap();
+}
+
+#[test]
+fn ten_thousand_copies_are_stored_once() {
+    // A grid of 2 048 triangles drawn by 10 000 nodes: `auto` instances it (flattened it would
+    // be 2·10⁷ triangles), so the scene holds the mesh once and the top level 10 000 copies.
+    let imported = import_forest(&forest(10_000, 32), Instancing::Auto).unwrap();
     let mut s = scene(
         r#"
         [camera]
@@ -288,16 +284,9 @@ fn a_file_too_large_to_flatten_is_refused_with_its_figure() {
     // guard refuses before reading a vertex, naming the figure, the limit and the way out;
     // instanced, the same file opens.
     let json = forest(40_000, 100);
-    let e = import_slice(
-        json.as_bytes(),
-        None,
-        "forest.gltf",
-        DMat4::IDENTITY,
-        None,
-        Instancing::Never,
-    )
-    .unwrap_err()
-    .to_string();
+    let e = import_forest(&json, Instancing::Never)
+        .unwrap_err()
+        .to_string();
     assert!(
         e.contains("forest.gltf")
             && e.contains("800000000 triangles")
@@ -305,15 +294,7 @@ fn a_file_too_large_to_flatten_is_refused_with_its_figure() {
             && e.contains("instancing"),
         "{e}"
     );
-    let i = import_slice(
-        json.as_bytes(),
-        None,
-        "forest.gltf",
-        DMat4::IDENTITY,
-        None,
-        Instancing::Auto,
-    )
-    .unwrap();
+    let i = import_forest(&json, Instancing::Auto).unwrap();
     assert_eq!(i.objects.len(), 1);
     // An adapter whose buffers hold less than the triangles refuses the scene by its figure.
     let mut s = scene("");

@@ -3,7 +3,7 @@
 //! Bounding Volume Hierarchies", IEEE RT 2007), subtrees in parallel (rayon), then flattened
 //! so that siblings are adjacent, then collapsed to four-wide nodes for both tracers (`wide`).
 
-use glam::DVec3;
+use glam::{DMat4, DVec3};
 
 pub mod wide;
 
@@ -53,6 +53,22 @@ impl Aabb {
         }
         let d = self.max - self.min;
         d.x * d.y + d.y * d.z + d.z * d.x
+    }
+
+    /// The box around this one's eight corners taken through the affine map `m` (a copy of a
+    /// mesh placed in the world).
+    pub fn transformed(&self, m: &DMat4) -> Aabb {
+        let corners: Vec<DVec3> = (0..8)
+            .map(|k| {
+                let pick = |bit: usize, lo: f64, hi: f64| if k & bit == 0 { lo } else { hi };
+                m.transform_point3(DVec3::new(
+                    pick(1, self.min.x, self.max.x),
+                    pick(2, self.min.y, self.max.y),
+                    pick(4, self.min.z, self.max.z),
+                ))
+            })
+            .collect();
+        Aabb::of_points(&corners)
     }
 
     pub fn contains(&self, o: &Aabb) -> bool {

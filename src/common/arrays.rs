@@ -354,20 +354,8 @@ impl Primitives {
                     instanced.extend(tris);
                     for m in instances.iter() {
                         let w = DMat4::from_translation(-origin) * *m * own;
-                        let corners: Vec<DVec3> = (0..8)
-                            .map(|k| {
-                                let pick = |bit: usize, lo: f64, hi: f64| {
-                                    if k & bit == 0 { lo } else { hi }
-                                };
-                                w.transform_point3(DVec3::new(
-                                    pick(1, local.min.x, local.max.x),
-                                    pick(2, local.min.y, local.max.y),
-                                    pick(4, local.min.z, local.max.z),
-                                ))
-                            })
-                            .collect();
                         p.refs.push(instance_ref(p.instances.len()));
-                        p.bounds.push(Aabb::of_points(&corners));
+                        p.bounds.push(local.transformed(&w));
                         p.instances.push(GpuInstance {
                             object_from_world: rows(w.inverse()),
                             world_from_object: rows(w),

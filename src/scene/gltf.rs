@@ -293,17 +293,9 @@ fn import_drawn(
                 .flatten()
                 .fold(crate::bvh::Aabb::EMPTY, |b, p| b.grow(*p));
             for w in worlds.iter() {
-                for c in 0..8 {
-                    let pick = |bit: usize, lo: f64, hi: f64| if c & bit == 0 { lo } else { hi };
-                    let corner = DVec3::new(
-                        pick(1, local.min.x, local.max.x),
-                        pick(2, local.min.y, local.max.y),
-                        pick(4, local.min.z, local.max.z),
-                    );
-                    let p = w.transform_point3(corner);
-                    out.bounds.0 = out.bounds.0.min(p);
-                    out.bounds.1 = out.bounds.1.max(p);
-                }
+                let b = local.transformed(w);
+                out.bounds.0 = out.bounds.0.min(b.min);
+                out.bounds.1 = out.bounds.1.max(b.max);
             }
             *instances = worlds.clone();
         }
