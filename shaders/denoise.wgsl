@@ -1,5 +1,6 @@
 // #include "common/types.wgsl"
 // #include "common/fixed.wgsl"
+// #include "common/estimate.wgsl"
 // The denoiser on the GPU (src/gpu/denoise.rs drives it; src/denoise is the same filters on
 // the host, and its comments say why): the halves of the accumulation demodulated by the
 // guides' albedo, fireflies clamped, five iterations of the edge-avoiding à-trous filter on
@@ -16,11 +17,15 @@ const LUMINANCE_EPSILON: f32 = 1e-6;
 const OUTLIER_RADIUS: i32 = 2;
 const OUTLIER_SIGMAS: f32 = 3.0;
 const VARIANCE_RADIUS: i32 = 3;
-const REL_MSE_EPSILON: f32 = 0.01;
 const GUIDE_WORDS: u32 = 7u;
 const LAYER: u32 = 10u;
 const DEMOD: u32 = 12u;
 const IMAGES: u32 = 9u;
+// src/denoise/mod.rs: TILE_FLOATS.
+const TILE_FLOATS: u32 = 9u;
+// Terms summed per tile in `finish`: raw, à-trous and regression (mse, rel, rel²) each, the
+// pixels, and the relative terms of the raw image and both filters over the odd pixels.
+const TERMS: u32 = 13u;
 // The regression (src/denoise/regress.rs): window radius, spatial sigma, luminance sigma and
 // epsilon, the least weight of a tap, and the ridge.
 const REGRESS_RADIUS: i32 = 2;
@@ -51,8 +56,9 @@ const RIDGE: f32 = 1e-3;
 // and of the regression (3). Until `finish`, each half's radiance with its fireflies clamped
 // (`settle` writes it, `regress` reads it).
 @group(0) @binding(8) var<storage, read_write> images: array<f32>;
-// Per tile, 8 floats: raw (mse, rel, rel²), denoised (mse, rel, rel², of the filter chosen),
-// pixels, and 1 where the regression is chosen (0: the à-trous filter).
+// Per tile, TILE_FLOATS floats: raw (mse, rel, rel²), denoised (mse, rel, rel², of the filter
+// chosen), pixels, 1 where the regression is chosen (0: the à-trous filter), and the shown
+// image's relative sum, cross-fitted (`cross_fitted`).
 @group(0) @binding(9) var<storage, read_write> tiles: array<f32>;
 // Per output pixel: r, g, b (12 bytes: the preview at 960×608 reads back 7 MB, not the 19
 // of resolve.wgsl's two vec4f).
@@ -459,7 +465,21 @@ fn regress(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_
     dst[o + 2u] = out.z;
 }
 
-var<workgroup> partial: array<array<f32, 10>, 256>;
+var<workgroup> partial: array<array<f32, TERMS>, 256>;
+
+// The candidate a set of pixels chooses from its relative sums (raw, à-trous, regression):
+// src/denoise/mod.rs, `choose`. 0 raw, 1 à-trous, 2 regression.
+fn choose(rel: vec3f) -> u32 {
+    let f = select(1u, 2u, rel.z <= rel.y);
+    return select(0u, f, rel[f] < rel.x);
+}
+
+// The shown tile's relative sum, the choice of each parity's pixels judged by the other's:
+// src/denoise/mod.rs, `cross_fitted`, says why.
+fn cross_fitted(all: vec3f, odd: vec3f) -> f32 {
+    let even = all - odd;
+    return even[choose(odd)] + odd[choose(even)];
+}
 
 // The estimate's terms of one denoised image at a pixel (src/denoise/mod.rs, "The
 // estimator"): its squared error summed over channels, and the relative one.
@@ -475,7 +495,7 @@ fn estimate_terms(fa: vec3f, fb: vec3f, x: vec3f, y: vec3f, scale: vec3f) -> vec
 @compute @workgroup_size(16, 16, 1)
 fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_index) lid: u32,
           @builtin(workgroup_id) wid: vec3u) {
-    var terms = array<f32, 10>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    var terms: array<f32, TERMS>;
     if gid.x < params.width && gid.y < params.height {
         let p = gid.y * params.width + gid.x;
         let e = half_mean(0u, p);
@@ -502,24 +522,26 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
         images[i + 6u] = dg.x;
         images[i + 7u] = dg.y;
         images[i + 8u] = dg.z;
-        if e.w >= 1.0 && o.w >= 1.0 {
-            let k = e.w * o.w / (n * n);
+        let k = pair_factor(e.w, o.w);
+        if k > 0.0 {
             let x = e.xyz;
             let y = o.xyz;
-            let scale = 1.0 / (max(x * y, vec3f(0.0)) + REL_MSE_EPSILON);
+            let scale = relative_weight(gid.x, gid.y);
             let r = (x - y) * (x - y) * k;
             let rr = dot(r * scale, vec3f(1.0));
             let ta = estimate_terms(fa, fb, x, y, scale);
             let tg = estimate_terms(ga, gb, x, y, scale);
-            terms = array<f32, 10>(r.x + r.y + r.z, rr, rr * rr, ta.x, ta.y, ta.y * ta.y,
-                                   tg.x, tg.y, tg.y * tg.y, 1.0);
+            let odd = select(0.0, 1.0, ((gid.x + gid.y) & 1u) == 1u);
+            terms = array<f32, TERMS>(r.x + r.y + r.z, rr, rr * rr, ta.x, ta.y, ta.y * ta.y,
+                                      tg.x, tg.y, tg.y * tg.y, 1.0, rr * odd, ta.y * odd,
+                                      tg.y * odd);
         }
     }
     partial[lid] = terms;
     workgroupBarrier();
     for (var s = 128u; s > 0u; s >>= 1u) {
         if lid < s {
-            for (var t = 0u; t < 10u; t++) {
+            for (var t = 0u; t < TERMS; t++) {
                 partial[lid][t] += partial[lid + s][t];
             }
         }
@@ -530,14 +552,18 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
         let t = wid.y * tiles_x + wid.x;
         let regression = partial[0][7] <= partial[0][4];
         let f = select(3u, 6u, regression);
-        tiles[t * 8u] = partial[0][0];
-        tiles[t * 8u + 1u] = partial[0][1];
-        tiles[t * 8u + 2u] = partial[0][2];
-        tiles[t * 8u + 3u] = partial[0][f];
-        tiles[t * 8u + 4u] = partial[0][f + 1u];
-        tiles[t * 8u + 5u] = partial[0][f + 2u];
-        tiles[t * 8u + 6u] = partial[0][9];
-        tiles[t * 8u + 7u] = select(0.0, 1.0, regression);
+        let o = t * TILE_FLOATS;
+        tiles[o] = partial[0][0];
+        tiles[o + 1u] = partial[0][1];
+        tiles[o + 2u] = partial[0][2];
+        tiles[o + 3u] = partial[0][f];
+        tiles[o + 4u] = partial[0][f + 1u];
+        tiles[o + 5u] = partial[0][f + 2u];
+        tiles[o + 6u] = partial[0][9];
+        tiles[o + 7u] = select(0.0, 1.0, regression);
+        let all = vec3f(partial[0][1], partial[0][4], partial[0][7]);
+        let odd = vec3f(partial[0][10], partial[0][11], partial[0][12]);
+        tiles[o + 8u] = cross_fitted(all, odd);
     }
 }
 
@@ -557,8 +583,8 @@ fn compose(@builtin(global_invocation_id) gid: vec3u) {
             let y = gid.y * params.factor + dy;
             let p = y * params.width + x;
             let t = (y / TILE) * tiles_x + x / TILE;
-            let denoised = tiles[t * 8u + 4u] < tiles[t * 8u + 1u];
-            let chosen = select(3u, 6u, tiles[t * 8u + 7u] > 0.5);
+            let denoised = tiles[t * TILE_FLOATS + 4u] < tiles[t * TILE_FLOATS + 1u];
+            let chosen = select(3u, 6u, tiles[t * TILE_FLOATS + 7u] > 0.5);
             let i = p * IMAGES + select(0u, chosen, denoised);
             rgb += vec3f(images[i], images[i + 1u], images[i + 2u]);
         }

@@ -1,17 +1,15 @@
 // #include "common/types.wgsl"
 // #include "common/fixed.wgsl"
+// #include "common/estimate.wgsl"
 // The preview's image, made on the GPU from the accumulation so that only the small image is
 // read back (src/gpu/resolve.rs drives it): one invocation per output pixel averages the
 // `factor × factor` block of traced pixels below it in linear light (each pixel its sum over
 // its weight, the lecture's `accumulated / peso`), and sums the block's terms of the
-// two-halves noise estimate (src/render/snapshot.rs, `error_estimate`, says why they are
-// unbiased). On several devices (src/ui/helpers.rs) the other devices' sums, uploaded into
+// two-halves noise estimate (common/estimate.wgsl's terms; src/render/snapshot.rs,
+// `error_estimate`, says why they are unbiased). On several devices (src/ui/helpers.rs) the other devices' sums, uploaded into
 // `extra_even` and `extra_odd`, are added to each pixel's exactly (`fixed_merge`) when
 // `params.mode` is 1.
 
-
-// pbrt's relative-MSE epsilon (src/render/snapshot.rs: REL_MSE_EPSILON).
-const REL_MSE_EPSILON: f32 = 0.01;
 
 @group(0) @binding(0) var<uniform> params: ResolveUniforms;
 @group(0) @binding(1) var<storage, read> accum_even: array<u32>;
@@ -35,6 +33,16 @@ fn load(buf: u32, pixel: u32) -> Fixed {
         w[i] = select(extra_odd[pixel * ACCUM_WORDS + i], extra_even[pixel * ACCUM_WORDS + i], buf == 0u);
     }
     return fixed_merge(own, fixed_from_words(w));
+}
+
+// A half's mean (0 without samples) and its sample count (common/estimate.wgsl reads it).
+fn half_mean(buf: u32, pixel: u32) -> vec4f {
+    let f = load(buf, pixel);
+    let n = f32(f.samples);
+    if n > 0.0 {
+        return vec4f(fixed_value(f) / n, n);
+    }
+    return vec4f(0.0);
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -73,13 +81,12 @@ fn resolve(@builtin(global_invocation_id) gid: vec3u) {
                 }
             }
             fewest = min(fewest, min(ne, no));
-            if ne >= 1.0 && no >= 1.0 {
-                let k = ne * no / ((ne + no) * (ne + no));
+            let k = pair_factor(ne, no);
+            if k > 0.0 {
                 let d = se / ne - so / no;
                 let v = d * d * k;
                 mse += v.x + v.y + v.z;
-                let r2 = max((se / ne) * (so / no), vec3f(0.0)) + REL_MSE_EPSILON;
-                let rv = v / r2;
+                let rv = v * relative_weight(x, y);
                 rel += rv.x + rv.y + rv.z;
             }
         }

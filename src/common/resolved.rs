@@ -4,11 +4,8 @@
 
 use super::LinearImage;
 use super::accum::{ACCUM_WORDS, decode_pixel};
+use super::estimate::{pair_factor, relative_weights};
 use rayon::prelude::*;
-
-/// pbrt's relative MSE adds this to the squared reference so that black pixels do not divide
-/// by zero (pbrt-v4, `imgtool diff --metric relmse`); both tracers' noise estimates use it.
-pub const REL_MSE_EPSILON: f64 = 0.01;
 
 /// An estimated relative RMSE as the status line shows it: the value, or, where the
 /// estimate is within two standard errors of zero (its noise as large as itself: few
@@ -94,8 +91,16 @@ impl Resolved {
         let f = factor.max(1);
         let out = ((size.0 / f).max(1), (size.1 / f).max(1));
         let (w, h) = (size.0 as usize, size.1 as usize);
-        let value = |words: &[u32], p: usize| -> ([f32; 3], f32) {
-            let [r, g, b, n] = decode_pixel(&words[p * ACCUM_WORDS..(p + 1) * ACCUM_WORDS]);
+        let decode = |words: &[u32]| -> Vec<[f32; 4]> {
+            (0..w * h)
+                .into_par_iter()
+                .map(|p| decode_pixel(&words[p * ACCUM_WORDS..(p + 1) * ACCUM_WORDS]))
+                .collect()
+        };
+        let (even, odd) = (decode(even), decode(odd));
+        let weights = relative_weights(&even, &odd, w, h);
+        let value = |half: &[[f32; 4]], p: usize| -> ([f32; 3], f32) {
+            let [r, g, b, n] = half[p];
             ([r, g, b], n)
         };
         let blocks: Vec<[f32; 8]> = (0..out.0 as usize * out.1 as usize)
@@ -111,7 +116,7 @@ impl Resolved {
                             continue;
                         }
                         let p = y * w + x;
-                        let ((se, ne), (so, no)) = (value(even, p), value(odd, p));
+                        let ((se, ne), (so, no)) = (value(&even, p), value(&odd, p));
                         if ne + no > 0.0 {
                             for c in 0..3 {
                                 b[c] += (se[c] + so[c]) / (ne + no);
@@ -120,7 +125,7 @@ impl Resolved {
                             // A row the first look has not reached: show its neighbour.
                             let near = if y == 0 { p + w } else { p - w };
                             if near < w * h {
-                                let ((s2, n2), (t2, m2)) = (value(even, near), value(odd, near));
+                                let ((s2, n2), (t2, m2)) = (value(&even, near), value(&odd, near));
                                 if n2 + m2 > 0.0 {
                                     for c in 0..3 {
                                         b[c] += (s2[c] + t2[c]) / (n2 + m2);
@@ -129,15 +134,12 @@ impl Resolved {
                             }
                         }
                         b[3] = b[3].min(ne.min(no));
-                        if ne >= 1.0 && no >= 1.0 {
-                            let k = ne * no / ((ne + no) * (ne + no));
+                        if let Some(k) = pair_factor(ne as f64, no as f64) {
                             for c in 0..3 {
                                 let d = se[c] / ne - so[c] / no;
-                                let v = d * d * k;
+                                let v = d * d * k as f32;
                                 b[4] += v;
-                                b[5] += v
-                                    / ((se[c] / ne * (so[c] / no)).max(0.0)
-                                        + REL_MSE_EPSILON as f32);
+                                b[5] += v * weights[p][c];
                             }
                         }
                     }

@@ -45,6 +45,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../../shaders/common/envmap.wgsl"),
     ),
     (
+        "common/estimate.wgsl",
+        include_str!("../../shaders/common/estimate.wgsl"),
+    ),
+    (
         "common/pbr.wgsl",
         include_str!("../../shaders/common/pbr.wgsl"),
     ),

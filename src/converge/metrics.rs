@@ -1,6 +1,6 @@
 //! Error of an image against a reference, in linear radiance, and the per-tile bias test.
 
-use crate::common::resolved::REL_MSE_EPSILON;
+use crate::common::estimate::REL_MSE_EPSILON;
 use crate::output::LinearImage;
 use crate::render::Snapshot;
 use statrs::distribution::{ContinuousCDF, Normal, StudentsT};

@@ -36,8 +36,8 @@
 pub mod atrous;
 pub mod regress;
 
+use crate::common::estimate::{half_mean, pair_factor, relative_weights};
 use crate::common::resolved::Estimate;
-use crate::common::resolved::REL_MSE_EPSILON;
 use crate::common::{Guides, Resolved};
 use crate::output::LinearImage;
 use atrous::{Guide, box_blur, clamp_outliers, filter_pair, luminance};
@@ -134,6 +134,9 @@ pub struct Denoised {
     /// chosen there).
     pub tile_raw: Vec<Sums>,
     pub tile_denoised: Vec<Sums>,
+    /// Per tile, the shown image's estimated relative squared error, cross-fitted so that
+    /// the choice does not bias it ([`cross_fitted`]).
+    pub tile_shown: Vec<f64>,
     /// Channels the sums are over (3 × pixels).
     pub channels: usize,
 }
@@ -149,6 +152,7 @@ impl Denoised {
         tiles_x: usize,
         tile_regression: Vec<bool>,
         (tile_raw, tile_denoised): (Vec<Sums>, Vec<Sums>),
+        tile_shown: Vec<f64>,
     ) -> Denoised {
         let tiles = tile_raw
             .iter()
@@ -165,6 +169,7 @@ impl Denoised {
             tile_regression,
             tile_raw,
             tile_denoised,
+            tile_shown,
             channels: 3 * width as usize * height as usize,
         }
     }
@@ -202,13 +207,18 @@ impl Denoised {
         self.total(|t| self.tile_denoised[t])
     }
 
-    /// The shown image's estimated error sums.
+    /// The shown image's estimated error sums: the chosen image's per tile, its relative sum
+    /// cross-fitted ([`cross_fitted`]).
     pub fn shown_sums(&self) -> Sums {
         self.total(|t| {
-            if self.tiles[t] {
+            let chosen = if self.tiles[t] {
                 self.tile_denoised[t]
             } else {
                 self.tile_raw[t]
+            };
+            Sums {
+                rel: self.tile_shown[t],
+                ..chosen
             }
         })
     }
@@ -281,22 +291,26 @@ impl Denoised {
     }
 }
 
+/// Floats per tile of a backend's denoiser pass (see [`DenoisedTiles`]).
+pub const TILE_FLOATS: usize = 9;
+
 /// What a backend's denoiser pass brings back (the GPU's, `gpu::denoise`): per output pixel
 /// its colour, per tile (row-major, `tiles_x` a row) the estimate's sums (raw mse, rel, rel²,
-/// denoised mse, rel, rel², pixels, and 1 where the regression's image is the denoised one,
-/// 0 where the à-trous filter's is), and the samples discarded as invalid so far.
+/// denoised mse, rel, rel², pixels, 1 where the regression's image is the denoised one, 0
+/// where the à-trous filter's is, and the shown image's cross-fitted relative sum), and the
+/// samples discarded as invalid so far.
 pub struct DenoisedTiles {
     pub out: (u32, u32),
     pub blocks: Vec<[f32; 3]>,
     pub tiles_x: u32,
-    pub tiles: Vec<[f32; 8]>,
+    pub tiles: Vec<[f32; TILE_FLOATS]>,
     pub invalid: u64,
 }
 
 /// The preview's frame from a backend's denoiser pass: its image, and the tiles' sums made
 /// into the same estimates and choice as [`denoise`]'s.
 pub fn from_tiles(g: DenoisedTiles, (width, height): (u32, u32), factor: u32) -> Resolved {
-    let sums = |t: &[f32; 8], at: usize| Sums {
+    let sums = |t: &[f32; TILE_FLOATS], at: usize| Sums {
         mse: t[at] as f64,
         rel: t[at + 1] as f64,
         rel2: t[at + 2] as f64,
@@ -312,17 +326,9 @@ pub fn from_tiles(g: DenoisedTiles, (width, height): (u32, u32), factor: u32) ->
             g.tiles.iter().map(|t| sums(t, 0)).collect(),
             g.tiles.iter().map(|t| sums(t, 3)).collect(),
         ),
+        g.tiles.iter().map(|t| t[8] as f64).collect(),
     );
     d.frame(g.blocks, factor, g.invalid)
-}
-
-/// The mean of a half's sums, `[r, g, b, samples]` (0 with no samples).
-fn mean(s: [f32; 4]) -> [f32; 3] {
-    if s[3] > 0.0 {
-        [s[0] / s[3], s[1] / s[3], s[2] / s[3]]
-    } else {
-        [0.0; 3]
-    }
 }
 
 /// The variance of one half's luminance, from halves `x` and `y` of a `w × h` image:
@@ -341,8 +347,8 @@ fn half_variance(x: &[[f32; 3]], y: &[[f32; 3]], w: usize, h: usize) -> Vec<f32>
 pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised {
     let (w, h) = (guides.width as usize, guides.height as usize);
     assert_eq!(even.len(), w * h, "halves and guides of one size");
-    let a: Vec<[f32; 3]> = even.iter().map(|&s| mean(s)).collect();
-    let b: Vec<[f32; 3]> = odd.iter().map(|&s| mean(s)).collect();
+    let a: Vec<[f32; 3]> = even.iter().map(|&s| half_mean(s)).collect();
+    let b: Vec<[f32; 3]> = odd.iter().map(|&s| half_mean(s)).collect();
     let raw: Vec<[f32; 3]> = even
         .iter()
         .zip(odd)
@@ -392,18 +398,20 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
     // The raw image's estimate, and each filter's (the à-trous output, the regression's).
     let mut tile_raw = vec![Sums::default(); tiles_x * tiles_y];
     let mut tile_filters = [tile_raw.clone(), tile_raw.clone()];
+    // Per tile, the relative sums of the raw image, the à-trous filter's and the
+    // regression's over the pixels of odd parity (x + y odd): the cross-fitted estimate.
+    let mut tile_odd = vec![[0.0f64; 3]; tiles_x * tiles_y];
     let filters = [(&fa, &fb), (&ra, &rb)];
+    let weights = relative_weights(even, odd, w, h);
     for p in 0..w * h {
         let t = tile_index(p % w, p / w, tiles_x);
-        let (ne, no) = (even[p][3] as f64, odd[p][3] as f64);
-        if ne < 1.0 || no < 1.0 {
+        let Some(k) = pair_factor(even[p][3] as f64, odd[p][3] as f64) else {
             continue;
-        }
-        let k = ne * no / ((ne + no) * (ne + no));
+        };
         let (mut pixel_r, mut pixel_d) = (0.0, [0.0; 2]);
         for c in 0..3 {
             let (x, y) = (a[p][c] as f64, b[p][c] as f64);
-            let scale = 1.0 / ((x * y).max(0.0) + REL_MSE_EPSILON);
+            let scale = weights[p][c] as f64;
             let r = (x - y).powi(2) * k;
             tile_raw[t].add(Sums {
                 mse: r,
@@ -424,6 +432,13 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
                 pixel_d[f] += e * scale;
             }
         }
+        if (p % w + p / w) % 2 == 1 {
+            tile_odd[t] = [
+                tile_odd[t][0] + pixel_r,
+                tile_odd[t][1] + pixel_d[0],
+                tile_odd[t][2] + pixel_d[1],
+            ];
+        }
         tile_raw[t].rel2 += pixel_r * pixel_r;
         tile_raw[t].pixels += 1.0;
         for f in 0..2 {
@@ -440,6 +455,16 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
     let tile_denoised = (0..tiles_x * tiles_y)
         .map(|t| tile_filters[usize::from(regression[t])][t])
         .collect();
+    let tile_shown = (0..tiles_x * tiles_y)
+        .map(|t| {
+            let all = [
+                tile_raw[t].rel,
+                tile_filters[0][t].rel,
+                tile_filters[1][t].rel,
+            ];
+            cross_fitted(all, tile_odd[t])
+        })
+        .collect();
     let denoised: Vec<[f32; 3]> = (0..w * h)
         .map(|p| {
             let (x, y) = filters[usize::from(regression[tile_index(p % w, p / w, tiles_x)])];
@@ -453,5 +478,59 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
         tiles_x,
         regression,
         (tile_raw, tile_denoised),
+        tile_shown,
     )
+}
+
+/// The candidate a set of pixels chooses from its relative sums `[raw, à-trous,
+/// regression]`: the filter estimated better (the regression on a tie), then that filter's
+/// image where its estimate is strictly below the raw one's; 0 raw, 1 à-trous, 2 regression.
+/// The rule of [`denoise`]'s tiles and of shaders/denoise.wgsl's `finish`.
+pub fn choose(rel: [f64; 3]) -> usize {
+    let filter = if rel[2] <= rel[1] { 2 } else { 1 };
+    if rel[filter] < rel[0] { filter } else { 0 }
+}
+
+/// The shown tile's estimated relative squared error, cross-fitted: the tile's pixels of
+/// even parity choose an image by their estimates, and that image is judged by the estimates
+/// of the pixels of odd parity; and the other way round; the two parts are added. `all` holds
+/// the tile's relative sums `[raw, à-trous, regression]`, `odd` those over its odd pixels.
+///
+/// The tile itself shows the choice of all its pixels, the lowest of three noisy estimates:
+/// that estimate is biased low (the minimum of noisy estimates is below the minimum of their
+/// means), most where they are close. Judged by other pixels than those that chose it, a
+/// choice's estimate is free of that bias: a pixel's estimate terms carry mostly its own
+/// samples' noise (the filters' residual error, shared by neighbours, is the error being
+/// estimated, not noise in its estimate). Where the parities choose differently, the
+/// candidates are within their noise of each other, and the figure is that of their mix.
+pub fn cross_fitted(all: [f64; 3], odd: [f64; 3]) -> f64 {
+    let even: [f64; 3] = std::array::from_fn(|i| all[i] - odd[i]);
+    even[choose(odd)] + odd[choose(even)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_tile_layout_is_the_shaders() {
+        use crate::common::wgsl::u32_constant;
+        assert_eq!(
+            u32_constant("denoise.wgsl", "TILE_FLOATS") as usize,
+            TILE_FLOATS
+        );
+    }
+
+    #[test]
+    fn the_choice_and_its_cross_fitted_estimate() {
+        // The regression on a tie, then a filter only where strictly below the raw image.
+        assert_eq!(choose([1.0, 0.5, 0.5]), 2);
+        assert_eq!(choose([1.0, 0.4, 0.5]), 1);
+        assert_eq!(choose([0.4, 0.4, 0.5]), 0);
+        // Both parities choose the regression: the estimate is the regression's sum.
+        assert_eq!(cross_fitted([4.0, 3.0, 2.0], [2.0, 1.5, 1.0]), 2.0);
+        // The even pixels choose the regression (1.0 < 1.5), the odd ones the raw image
+        // (1.0 < 1.1): the even pixels are judged by the raw image, the odd by the regression.
+        assert_eq!(cross_fitted([3.0, 4.0, 2.1], [1.0, 2.0, 1.1]), 2.0 + 1.1);
+    }
 }

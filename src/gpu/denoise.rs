@@ -7,7 +7,7 @@
 use super::accum::Accumulation;
 use super::{GpuContext, bind_buffers};
 use crate::common::layout::ResolveUniforms;
-use crate::denoise::DenoisedTiles;
+use crate::denoise::{DenoisedTiles, TILE_FLOATS};
 
 /// À-trous iterations (src/denoise/atrous.rs: ITERATIONS), taps 1 to 16 pixels apart.
 const ITERATIONS: u32 = 5;
@@ -18,7 +18,7 @@ const LAYER: u64 = 10;
 const DEMOD: u64 = 12;
 const IMAGES: u64 = 9;
 /// Bytes per tile of the estimate's sums (eight floats), and per output pixel (r, g, b).
-const TILE_BYTES: u64 = 32;
+const TILE_BYTES: u64 = 4 * TILE_FLOATS as u64;
 const OUT_BYTES: u64 = 12;
 
 /// Bytes of the accumulation's invalid-sample counter, read back behind the tiles.
@@ -304,7 +304,7 @@ impl DenoisePass {
         super::map_read(ctx, &slice, "denoising");
         let data = slice.get_mapped_range().expect("mapped");
         let blocks: Vec<[f32; 3]> = bytemuck::cast_slice(&data[..b.out_bytes as usize]).to_vec();
-        let tiles: Vec<[f32; 8]> =
+        let tiles: Vec<[f32; TILE_FLOATS]> =
             bytemuck::cast_slice(&data[b.out_bytes as usize..counter_at as usize]).to_vec();
         let c: &[u32] = bytemuck::cast_slice(&data[counter_at as usize..]);
         let invalid = c[0] as u64 | (c[1] as u64) << 32;

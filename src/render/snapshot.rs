@@ -2,7 +2,7 @@
 //! odd samples, from which the image and its noise estimate are computed.
 
 use crate::common::AccumData;
-use crate::common::resolved::REL_MSE_EPSILON;
+use crate::common::estimate::{pair_factor, relative_weights};
 use crate::output::LinearImage;
 
 /// An image's estimated error, in linear radiance.
@@ -72,23 +72,22 @@ impl Snapshot {
     ///
     /// Returned as errors over the whole image: `rmse` the root of the mean estimated MSE, and
     /// `rel_rmse` the root of pbrt's relative MSE, MSE / (reference² + 0.01), with the
-    /// unknown reference² estimated by the product of the halves' means.
+    /// unknown reference² estimated by the smaller of the halves' 3×3 means times their pooled one
+    /// (`common::estimate` says why).
     pub fn error_estimate(&self) -> Option<ErrorEstimate> {
+        if self.min_half_samples() < 1 {
+            return None;
+        }
+        let (w, h) = (self.width as usize, self.height as usize);
+        let weights = relative_weights(&self.data.even, &self.data.odd, w, h);
         let (mut mse, mut rel) = (0.0f64, 0.0f64);
-        for (e, o) in self.data.even.iter().zip(&self.data.odd) {
-            let (ne, no) = (e[3] as f64, o[3] as f64);
-            if ne < 1.0 || no < 1.0 {
-                return None;
-            }
-            let k = ne * no / ((ne + no) * (ne + no));
+        for ((e, o), wt) in self.data.even.iter().zip(&self.data.odd).zip(&weights) {
+            let k = pair_factor(e[3] as f64, o[3] as f64)?;
             for c in 0..3 {
-                let (me, mo) = (e[c] as f64 / ne, o[c] as f64 / no);
+                let (me, mo) = (e[c] as f64 / e[3] as f64, o[c] as f64 / o[3] as f64);
                 let var = (me - mo).powi(2) * k;
                 mse += var;
-                // The reference's square, estimated without bias from the two independent
-                // halves (E[E·O] = μ²); the image's own square would overstate it by Var(M)
-                // and understate the error exactly where the noise is large.
-                rel += var / ((me * mo).max(0.0) + REL_MSE_EPSILON);
+                rel += var * wt[c] as f64;
             }
         }
         let n = (3 * self.data.even.len()).max(1) as f64;
@@ -96,6 +95,17 @@ impl Snapshot {
             rmse: (mse / n).sqrt(),
             rel_rmse: (rel / n).sqrt(),
         })
+    }
+
+    /// Fewest samples either half of any pixel holds.
+    pub fn min_half_samples(&self) -> u64 {
+        self.data
+            .even
+            .iter()
+            .zip(&self.data.odd)
+            .map(|(e, o)| e[3].min(o[3]) as u64)
+            .min()
+            .unwrap_or(0)
     }
 
     /// The estimated relative RMSE (see [`Snapshot::error_estimate`]).

@@ -20,6 +20,10 @@ pub const BUILTIN_SCENES: &[(&str, &str)] = &[
     ("mesh", include_str!("../../scenes/mesh.toml")),
     ("lamp", include_str!("../../scenes/lamp.toml")),
     ("outdoor", include_str!("../../scenes/outdoor.toml")),
+    (
+        "outdoor-caustics",
+        include_str!("../../scenes/outdoor-caustics.toml"),
+    ),
     ("pbr", include_str!("../../scenes/pbr.toml")),
     ("glass", include_str!("../../scenes/glass.toml")),
 ];
