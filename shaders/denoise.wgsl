@@ -94,6 +94,19 @@ fn half_mean(buf: u32, pixel: u32) -> vec4f {
     return vec4f(0.0);
 }
 
+// The relative MSE's weight of traced pixel (x, y) (common/estimate.wgsl).
+fn window_weight(x: u32, y: u32) -> vec3f {
+    let win = proxy_window(x, y, vec2u(params.width, params.height));
+    var s = ProxySums();
+    for (var qy = win.y; qy < win.w; qy++) {
+        for (var qx = win.x; qx < win.z; qx++) {
+            let q = qy * params.width + qx;
+            proxy_add(&s, half_mean(0u, q), half_mean(1u, q));
+        }
+    }
+    return relative_weight(s);
+}
+
 fn modulation(p: u32) -> vec3f {
     return texels[2u * p].xyz + ALBEDO_EPSILON;
 }
@@ -526,7 +539,7 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
         if k > 0.0 {
             let x = e.xyz;
             let y = o.xyz;
-            let scale = relative_weight(gid.x, gid.y);
+            let scale = window_weight(gid.x, gid.y);
             let r = (x - y) * (x - y) * k;
             let rr = dot(r * scale, vec3f(1.0));
             let ta = estimate_terms(fa, fb, x, y, scale);

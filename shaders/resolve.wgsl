@@ -45,6 +45,19 @@ fn half_mean(buf: u32, pixel: u32) -> vec4f {
     return vec4f(0.0);
 }
 
+// The relative MSE's weight of traced pixel (x, y) (common/estimate.wgsl).
+fn window_weight(x: u32, y: u32) -> vec3f {
+    let win = proxy_window(x, y, vec2u(params.width, params.height));
+    var s = ProxySums();
+    for (var qy = win.y; qy < win.w; qy++) {
+        for (var qx = win.x; qx < win.z; qx++) {
+            let q = qy * params.width + qx;
+            proxy_add(&s, half_mean(0u, q), half_mean(1u, q));
+        }
+    }
+    return relative_weight(s);
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn resolve(@builtin(global_invocation_id) gid: vec3u) {
     if gid.x >= params.out_width || gid.y >= params.out_height {
@@ -86,7 +99,7 @@ fn resolve(@builtin(global_invocation_id) gid: vec3u) {
                 let d = se / ne - so / no;
                 let v = d * d * k;
                 mse += v.x + v.y + v.z;
-                let rv = v * relative_weight(x, y);
+                let rv = v * window_weight(x, y);
                 rel += rv.x + rv.y + rv.z;
             }
         }
