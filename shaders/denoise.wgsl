@@ -24,8 +24,9 @@ const IMAGES: u32 = 9u;
 // src/denoise/mod.rs: TILE_FLOATS.
 const TILE_FLOATS: u32 = 9u;
 // Terms summed per tile in `finish`: raw, à-trous and regression (mse, rel, rel²) each, the
-// pixels, and the relative terms of the raw image and both filters over the odd pixels.
-const TERMS: u32 = 13u;
+// pixels, and the relative terms of the raw image and both filters over the odd pixels, and
+// those pixels.
+const TERMS: u32 = 14u;
 // The regression (src/denoise/regress.rs): window radius, spatial sigma, luminance sigma and
 // epsilon, the least weight of a tap, and the ridge.
 const REGRESS_RADIUS: i32 = 2;
@@ -487,11 +488,20 @@ fn choose(rel: vec3f) -> u32 {
     return select(0u, f, rel[f] < rel.x);
 }
 
-// The shown tile's relative sum, the choice of each parity's pixels judged by the other's:
-// src/denoise/mod.rs, `cross_fitted`, says why.
-fn cross_fitted(all: vec3f, odd: vec3f) -> f32 {
+// The shown tile's relative sum, cross-fitted: src/denoise/mod.rs, `cross_fitted`, says why.
+fn cross_fitted(all: vec3f, odd: vec3f, pixels: f32, odd_pixels: f32) -> f32 {
     let even = all - odd;
-    return even[choose(odd)] + odd[choose(even)];
+    let even_pixels = pixels - odd_pixels;
+    let shown = choose(all);
+    let by_even = choose(even);
+    let by_odd = choose(odd);
+    if by_even == shown && by_odd != shown && odd_pixels > 0.0 {
+        return odd[shown] * pixels / odd_pixels;
+    }
+    if by_odd == shown && by_even != shown && even_pixels > 0.0 {
+        return even[shown] * pixels / even_pixels;
+    }
+    return even[by_odd] + odd[by_even];
 }
 
 // The estimate's terms of one denoised image at a pixel (src/denoise/mod.rs, "The
@@ -547,7 +557,7 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
             let odd = select(0.0, 1.0, ((gid.x + gid.y) & 1u) == 1u);
             terms = array<f32, TERMS>(r.x + r.y + r.z, rr, rr * rr, ta.x, ta.y, ta.y * ta.y,
                                       tg.x, tg.y, tg.y * tg.y, 1.0, rr * odd, ta.y * odd,
-                                      tg.y * odd);
+                                      tg.y * odd, odd);
         }
     }
     partial[lid] = terms;
@@ -576,7 +586,7 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
         tiles[o + 7u] = select(0.0, 1.0, regression);
         let all = vec3f(partial[0][1], partial[0][4], partial[0][7]);
         let odd = vec3f(partial[0][10], partial[0][11], partial[0][12]);
-        tiles[o + 8u] = cross_fitted(all, odd);
+        tiles[o + 8u] = cross_fitted(all, odd, partial[0][9], partial[0][13]);
     }
 }
 

@@ -15,7 +15,8 @@
 @group(0) @binding(1) var<storage, read> accum_even: array<u32>;
 @group(0) @binding(2) var<storage, read> accum_odd: array<u32>;
 // Two vec4f per output pixel: (r, g, b, fewest samples in either half of any block pixel)
-// and (squared-error sum, relative squared-error sum, 0, 0).
+// and (squared-error sum, relative squared-error sum, the sum of the pixels' relative terms
+// squared, 0): the last tells a few fireflies' estimate (src/common/resolved.rs, `Doubt`).
 @group(0) @binding(3) var<storage, read_write> out: array<vec4f>;
 @group(0) @binding(4) var<storage, read> extra_even: array<u32>;
 @group(0) @binding(5) var<storage, read> extra_odd: array<u32>;
@@ -67,6 +68,7 @@ fn resolve(@builtin(global_invocation_id) gid: vec3u) {
     var fewest = 4294967295.0;
     var mse = 0.0;
     var rel = 0.0;
+    var rel2 = 0.0;
     for (var dy = 0u; dy < params.factor; dy++) {
         for (var dx = 0u; dx < params.factor; dx++) {
             let x = gid.x * params.factor + dx;
@@ -100,12 +102,14 @@ fn resolve(@builtin(global_invocation_id) gid: vec3u) {
                 let v = d * d * k;
                 mse += v.x + v.y + v.z;
                 let rv = v * window_weight(x, y);
-                rel += rv.x + rv.y + rv.z;
+                let pixel_rel = rv.x + rv.y + rv.z;
+                rel += pixel_rel;
+                rel2 += pixel_rel * pixel_rel;
             }
         }
     }
     let n = f32(params.factor * params.factor);
     let i = gid.y * params.out_width + gid.x;
     out[2u * i] = vec4f(rgb / n, fewest);
-    out[2u * i + 1u] = vec4f(mse, rel, 0.0, 0.0);
+    out[2u * i + 1u] = vec4f(mse, rel, rel2, 0.0);
 }

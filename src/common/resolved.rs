@@ -25,6 +25,56 @@ impl Estimate {
     }
 }
 
+/// Fewer samples than this in either half of some pixel, and the noise estimate is shown as
+/// rough: with a handful of samples the halves' difference says little about the noise.
+pub const DOUBT_HALF_SAMPLES: f32 = 4.0;
+/// Fewer effective pixels than this behind the relative estimate (its sum squared over the
+/// sum of its pixels' squared terms: the image's pixel count where every pixel weighs alike,
+/// 1 where one pixel holds it all), and it is shown as rough: a few fireflies decide it, and
+/// the next one can move it many times over (BENCHMARKS.md, "An honest error estimate").
+pub const DOUBT_EFFECTIVE_PIXELS: f64 = 16.0;
+
+/// Why an estimate is shown as rough.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Doubt {
+    /// Few samples in some pixel's half.
+    FewSamples,
+    /// A few pixels (fireflies, most often) hold most of the estimate.
+    FewPixels,
+}
+
+impl Doubt {
+    /// Of an estimate from pixel terms summing to `rel` with squares summing to `rel2`, over
+    /// pixels whose halves hold at least `fewest` samples (`None`: not known).
+    pub fn of(fewest: Option<f32>, rel: f64, rel2: f64) -> Option<Doubt> {
+        if fewest.is_some_and(|f| f < DOUBT_HALF_SAMPLES) {
+            Some(Doubt::FewSamples)
+        } else if rel > 0.0 && rel * rel < DOUBT_EFFECTIVE_PIXELS * rel2 {
+            Some(Doubt::FewPixels)
+        } else {
+            None
+        }
+    }
+
+    /// The status line's words: the figure, rounded to two digits, and why it is rough.
+    pub fn text(self, rel_rmse: f64) -> String {
+        let why = match self {
+            Doubt::FewSamples => "few samples",
+            Doubt::FewPixels => "fireflies",
+        };
+        format!("~{}% ({why})", round_to_two_digits(rel_rmse * 100.0))
+    }
+}
+
+/// `v` rounded to two significant digits.
+fn round_to_two_digits(v: f64) -> f64 {
+    if v <= 0.0 || !v.is_finite() {
+        return v;
+    }
+    let scale = 10f64.powf(1.0 - v.log10().floor());
+    (v * scale).round() / scale
+}
+
 /// One resolved frame on the host.
 #[derive(Clone, Debug)]
 pub struct Resolved {
@@ -39,10 +89,14 @@ pub struct Resolved {
     pub sigma: Vec<f32>,
     /// The estimated relative RMSE of the image when it is a denoised one (`denoise`).
     pub denoised: Option<Estimate>,
+    /// Why `noise` is rough, if it is.
+    pub doubt: Option<Doubt>,
 }
 
 impl Resolved {
-    /// The frame from the resolve's two vec4f per output pixel (see resolve.wgsl; the CPU
+    /// The frame from the resolve's two vec4f per output pixel (see resolve.wgsl: colour,
+    /// fewest samples; squared error, relative squared error, the sum of the pixels' relative
+    /// terms squared, 0; the CPU
     /// tracer computes the same terms on the host): `out` pixels, each the mean of a
     /// `factor × factor` block.
     pub fn from_blocks(words: &[[f32; 8]], out: (u32, u32), factor: u32, invalid: u64) -> Resolved {
@@ -53,12 +107,13 @@ impl Resolved {
             .iter()
             .map(|w| (w[4] / (3.0 * block * block)).max(0.0).sqrt())
             .collect();
-        let (mut rel, mut fewest) = (0.0f64, f32::INFINITY);
+        let (mut rel, mut rel2, mut fewest) = (0.0f64, 0.0f64, f32::INFINITY);
         let pixels = words
             .iter()
             .map(|w| {
                 fewest = fewest.min(w[3]);
                 rel += w[5] as f64;
+                rel2 += w[6] as f64;
                 [w[0], w[1], w[2]]
             })
             .collect();
@@ -74,6 +129,7 @@ impl Resolved {
             invalid,
             sigma,
             denoised: None,
+            doubt: Doubt::of(Some(fewest), rel, rel2),
         }
     }
 
@@ -135,12 +191,15 @@ impl Resolved {
                         }
                         b[3] = b[3].min(ne.min(no));
                         if let Some(k) = pair_factor(ne as f64, no as f64) {
+                            let mut pixel_rel = 0.0;
                             for c in 0..3 {
                                 let d = se[c] / ne - so[c] / no;
                                 let v = d * d * k as f32;
                                 b[4] += v;
-                                b[5] += v * weights[p][c];
+                                pixel_rel += v * weights[p][c];
                             }
+                            b[5] += pixel_rel;
+                            b[6] += pixel_rel * pixel_rel;
                         }
                     }
                 }
@@ -152,5 +211,24 @@ impl Resolved {
             })
             .collect();
         Resolved::from_blocks(&blocks, out, f, invalid)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_estimate_is_rough_with_few_samples_or_few_pixels_behind_it() {
+        // 100 pixels of equal terms: 100 effective pixels.
+        assert_eq!(Doubt::of(Some(8.0), 100.0, 100.0), None);
+        // One pixel holds it all: one effective pixel.
+        assert_eq!(Doubt::of(Some(8.0), 100.0, 10_000.0), Some(Doubt::FewPixels));
+        // Three samples a half: rough whatever the pixels.
+        assert_eq!(Doubt::of(Some(3.0), 100.0, 100.0), Some(Doubt::FewSamples));
+        // An estimate of zero (an exact image) is not rough.
+        assert_eq!(Doubt::of(None, 0.0, 0.0), None);
+        assert_eq!(Doubt::FewPixels.text(0.1234), "~12% (fireflies)");
+        assert_eq!(Doubt::FewSamples.text(0.004567), "~0.46% (few samples)");
     }
 }

@@ -37,7 +37,7 @@ pub mod atrous;
 pub mod regress;
 
 use crate::common::estimate::{half_mean, pair_factor, relative_weights};
-use crate::common::resolved::Estimate;
+use crate::common::resolved::{Doubt, Estimate};
 use crate::common::{Guides, Resolved};
 use crate::output::LinearImage;
 use atrous::{Guide, box_blur, clamp_outliers, filter_pair, luminance};
@@ -260,16 +260,18 @@ impl Denoised {
                 sigma.push((per_value.sqrt() / f as f64) as f32);
             }
         }
+        let raw = self.raw_sums();
         Resolved {
             image: LinearImage {
                 width: out.0 as u32,
                 height: out.1 as u32,
                 pixels,
             },
-            noise: Some(self.rel_rmse(self.raw_sums())),
+            noise: Some(self.rel_rmse(raw)),
             invalid,
             sigma,
             denoised: Some(self.shown_estimate()),
+            doubt: Doubt::of(None, raw.rel, raw.rel2),
         }
     }
 
@@ -399,8 +401,9 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
     let mut tile_raw = vec![Sums::default(); tiles_x * tiles_y];
     let mut tile_filters = [tile_raw.clone(), tile_raw.clone()];
     // Per tile, the relative sums of the raw image, the à-trous filter's and the
-    // regression's over the pixels of odd parity (x + y odd): the cross-fitted estimate.
-    let mut tile_odd = vec![[0.0f64; 3]; tiles_x * tiles_y];
+    // regression's over the pixels of odd parity (x + y odd), and those pixels: the
+    // cross-fitted estimate.
+    let mut tile_odd = vec![[0.0f64; 4]; tiles_x * tiles_y];
     let filters = [(&fa, &fb), (&ra, &rb)];
     let weights = relative_weights(even, odd, w, h);
     for p in 0..w * h {
@@ -437,6 +440,7 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
                 tile_odd[t][0] + pixel_r,
                 tile_odd[t][1] + pixel_d[0],
                 tile_odd[t][2] + pixel_d[1],
+                tile_odd[t][3] + 1.0,
             ];
         }
         tile_raw[t].rel2 += pixel_r * pixel_r;
@@ -462,7 +466,8 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
                 tile_filters[0][t].rel,
                 tile_filters[1][t].rel,
             ];
-            cross_fitted(all, tile_odd[t])
+            let [r, at, g, n] = tile_odd[t];
+            cross_fitted(all, [r, at, g], (tile_raw[t].pixels, n))
         })
         .collect();
     let denoised: Vec<[f32; 3]> = (0..w * h)
@@ -491,21 +496,37 @@ pub fn choose(rel: [f64; 3]) -> usize {
     if rel[filter] < rel[0] { filter } else { 0 }
 }
 
-/// The shown tile's estimated relative squared error, cross-fitted: the tile's pixels of
-/// even parity choose an image by their estimates, and that image is judged by the estimates
-/// of the pixels of odd parity; and the other way round; the two parts are added. `all` holds
-/// the tile's relative sums `[raw, à-trous, regression]`, `odd` those over its odd pixels.
+/// The shown tile's estimated relative squared error, cross-fitted. `all` holds the tile's
+/// relative sums `[raw, à-trous, regression]`, `odd` those over its pixels of odd parity (x +
+/// y odd), and `pixels` the tile's pixels and its odd ones.
 ///
-/// The tile itself shows the choice of all its pixels, the lowest of three noisy estimates:
-/// that estimate is biased low (the minimum of noisy estimates is below the minimum of their
-/// means), most where they are close. Judged by other pixels than those that chose it, a
-/// choice's estimate is free of that bias: a pixel's estimate terms carry mostly its own
-/// samples' noise (the filters' residual error, shared by neighbours, is the error being
-/// estimated, not noise in its estimate). Where the parities choose differently, the
-/// candidates are within their noise of each other, and the figure is that of their mix.
-pub fn cross_fitted(all: [f64; 3], odd: [f64; 3]) -> f64 {
+/// The tile shows the choice of all its pixels, the lowest of three noisy estimates, and that
+/// estimate is biased low (the minimum of noisy estimates is below the minimum of their
+/// means), most where they are close. So each parity's pixels choose by their own sums
+/// ([`choose`]):
+/// - where both parities choose the image shown, each parity's sum judges the other's choice,
+///   and the estimate is the tile's sum;
+/// - where they differ, the image shown is judged by the parity that did not choose it alone,
+///   its sum scaled to the tile's pixels: those pixels' noise did not select it (a pixel's
+///   estimate terms carry mostly its own samples' noise);
+/// - where neither parity chose it (three candidates), each parity's choice is judged by the
+///   other.
+///
+/// An earlier version judged each parity's choice by the other parity also where they
+/// differed. That estimates an image the tile does not show, and where one candidate's error
+/// sits in a few pixels (a filter smearing an emitter's edge) it read 40 for a raw tile whose
+/// true error was 0.4.
+pub fn cross_fitted(all: [f64; 3], odd: [f64; 3], (pixels, odd_pixels): (f64, f64)) -> f64 {
     let even: [f64; 3] = std::array::from_fn(|i| all[i] - odd[i]);
-    even[choose(odd)] + odd[choose(even)]
+    let even_pixels = pixels - odd_pixels;
+    let (shown, by_even, by_odd) = (choose(all), choose(even), choose(odd));
+    if by_even == shown && by_odd != shown && odd_pixels > 0.0 {
+        odd[shown] * pixels / odd_pixels
+    } else if by_odd == shown && by_even != shown && even_pixels > 0.0 {
+        even[shown] * pixels / even_pixels
+    } else {
+        even[by_odd] + odd[by_even]
+    }
 }
 
 #[cfg(test)]
@@ -528,9 +549,20 @@ mod tests {
         assert_eq!(choose([1.0, 0.4, 0.5]), 1);
         assert_eq!(choose([0.4, 0.4, 0.5]), 0);
         // Both parities choose the regression: the estimate is the regression's sum.
-        assert_eq!(cross_fitted([4.0, 3.0, 2.0], [2.0, 1.5, 1.0]), 2.0);
-        // The even pixels choose the regression (1.0 < 1.5), the odd ones the raw image
-        // (1.0 < 1.1): the even pixels are judged by the raw image, the odd by the regression.
-        assert_eq!(cross_fitted([3.0, 4.0, 2.1], [1.0, 2.0, 1.1]), 2.0 + 1.1);
+        assert_eq!(cross_fitted([4.0, 3.0, 2.0], [2.0, 1.5, 1.0], (8.0, 4.0)), 2.0);
+        // The tile shows the regression (2.1 < 3.0). The even pixels chose it (1.0 against
+        // raw 2.0), the odd ones the raw image (1.0 < 1.1): the regression is judged by the
+        // odd pixels alone, 1.1 over 4 of the 8 pixels.
+        assert_eq!(
+            cross_fitted([3.0, 4.0, 2.1], [1.0, 2.0, 1.1], (8.0, 4.0)),
+            2.2
+        );
+        // An emitter's edge smeared by a filter in the even pixels: they keep the raw image,
+        // the odd ones (whose filter sums are low) choose the filter; the raw image shown is
+        // judged by the odd pixels, not the filter by the even ones.
+        assert_eq!(
+            cross_fitted([0.3, 37.0, 38.0], [0.15, -0.1, 0.0], (8.0, 4.0)),
+            0.3
+        );
     }
 }

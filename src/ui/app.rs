@@ -44,6 +44,8 @@ pub struct Stats {
     pub noise: Option<f64>,
     /// Estimated relative RMSE of the denoised image shown, when it is denoised.
     pub denoised: Option<crate::common::resolved::Estimate>,
+    /// Why `noise` is rough, if it is: shown instead of a confident figure.
+    pub doubt: Option<crate::common::resolved::Doubt>,
     pub invalid: u64,
     /// Of `spp`, the samples per pixel the preview's other devices traced (`--adapter 0,1`).
     pub helped: u32,

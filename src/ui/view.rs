@@ -194,10 +194,15 @@ pub fn stats_line(app: &App, width: u16) -> Line<'static> {
         (rate(s.samples_per_second), 0),
         (duration(s.elapsed), 4),
     ];
-    // The raw image's estimated error, and the denoised image's after an arrow.
+    // The raw image's estimated error (rough, and why, where few samples or a few pixels
+    // make it), and the denoised image's after an arrow.
+    let raw = |n: f64| match s.doubt {
+        Some(d) => d.text(n),
+        None => format!("{:.2}%", n * 100.0),
+    };
     match (s.noise, s.denoised) {
-        (Some(n), Some(d)) => parts.push((format!("noise {:.2}% → {}", n * 100.0, d.text()), 0)),
-        (Some(n), None) => parts.push((format!("noise {:.2}%", n * 100.0), 0)),
+        (Some(n), Some(d)) => parts.push((format!("noise {} → {}", raw(n), d.text()), 0)),
+        (Some(n), None) => parts.push((format!("noise {}", raw(n)), 0)),
         (None, _) => parts.push(("noise –".into(), 0)),
     }
     if s.invalid > 0 {

@@ -603,6 +603,7 @@ impl Worker {
                 elapsed,
                 noise: resolved.noise,
                 denoised: resolved.denoised,
+                doubt: resolved.doubt,
                 invalid: resolved.invalid,
                 helped: tag.helped,
             },
