@@ -95,19 +95,6 @@ fn half_mean(buf: u32, pixel: u32) -> vec4f {
     return vec4f(0.0);
 }
 
-// The relative MSE's weight of traced pixel (x, y) (common/estimate.wgsl).
-fn window_weight(x: u32, y: u32) -> vec3f {
-    let win = proxy_window(x, y, vec2u(params.width, params.height));
-    var s = ProxySums();
-    for (var qy = win.y; qy < win.w; qy++) {
-        for (var qx = win.x; qx < win.z; qx++) {
-            let q = qy * params.width + qx;
-            proxy_add(&s, half_mean(0u, q), half_mean(1u, q));
-        }
-    }
-    return relative_weight(s);
-}
-
 fn modulation(p: u32) -> vec3f {
     return texels[2u * p].xyz + ALBEDO_EPSILON;
 }
@@ -479,7 +466,25 @@ fn regress(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_
     dst[o + 2u] = out.z;
 }
 
-var<workgroup> partial: array<array<f32, TERMS>, 256>;
+// One workgroup's scratch, used twice by `finish`: first the tile's window of half means (its
+// 16×16 pixels and a border of PROXY_RADIUS: WINDOW × WINDOW pixels, both halves, a vec4f
+// each), for the reference² proxy; then the TERMS sums of its 256 pixels, reduced.
+const WINDOW: u32 = TILE + 2u * u32(PROXY_RADIUS);
+var<workgroup> scratch: array<f32, 3584>;
+
+// Sets window pixel `k` (row-major, WINDOW a row) of half `h` to `v`.
+fn set_window(k: u32, h: u32, v: vec4f) {
+    let o = (2u * k + h) * 4u;
+    scratch[o] = v.x;
+    scratch[o + 1u] = v.y;
+    scratch[o + 2u] = v.z;
+    scratch[o + 3u] = v.w;
+}
+
+fn window(k: u32, h: u32) -> vec4f {
+    let o = (2u * k + h) * 4u;
+    return vec4f(scratch[o], scratch[o + 1u], scratch[o + 2u], scratch[o + 3u]);
+}
 
 // The candidate a set of pixels chooses from its relative sums (raw, à-trous, regression):
 // src/denoise/mod.rs, `choose`. 0 raw, 1 à-trous, 2 regression.
@@ -518,11 +523,39 @@ fn estimate_terms(fa: vec3f, fb: vec3f, x: vec3f, y: vec3f, scale: vec3f) -> vec
 @compute @workgroup_size(16, 16, 1)
 fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_index) lid: u32,
           @builtin(workgroup_id) wid: vec3u) {
+    // The tile's window of half means, read once for its 256 pixels' 3×3 proxies: outside
+    // the image a pixel has no samples, and counts for nothing (the host clips the window).
+    let r = u32(PROXY_RADIUS);
+    for (var k = lid; k < WINDOW * WINDOW; k += 256u) {
+        let x = i32(wid.x * TILE + k % WINDOW) - PROXY_RADIUS;
+        let y = i32(wid.y * TILE + k / WINDOW) - PROXY_RADIUS;
+        var a = vec4f(0.0);
+        var b = vec4f(0.0);
+        if x >= 0 && y >= 0 && x < i32(params.width) && y < i32(params.height) {
+            let q = u32(y) * params.width + u32(x);
+            a = half_mean(0u, q);
+            b = half_mean(1u, q);
+        }
+        set_window(k, 0u, a);
+        set_window(k, 1u, b);
+    }
+    workgroupBarrier();
+    let lx = lid % TILE;
+    let ly = lid / TILE;
+    var proxy = ProxySums();
+    for (var dy = 0u; dy <= 2u * r; dy++) {
+        for (var dx = 0u; dx <= 2u * r; dx++) {
+            let k = (ly + dy) * WINDOW + lx + dx;
+            proxy_add(&proxy, window(k, 0u), window(k, 1u));
+        }
+    }
+    let centre = (ly + r) * WINDOW + lx + r;
+    let e = window(centre, 0u);
+    let o = window(centre, 1u);
+    workgroupBarrier();
     var terms: array<f32, TERMS>;
     if gid.x < params.width && gid.y < params.height {
         let p = gid.y * params.width + gid.x;
-        let e = half_mean(0u, p);
-        let o = half_mean(1u, p);
         let m = modulation(p);
         let fa = vec3f(src[p * LAYER], src[p * LAYER + 1u], src[p * LAYER + 2u]) * m;
         let fb = vec3f(src[p * LAYER + 5u], src[p * LAYER + 6u], src[p * LAYER + 7u]) * m;
@@ -549,7 +582,7 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
         if k > 0.0 {
             let x = e.xyz;
             let y = o.xyz;
-            let scale = window_weight(gid.x, gid.y);
+            let scale = relative_weight(proxy);
             let r = (x - y) * (x - y) * k;
             let rr = dot(r * scale, vec3f(1.0));
             let ta = estimate_terms(fa, fb, x, y, scale);
@@ -560,12 +593,14 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
                                       tg.y * odd, odd);
         }
     }
-    partial[lid] = terms;
+    for (var t = 0u; t < TERMS; t++) {
+        scratch[lid * TERMS + t] = terms[t];
+    }
     workgroupBarrier();
     for (var s = 128u; s > 0u; s >>= 1u) {
         if lid < s {
             for (var t = 0u; t < TERMS; t++) {
-                partial[lid][t] += partial[lid + s][t];
+                scratch[lid * TERMS + t] += scratch[(lid + s) * TERMS + t];
             }
         }
         workgroupBarrier();
@@ -573,20 +608,20 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
     if lid == 0u {
         let tiles_x = (params.width + TILE - 1u) / TILE;
         let t = wid.y * tiles_x + wid.x;
-        let regression = partial[0][7] <= partial[0][4];
+        let regression = scratch[7] <= scratch[4];
         let f = select(3u, 6u, regression);
         let o = t * TILE_FLOATS;
-        tiles[o] = partial[0][0];
-        tiles[o + 1u] = partial[0][1];
-        tiles[o + 2u] = partial[0][2];
-        tiles[o + 3u] = partial[0][f];
-        tiles[o + 4u] = partial[0][f + 1u];
-        tiles[o + 5u] = partial[0][f + 2u];
-        tiles[o + 6u] = partial[0][9];
+        tiles[o] = scratch[0];
+        tiles[o + 1u] = scratch[1];
+        tiles[o + 2u] = scratch[2];
+        tiles[o + 3u] = scratch[f];
+        tiles[o + 4u] = scratch[f + 1u];
+        tiles[o + 5u] = scratch[f + 2u];
+        tiles[o + 6u] = scratch[9];
         tiles[o + 7u] = select(0.0, 1.0, regression);
-        let all = vec3f(partial[0][1], partial[0][4], partial[0][7]);
-        let odd = vec3f(partial[0][10], partial[0][11], partial[0][12]);
-        tiles[o + 8u] = cross_fitted(all, odd, partial[0][9], partial[0][13]);
+        let all = vec3f(scratch[1], scratch[4], scratch[7]);
+        let odd = vec3f(scratch[10], scratch[11], scratch[12]);
+        tiles[o + 8u] = cross_fitted(all, odd, scratch[9], scratch[13]);
     }
 }
 

@@ -5,8 +5,8 @@
 mod common;
 use common::*;
 use termtrace::common::Resolved;
-use termtrace::common::resolved::Doubt;
 use termtrace::common::accum::Sums;
+use termtrace::common::resolved::Doubt;
 use termtrace::gpu::resolve::ResolvePass;
 use termtrace::output::cells;
 use termtrace::render::{Backend, RenderOptions, Renderer};

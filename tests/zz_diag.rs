@@ -7,7 +7,9 @@ use termtrace::scene::Scene;
 #[test]
 fn diag() {
     let name = std::env::var("SCENE").unwrap_or("emissive".into());
-    let spp: u32 = std::env::var("SPP").map(|s| s.parse().unwrap()).unwrap_or(256);
+    let spp: u32 = std::env::var("SPP")
+        .map(|s| s.parse().unwrap())
+        .unwrap_or(256);
     let scene = Scene::load(&name).unwrap();
     let mut fs = settings(64, 36, scene.render.max_bounces.min(8));
     fs.seed = termtrace::converge::reference::REFERENCE_SEED;
@@ -32,10 +34,21 @@ fn diag() {
         }
         let tt: f64 = tile_true.iter().sum();
         let te: f64 = d.tile_shown.iter().sum();
-        eprintln!("run {run}: true {tt:.2} est {te:.2} ratio(rmse) {:.2}", (te / tt).sqrt());
+        eprintln!(
+            "run {run}: true {tt:.2} est {te:.2} ratio(rmse) {:.2}",
+            (te / tt).sqrt()
+        );
         for t in 0..d.tiles.len() {
-            eprintln!("  tile {t}: den {} reg {} | raw est {:.3} den est {:.3} shown xfit {:.3} | true shown {:.3} true raw {:.3}",
-                d.tiles[t], d.tile_regression[t], d.tile_raw[t].rel, d.tile_denoised[t].rel, d.tile_shown[t], tile_true[t], tile_true_raw[t]);
+            eprintln!(
+                "  tile {t}: den {} reg {} | raw est {:.3} den est {:.3} shown xfit {:.3} | true shown {:.3} true raw {:.3}",
+                d.tiles[t],
+                d.tile_regression[t],
+                d.tile_raw[t].rel,
+                d.tile_denoised[t].rel,
+                d.tile_shown[t],
+                tile_true[t],
+                tile_true_raw[t]
+            );
         }
     }
 }

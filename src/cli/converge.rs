@@ -321,13 +321,25 @@ fn print_results(
         }
     }
     // Table.
+    // The estimate beside the true relative RMSE, and their ratio: how far the status line's
+    // figure (or, for a denoised variant, the shown image's) is from the truth in this run.
     println!(
-        "{:<16} {:>4} {:>9} {:>7} {:>11} {:>11} {:>9} {:>11} {:>9}",
-        "variant", "run", "seconds", "spp", "RMSE", "relMSE", "rel RMSE", "MAE", "estimate"
+        "{:<16} {:>4} {:>9} {:>7} {:>11} {:>11} {:>9} {:>11} {:>9} {:>8}",
+        "variant",
+        "run",
+        "seconds",
+        "spp",
+        "RMSE",
+        "relMSE",
+        "rel RMSE",
+        "MAE",
+        "estimate",
+        "est÷true"
     );
     for c in rows {
+        let true_rel = c.errors.rel_rmse();
         println!(
-            "{:<16} {:>4} {:>9.3} {:>7} {:>11.4e} {:>11.4e} {:>8.3}% {:>11.4e} {:>8}",
+            "{:<16} {:>4} {:>9.3} {:>7} {:>11.4e} {:>11.4e} {:>8.3}% {:>11.4e} {:>8} {:>8}",
             c.label,
             c.run,
             c.seconds,
@@ -337,7 +349,10 @@ fn print_results(
             c.errors.rel_rmse() * 100.0,
             c.errors.mae,
             c.estimated_rel_rmse
-                .map_or("–".into(), |e| format!("{:.3}%", e * 100.0))
+                .map_or("–".into(), |e| format!("{:.3}%", e * 100.0)),
+            c.estimated_rel_rmse
+                .filter(|_| true_rel > 0.0)
+                .map_or("–".into(), |e| format!("{:.2}", e / true_rel))
         );
     }
     println!();

@@ -223,7 +223,10 @@ mod tests {
         // 100 pixels of equal terms: 100 effective pixels.
         assert_eq!(Doubt::of(Some(8.0), 100.0, 100.0), None);
         // One pixel holds it all: one effective pixel.
-        assert_eq!(Doubt::of(Some(8.0), 100.0, 10_000.0), Some(Doubt::FewPixels));
+        assert_eq!(
+            Doubt::of(Some(8.0), 100.0, 10_000.0),
+            Some(Doubt::FewPixels)
+        );
         // Three samples a half: rough whatever the pixels.
         assert_eq!(Doubt::of(Some(3.0), 100.0, 100.0), Some(Doubt::FewSamples));
         // An estimate of zero (an exact image) is not rough.

@@ -549,7 +549,10 @@ mod tests {
         assert_eq!(choose([1.0, 0.4, 0.5]), 1);
         assert_eq!(choose([0.4, 0.4, 0.5]), 0);
         // Both parities choose the regression: the estimate is the regression's sum.
-        assert_eq!(cross_fitted([4.0, 3.0, 2.0], [2.0, 1.5, 1.0], (8.0, 4.0)), 2.0);
+        assert_eq!(
+            cross_fitted([4.0, 3.0, 2.0], [2.0, 1.5, 1.0], (8.0, 4.0)),
+            2.0
+        );
         // The tile shows the regression (2.1 < 3.0). The even pixels chose it (1.0 against
         // raw 2.0), the odd ones the raw image (1.0 < 1.1): the regression is judged by the
         // odd pixels alone, 1.1 over 4 of the 8 pixels.
