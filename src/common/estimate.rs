@@ -72,8 +72,9 @@ pub fn relative_weights(even: &[[f32; 4]], odd: &[[f32; 4]], w: usize, h: usize)
             let (x, y) = (p % w, p / w);
             let mut sums = [[0.0f32; 4]; 2];
             for qy in y.saturating_sub(r)..(y + r + 1).min(h) {
-                for q in qy * w + x.saturating_sub(r)..qy * w + (x + r + 1).min(w) {
-                    for (k, m) in means[q].iter().enumerate() {
+                let row = qy * w;
+                for cell in &means[row + x.saturating_sub(r)..row + (x + r + 1).min(w)] {
+                    for (k, m) in cell.iter().enumerate() {
                         for c in 0..4 {
                             sums[k][c] += m[c];
                         }
