@@ -208,10 +208,38 @@ fn app() -> App {
         elapsed: std::time::Duration::from_millis(3400),
         noise: Some(0.0312),
         denoised: Some(termtrace::common::resolved::Estimate::Value(0.0087)),
+        doubt: None,
         invalid: 0,
         helped: 0,
     };
     a
+}
+
+#[test]
+fn a_rough_noise_figure_is_shown_rounded_with_why() {
+    // Fireflies holding the estimate: the status line shows no confident figure, but "~12%"
+    // and why; with few samples likewise; a sound estimate keeps its two decimals.
+    use termtrace::common::resolved::Doubt;
+    let text = |a: &App| -> String {
+        view::stats_line(a, 200)
+            .spans
+            .iter()
+            .map(|s| s.content.as_ref())
+            .collect()
+    };
+    let mut a = app();
+    a.stats.noise = Some(0.1234);
+    a.stats.denoised = None;
+    assert!(text(&a).contains("noise 12.34%"), "{}", text(&a));
+    a.stats.doubt = Some(Doubt::FewPixels);
+    assert!(text(&a).contains("noise ~12% (fireflies)"), "{}", text(&a));
+    a.stats.doubt = Some(Doubt::FewSamples);
+    a.stats.denoised = Some(termtrace::common::resolved::Estimate::Value(0.0087));
+    assert!(
+        text(&a).contains("noise ~12% (few samples) → 0.87%"),
+        "{}",
+        text(&a)
+    );
 }
 
 /// A grid with a gradient, so the snapshot shows where the image goes.
