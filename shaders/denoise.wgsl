@@ -22,11 +22,13 @@ const LAYER: u32 = 10u;
 const DEMOD: u32 = 12u;
 const IMAGES: u32 = 9u;
 // src/denoise/mod.rs: TILE_FLOATS.
-const TILE_FLOATS: u32 = 9u;
+const TILE_FLOATS: u32 = 10u;
 // Terms summed per tile in `finish`: raw, à-trous and regression (mse, rel, rel²) each, the
-// pixels, and the relative terms of the raw image and both filters over the odd pixels, and
-// those pixels.
-const TERMS: u32 = 14u;
+// pixels; the relative terms of the raw image and both filters over the odd pixels, and
+// those pixels; the choice's relative terms of the three (src/common/estimate.rs,
+// `choice_weight`), over all pixels and over the odd ones. Reduced CHUNK at a time.
+const TERMS: u32 = 20u;
+const CHUNK: u32 = 10u;
 // The regression (src/denoise/regress.rs): window radius, spatial sigma, luminance sigma and
 // epsilon, the least weight of a tap, and the ridge.
 const REGRESS_RADIUS: i32 = 2;
@@ -58,8 +60,9 @@ const RIDGE: f32 = 1e-3;
 // (`settle` writes it, `regress` reads it).
 @group(0) @binding(8) var<storage, read_write> images: array<f32>;
 // Per tile, TILE_FLOATS floats: raw (mse, rel, rel²), denoised (mse, rel, rel², of the filter
-// chosen), pixels, 1 where the regression is chosen (0: the à-trous filter), and the shown
-// image's relative sum, cross-fitted (`cross_fitted`).
+// chosen), pixels, 1 where the regression is chosen (0: the à-trous filter), the shown
+// image's relative sum, cross-fitted (`cross_fitted`), and 1 where the denoised image is
+// shown.
 @group(0) @binding(9) var<storage, read_write> tiles: array<f32>;
 // Per output pixel: r, g, b (12 bytes: the preview at 960×608 reads back 7 MB, not the 19
 // of resolve.wgsl's two vec4f).
@@ -468,9 +471,10 @@ fn regress(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_
 
 // One workgroup's scratch, used twice by `finish`: first the tile's window of half means (its
 // 16×16 pixels and a border of PROXY_RADIUS: WINDOW × WINDOW pixels, both halves, a vec4f
-// each), for the reference² proxy; then the TERMS sums of its 256 pixels, reduced.
+// each: 2592 floats), for the reference² proxy; then CHUNK of the TERMS sums of its 256
+// pixels at a time, reduced (2560).
 const WINDOW: u32 = TILE + 2u * u32(PROXY_RADIUS);
-var<workgroup> scratch: array<f32, 3584>;
+var<workgroup> scratch: array<f32, 2592>;
 
 // Sets window pixel `k` (row-major, WINDOW a row) of half `h` to `v`.
 fn set_window(k: u32, h: u32, v: vec4f) {
@@ -494,12 +498,13 @@ fn choose(rel: vec3f) -> u32 {
 }
 
 // The shown tile's relative sum, cross-fitted: src/denoise/mod.rs, `cross_fitted`, says why.
-fn cross_fitted(all: vec3f, odd: vec3f, pixels: f32, odd_pixels: f32) -> f32 {
+fn cross_fitted(all: vec3f, odd: vec3f, choice_all: vec3f, choice_odd: vec3f, pixels: f32,
+                odd_pixels: f32) -> f32 {
     let even = all - odd;
     let even_pixels = pixels - odd_pixels;
-    let shown = choose(all);
-    let by_even = choose(even);
-    let by_odd = choose(odd);
+    let shown = choose(choice_all);
+    let by_even = choose(choice_all - choice_odd);
+    let by_odd = choose(choice_odd);
     if by_even == shown && by_odd != shown && odd_pixels > 0.0 {
         return odd[shown] * pixels / odd_pixels;
     }
@@ -588,46 +593,62 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
             let ta = estimate_terms(fa, fb, x, y, scale);
             let tg = estimate_terms(ga, gb, x, y, scale);
             let odd = select(0.0, 1.0, ((gid.x + gid.y) & 1u) == 1u);
+            // The choice's sums (src/common/estimate.rs, `choice_weight`).
+            let cw = 1.0 / (max(x * y, vec3f(0.0)) + REL_MSE_EPSILON);
+            let cr = dot(r * cw, vec3f(1.0));
+            let ca = estimate_terms(fa, fb, x, y, cw).y;
+            let cg = estimate_terms(ga, gb, x, y, cw).y;
             terms = array<f32, TERMS>(r.x + r.y + r.z, rr, rr * rr, ta.x, ta.y, ta.y * ta.y,
                                       tg.x, tg.y, tg.y * tg.y, 1.0, rr * odd, ta.y * odd,
-                                      tg.y * odd, odd);
+                                      tg.y * odd, odd, cr, ca, cg, cr * odd, ca * odd,
+                                      cg * odd);
         }
     }
-    for (var t = 0u; t < TERMS; t++) {
-        scratch[lid * TERMS + t] = terms[t];
-    }
-    workgroupBarrier();
-    for (var s = 128u; s > 0u; s >>= 1u) {
-        if lid < s {
-            for (var t = 0u; t < TERMS; t++) {
-                scratch[lid * TERMS + t] += scratch[(lid + s) * TERMS + t];
+    // The tile's sums, CHUNK terms at a time through the scratch.
+    var total: array<f32, TERMS>;
+    for (var c = 0u; c < TERMS; c += CHUNK) {
+        for (var t = 0u; t < CHUNK; t++) {
+            scratch[lid * CHUNK + t] = terms[c + t];
+        }
+        workgroupBarrier();
+        for (var s = 128u; s > 0u; s >>= 1u) {
+            if lid < s {
+                for (var t = 0u; t < CHUNK; t++) {
+                    scratch[lid * CHUNK + t] += scratch[(lid + s) * CHUNK + t];
+                }
             }
+            workgroupBarrier();
+        }
+        for (var t = 0u; t < CHUNK; t++) {
+            total[c + t] = scratch[t];
         }
         workgroupBarrier();
     }
     if lid == 0u {
         let tiles_x = (params.width + TILE - 1u) / TILE;
         let t = wid.y * tiles_x + wid.x;
-        let regression = scratch[7] <= scratch[4];
+        let choice_all = vec3f(total[14], total[15], total[16]);
+        let choice_odd = vec3f(total[17], total[18], total[19]);
+        let regression = total[16] <= total[15];
         let f = select(3u, 6u, regression);
         let o = t * TILE_FLOATS;
-        tiles[o] = scratch[0];
-        tiles[o + 1u] = scratch[1];
-        tiles[o + 2u] = scratch[2];
-        tiles[o + 3u] = scratch[f];
-        tiles[o + 4u] = scratch[f + 1u];
-        tiles[o + 5u] = scratch[f + 2u];
-        tiles[o + 6u] = scratch[9];
+        tiles[o] = total[0];
+        tiles[o + 1u] = total[1];
+        tiles[o + 2u] = total[2];
+        tiles[o + 3u] = total[f];
+        tiles[o + 4u] = total[f + 1u];
+        tiles[o + 5u] = total[f + 2u];
+        tiles[o + 6u] = total[9];
         tiles[o + 7u] = select(0.0, 1.0, regression);
-        let all = vec3f(scratch[1], scratch[4], scratch[7]);
-        let odd = vec3f(scratch[10], scratch[11], scratch[12]);
-        tiles[o + 8u] = cross_fitted(all, odd, scratch[9], scratch[13]);
+        let all = vec3f(total[1], total[4], total[7]);
+        let odd = vec3f(total[10], total[11], total[12]);
+        tiles[o + 8u] = cross_fitted(all, odd, choice_all, choice_odd, total[9], total[13]);
+        tiles[o + 9u] = select(0.0, 1.0, choose(choice_all) != 0u);
     }
 }
 
 // One invocation per output pixel: the mean of its factor × factor block of the shown
-// image (per tile the denoised one, of the filter chosen there, where its estimate is below
-// the raw one's).
+// image (per tile the denoised one, of the filter chosen there, where `finish` chose it).
 @compute @workgroup_size(8, 8, 1)
 fn compose(@builtin(global_invocation_id) gid: vec3u) {
     if gid.x >= params.out_width || gid.y >= params.out_height {
@@ -641,7 +662,7 @@ fn compose(@builtin(global_invocation_id) gid: vec3u) {
             let y = gid.y * params.factor + dy;
             let p = y * params.width + x;
             let t = (y / TILE) * tiles_x + x / TILE;
-            let denoised = tiles[t * TILE_FLOATS + 4u] < tiles[t * TILE_FLOATS + 1u];
+            let denoised = tiles[t * TILE_FLOATS + 9u] > 0.5;
             let chosen = select(3u, 6u, tiles[t * TILE_FLOATS + 7u] > 0.5);
             let i = p * IMAGES + select(0u, chosen, denoised);
             rgb += vec3f(images[i], images[i + 1u], images[i + 2u]);

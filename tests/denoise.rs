@@ -328,14 +328,15 @@ fn the_error_estimate_is_unbiased_on_noise_of_known_variance() {
     // (known here), for the raw image (absolute: exactly unbiased; relative) and for the
     // image shown (relative, per tile the raw image or a filter's, cross-fitted:
     // `denoise::cross_fitted`). The mean difference must be within 3 standard errors of zero
-    // plus, for the relative figures, 5 % of the truth: their reference² proxy, the smaller
-    // of two noisy 3×3 means, is biased low (here about 1.5 % per pixel of noise, 3 % on its
-    // square: `common::estimate`). The test must be able to see a bias of 12 % (a standard
-    // error under 4 % of the true error). Measured: raw +4.1 % (the proxy), shown −5.4 %.
-    // Without the cross-fitting the shown image's came out 14.7 % low at 16 standard errors
-    // (the per-tile choice of the lowest of three noisy estimates). What is left is the
-    // à-trous filter's own: forced on every tile its estimate is 14 % low, the regression's
-    // 3 % high (src/denoise/mod.rs, "The estimator", names its dependence on B).
+    // plus, for the relative figures, 5 % of the truth: their reference² proxy, made from
+    // the smaller of two noisy 3×3 means, is biased low (a few per cent here:
+    // `common::estimate`). The test must be able to see a bias of 12 % (a standard
+    // error under 4 % of the true error). Measured: raw +2.4 % (the proxy), shown −3.1 %.
+    // With the chosen tile's own estimate instead of the cross-fitted one, the shown image's
+    // came out 14.7 % low at 16 standard errors (the per-tile choice of the lowest of three
+    // noisy estimates). What is left is the à-trous filter's own: forced on every tile its
+    // estimate is 14 % low, the regression's 3 % high (src/denoise/mod.rs, "The estimator",
+    // names its dependence on B).
     let s = Synthetic::scene(192, 128, true);
     let mut rng = Normal(12345);
     let names = ["shown, relative", "raw, relative", "raw"];

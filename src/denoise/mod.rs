@@ -36,7 +36,7 @@
 pub mod atrous;
 pub mod regress;
 
-use crate::common::estimate::{half_mean, pair_factor, relative_weights};
+use crate::common::estimate::{choice_weight, half_mean, pair_factor, relative_weights};
 use crate::common::resolved::{Doubt, Estimate};
 use crate::common::{Guides, Resolved};
 use crate::output::LinearImage;
@@ -142,23 +142,17 @@ pub struct Denoised {
 }
 
 impl Denoised {
-    /// A frame from its images and its tiles' estimates; each tile shows the denoised image
-    /// where its estimated relative squared error is strictly below the raw image's (the
-    /// rule shaders/denoise.wgsl's `compose` applies in f32, whose order f64 keeps).
+    /// A frame from its images, its tiles' choices ([`choose`]: whether the denoised image is
+    /// shown, and whether it is the regression's) and their estimates.
     fn new(
         (width, height): (u32, u32),
         raw: Vec<[f32; 3]>,
         denoised: Vec<[f32; 3]>,
         tiles_x: usize,
-        tile_regression: Vec<bool>,
+        (tiles, tile_regression): (Vec<bool>, Vec<bool>),
         (tile_raw, tile_denoised): (Vec<Sums>, Vec<Sums>),
         tile_shown: Vec<f64>,
     ) -> Denoised {
-        let tiles = tile_raw
-            .iter()
-            .zip(&tile_denoised)
-            .map(|(r, d)| d.rel < r.rel)
-            .collect();
         Denoised {
             width,
             height,
@@ -294,13 +288,13 @@ impl Denoised {
 }
 
 /// Floats per tile of a backend's denoiser pass (see [`DenoisedTiles`]).
-pub const TILE_FLOATS: usize = 9;
+pub const TILE_FLOATS: usize = 10;
 
 /// What a backend's denoiser pass brings back (the GPU's, `gpu::denoise`): per output pixel
 /// its colour, per tile (row-major, `tiles_x` a row) the estimate's sums (raw mse, rel, rel²,
 /// denoised mse, rel, rel², pixels, 1 where the regression's image is the denoised one, 0
-/// where the à-trous filter's is, and the shown image's cross-fitted relative sum), and the
-/// samples discarded as invalid so far.
+/// where the à-trous filter's is, the shown image's cross-fitted relative sum, and 1 where
+/// the denoised image is shown), and the samples discarded as invalid so far.
 pub struct DenoisedTiles {
     pub out: (u32, u32),
     pub blocks: Vec<[f32; 3]>,
@@ -323,7 +317,10 @@ pub fn from_tiles(g: DenoisedTiles, (width, height): (u32, u32), factor: u32) ->
         Vec::new(),
         Vec::new(),
         g.tiles_x as usize,
-        g.tiles.iter().map(|t| t[7] > 0.5).collect(),
+        (
+            g.tiles.iter().map(|t| t[9] > 0.5).collect(),
+            g.tiles.iter().map(|t| t[7] > 0.5).collect(),
+        ),
         (
             g.tiles.iter().map(|t| sums(t, 0)).collect(),
             g.tiles.iter().map(|t| sums(t, 3)).collect(),
@@ -402,8 +399,10 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
     let mut tile_filters = [tile_raw.clone(), tile_raw.clone()];
     // Per tile, the relative sums of the raw image, the à-trous filter's and the
     // regression's over the pixels of odd parity (x + y odd), and those pixels: the
-    // cross-fitted estimate.
+    // cross-fitted estimate. And the choice's sums ([`choice_weight`]), over all pixels and
+    // over the odd ones.
     let mut tile_odd = vec![[0.0f64; 4]; tiles_x * tiles_y];
+    let mut tile_choice = vec![[[0.0f64; 3]; 2]; tiles_x * tiles_y];
     let filters = [(&fa, &fb), (&ra, &rb)];
     let weights = relative_weights(even, odd, w, h);
     for p in 0..w * h {
@@ -412,10 +411,13 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
             continue;
         };
         let (mut pixel_r, mut pixel_d) = (0.0, [0.0; 2]);
+        let mut pixel_choice = [0.0; 3];
         for c in 0..3 {
             let (x, y) = (a[p][c] as f64, b[p][c] as f64);
             let scale = weights[p][c] as f64;
+            let choice = choice_weight(x, y);
             let r = (x - y).powi(2) * k;
+            pixel_choice[0] += r * choice;
             tile_raw[t].add(Sums {
                 mse: r,
                 rel: r * scale,
@@ -433,9 +435,17 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
                     ..Sums::default()
                 });
                 pixel_d[f] += e * scale;
+                pixel_choice[1 + f] += e * choice;
             }
         }
-        if (p % w + p / w) % 2 == 1 {
+        let odd_pixel = (p % w + p / w) % 2 == 1;
+        for (i, v) in pixel_choice.into_iter().enumerate() {
+            tile_choice[t][0][i] += v;
+            if odd_pixel {
+                tile_choice[t][1][i] += v;
+            }
+        }
+        if odd_pixel {
             tile_odd[t] = [
                 tile_odd[t][0] + pixel_r,
                 tile_odd[t][1] + pixel_d[0],
@@ -450,12 +460,10 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
             tile_filters[f][t].pixels += 1.0;
         }
     }
-    // Per tile the filter estimated better (the regression on a tie, as the GPU's `finish`).
-    let regression: Vec<bool> = tile_filters[1]
-        .iter()
-        .zip(&tile_filters[0])
-        .map(|(r, a)| r.rel <= a.rel)
-        .collect();
+    // Per tile the image chosen (as the GPU's `finish`).
+    let chosen: Vec<usize> = tile_choice.iter().map(|c| choose(c[0])).collect();
+    // The filter estimated better (the regression on a tie), shown where `chosen` is not 0.
+    let regression: Vec<bool> = tile_choice.iter().map(|c| c[0][2] <= c[0][1]).collect();
     let tile_denoised = (0..tiles_x * tiles_y)
         .map(|t| tile_filters[usize::from(regression[t])][t])
         .collect();
@@ -467,7 +475,7 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
                 tile_filters[1][t].rel,
             ];
             let [r, at, g, n] = tile_odd[t];
-            cross_fitted(all, [r, at, g], (tile_raw[t].pixels, n))
+            cross_fitted((all, [r, at, g]), tile_choice[t], (tile_raw[t].pixels, n))
         })
         .collect();
     let denoised: Vec<[f32; 3]> = (0..w * h)
@@ -481,7 +489,7 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
         raw,
         denoised,
         tiles_x,
-        regression,
+        (chosen.iter().map(|&c| c != 0).collect(), regression),
         (tile_raw, tile_denoised),
         tile_shown,
     )
@@ -498,7 +506,8 @@ pub fn choose(rel: [f64; 3]) -> usize {
 
 /// The shown tile's estimated relative squared error, cross-fitted. `all` holds the tile's
 /// relative sums `[raw, à-trous, regression]`, `odd` those over its pixels of odd parity (x +
-/// y odd), and `pixels` the tile's pixels and its odd ones.
+/// y odd); `choice` the same two made with the choice's weights ([`choice_weight`]: the tile
+/// and each parity choose by them), and `pixels` the tile's pixels and its odd ones.
 ///
 /// The tile shows the choice of all its pixels, the lowest of three noisy estimates, and that
 /// estimate is biased low (the minimum of noisy estimates is below the minimum of their
@@ -516,10 +525,15 @@ pub fn choose(rel: [f64; 3]) -> usize {
 /// differed. That estimates an image the tile does not show, and where one candidate's error
 /// sits in a few pixels (a filter smearing an emitter's edge) it read 40 for a raw tile whose
 /// true error was 0.4.
-pub fn cross_fitted(all: [f64; 3], odd: [f64; 3], (pixels, odd_pixels): (f64, f64)) -> f64 {
+pub fn cross_fitted(
+    (all, odd): ([f64; 3], [f64; 3]),
+    [choice_all, choice_odd]: [[f64; 3]; 2],
+    (pixels, odd_pixels): (f64, f64),
+) -> f64 {
     let even: [f64; 3] = std::array::from_fn(|i| all[i] - odd[i]);
+    let choice_even: [f64; 3] = std::array::from_fn(|i| choice_all[i] - choice_odd[i]);
     let even_pixels = pixels - odd_pixels;
-    let (shown, by_even, by_odd) = (choose(all), choose(even), choose(odd));
+    let (shown, by_even, by_odd) = (choose(choice_all), choose(choice_even), choose(choice_odd));
     if by_even == shown && by_odd != shown && odd_pixels > 0.0 {
         odd[shown] * pixels / odd_pixels
     } else if by_odd == shown && by_even != shown && even_pixels > 0.0 {
@@ -549,23 +563,25 @@ mod tests {
         assert_eq!(choose([1.0, 0.4, 0.5]), 1);
         assert_eq!(choose([0.4, 0.4, 0.5]), 0);
         // Both parities choose the regression: the estimate is the regression's sum.
-        assert_eq!(
-            cross_fitted([4.0, 3.0, 2.0], [2.0, 1.5, 1.0], (8.0, 4.0)),
-            2.0
-        );
+        let same = |all: [f64; 3], odd: [f64; 3]| cross_fitted((all, odd), [all, odd], (8.0, 4.0));
+        assert_eq!(same([4.0, 3.0, 2.0], [2.0, 1.5, 1.0]), 2.0);
         // The tile shows the regression (2.1 < 3.0). The even pixels chose it (1.0 against
         // raw 2.0), the odd ones the raw image (1.0 < 1.1): the regression is judged by the
         // odd pixels alone, 1.1 over 4 of the 8 pixels.
-        assert_eq!(
-            cross_fitted([3.0, 4.0, 2.1], [1.0, 2.0, 1.1], (8.0, 4.0)),
-            2.2
-        );
+        assert_eq!(same([3.0, 4.0, 2.1], [1.0, 2.0, 1.1]), 2.2);
         // An emitter's edge smeared by a filter in the even pixels: they keep the raw image,
         // the odd ones (whose filter sums are low) choose the filter; the raw image shown is
         // judged by the odd pixels, not the filter by the even ones.
+        assert_eq!(same([0.3, 37.0, 38.0], [0.15, -0.1, 0.0]), 0.3);
+        // Chosen by other sums than those estimated: both parities choose the regression by
+        // the choice's sums, and the estimate is the regression's estimated sum.
         assert_eq!(
-            cross_fitted([0.3, 37.0, 38.0], [0.15, -0.1, 0.0], (8.0, 4.0)),
-            0.3
+            cross_fitted(
+                ([1.0, 2.0, 3.0], [0.5, 1.0, 1.5]),
+                [[4.0, 3.0, 2.0], [2.0, 1.5, 1.0]],
+                (8.0, 4.0)
+            ),
+            3.0
         );
     }
 }
