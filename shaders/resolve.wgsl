@@ -38,12 +38,7 @@ fn load(buf: u32, pixel: u32) -> Fixed {
 
 // A half's mean (0 without samples) and its sample count (common/estimate.wgsl reads it).
 fn half_mean(buf: u32, pixel: u32) -> vec4f {
-    let f = load(buf, pixel);
-    let n = f32(f.samples);
-    if n > 0.0 {
-        return vec4f(fixed_value(f) / n, n);
-    }
-    return vec4f(0.0);
+    return fixed_mean(load(buf, pixel));
 }
 
 // The relative MSE's weight of traced pixel (x, y) (common/estimate.wgsl).

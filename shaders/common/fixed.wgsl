@@ -67,3 +67,13 @@ fn fixed_zero() -> Fixed {
 fn fixed_value(f: Fixed) -> vec3f {
     return vec3f(f.high) * 4294967296.0 + vec3f(f.low) + vec3f(f.frac) * (1.0 / 4294967296.0);
 }
+
+// A half's mean (0 without samples) and its sample count (common/estimate.wgsl's terms read
+// it).
+fn fixed_mean(f: Fixed) -> vec4f {
+    let n = f32(f.samples);
+    if n > 0.0 {
+        return vec4f(fixed_value(f) / n, n);
+    }
+    return vec4f(0.0);
+}
