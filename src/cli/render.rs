@@ -67,6 +67,9 @@ pub struct RenderArgs {
 /// and (more often) to stop at a target error.
 const ESTIMATE_EVERY: Duration = Duration::from_secs(2);
 const TARGET_CHECK_EVERY: Duration = Duration::from_millis(500);
+/// Samples per pixel of a target error's first stage: two in each half, the fewest that give
+/// an estimate.
+const TARGET_FIRST_SPP: u32 = 4;
 
 fn positive_seconds(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
@@ -124,7 +127,14 @@ pub fn run(mut a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         (None, Some(_), None) => u32::MAX,
         (None, _, s) => s.unwrap_or(scene.render.spp),
     };
-    let team = Team::new(&backends, &scene, settings, options, 0..spp);
+    // With a target error the samples are claimed in stages (`accumulate`), the first of
+    // TARGET_FIRST_SPP.
+    let first_end = if a.target_error.is_some() {
+        spp.min(TARGET_FIRST_SPP)
+    } else {
+        spp
+    };
+    let team = Team::new(&backends, &scene, settings, options, 0..first_end);
     install_ctrlc();
     if !a.quiet {
         announce(&a, &scene, settings, spp, &team);
@@ -240,56 +250,129 @@ fn accumulate(
         settings.width,
         settings.height
     ));
-    let mut interrupted = false;
-    let mut noise: Option<f64> = None;
-    let mut reached = false;
-    let mut last_estimate = Instant::now();
+    let mut state = StageState {
+        noise: None,
+        last_estimate: Instant::now(),
+        reached: false,
+        interrupted: false,
+    };
     let every = if a.target_error.is_some() {
         TARGET_CHECK_EVERY
     } else {
         ESTIMATE_EVERY
     };
-    team.run(
-        Duration::from_millis(250),
-        time_limit.map(|t| start + t),
-        |team| {
-            let rate = team.paths() as f64 / start.elapsed().as_secs_f64().max(1e-9);
-            if last_estimate.elapsed() >= every {
-                noise = team.snapshot().noise_estimate();
-                last_estimate = Instant::now();
-                if let (Some(n), Some(target)) = (noise, a.target_error)
-                    && n <= target
-                {
-                    reached = true;
-                }
+    let deadline = time_limit.map(|t| start + t);
+    // With a target error, in stages: each stage's samples are traced to the end, the error
+    // is estimated, and the next stage ends where the estimate, falling as 1/√n, would reach
+    // the target (at least one sample more, at most twice the samples). A check by the clock
+    // alone stopped far past the target on a small image: 500 ms of samples at 96×54 took
+    // `basic` to 0.04 of a 5 % target (BENCHMARKS.md, "An honest error estimate").
+    let mut end = if a.target_error.is_some() {
+        spp.min(TARGET_FIRST_SPP)
+    } else {
+        spp
+    };
+    loop {
+        run_stage(
+            a,
+            team,
+            start,
+            (time_limit, deadline, spp),
+            &pb,
+            every,
+            &mut state,
+        );
+        let Some(target) = a.target_error else {
+            break;
+        };
+        if state.reached || state.interrupted || deadline.is_some_and(|d| Instant::now() >= d) {
+            break;
+        }
+        let traced = team.samples().min(u32::MAX as u64) as u32;
+        if traced < end {
+            break; // every device failed or stopped short
+        }
+        state.noise = team.snapshot().noise_estimate();
+        state.last_estimate = Instant::now();
+        match state.noise {
+            Some(n) if n <= target => {
+                state.reached = true;
+                break;
             }
-            let noise_text = noise.map_or(String::new(), |n| format!("  noise {:.2}%", n * 100.0));
-            let samples = team.samples();
-            match time_limit {
-                Some(t) => {
-                    pb.set_message(format!("{samples} spp  {}{noise_text}", rate_text(rate)));
-                    pb.set_position(start.elapsed().min(t).as_millis() as u64);
-                }
-                None if spp == u32::MAX => {
-                    pb.set_message(format!("{samples} spp  {}{noise_text}", rate_text(rate)));
-                }
-                None => {
-                    pb.set_message(format!("{}{noise_text}", rate_text(rate)));
-                    pb.set_position(samples);
-                }
+            _ if end >= spp => break,
+            Some(n) => {
+                let want = (end as f64 * (n / target).powi(2)).ceil();
+                end = (want.min(2.0 * end as f64) as u32).max(end + 1).min(spp);
             }
-            interrupted = INTERRUPTED.load(Ordering::SeqCst);
-            !reached && !interrupted
-        },
-    );
+            None => end = (2 * end).min(spp),
+        }
+        team.extend(end);
+    }
     pb.finish_and_clear();
-    if interrupted {
+    if state.interrupted {
         Ended::Interrupted
-    } else if reached {
+    } else if state.reached {
         Ended::Reached
     } else {
         Ended::Done
     }
+}
+
+/// What `accumulate`'s stages share: the last estimate and when it was made, and how the
+/// render ended.
+struct StageState {
+    noise: Option<f64>,
+    last_estimate: Instant,
+    reached: bool,
+    interrupted: bool,
+}
+
+/// Traces until the team's claimed samples are traced, the deadline passes, the target error
+/// is reached or Ctrl-C, showing progress.
+fn run_stage(
+    a: &RenderArgs,
+    team: &Team,
+    start: Instant,
+    (time_limit, deadline, spp): (Option<Duration>, Option<Instant>, u32),
+    pb: &indicatif::ProgressBar,
+    every: Duration,
+    state: &mut StageState,
+) {
+    let StageState {
+        noise,
+        last_estimate,
+        reached,
+        interrupted,
+    } = state;
+    team.run(Duration::from_millis(250), deadline, |team| {
+        let rate = team.paths() as f64 / start.elapsed().as_secs_f64().max(1e-9);
+        if last_estimate.elapsed() >= every {
+            *noise = team.snapshot().noise_estimate();
+            *last_estimate = Instant::now();
+            if let (Some(n), Some(target)) = (*noise, a.target_error)
+                && n <= target
+            {
+                *reached = true;
+            }
+        }
+        let noise_text = noise.map_or(String::new(), |n| format!("  noise {:.2}%", n * 100.0));
+        let samples = team.samples();
+        match time_limit {
+            Some(t) => {
+                pb.set_message(format!("{samples} spp  {}{noise_text}", rate_text(rate)));
+                pb.set_position(start.elapsed().min(t).as_millis() as u64);
+            }
+            None if spp == u32::MAX => {
+                pb.set_message(format!("{samples} spp  {}{noise_text}", rate_text(rate)));
+            }
+            None => {
+                pb.set_message(format!("{}{noise_text}", rate_text(rate)));
+                pb.set_position(samples);
+            }
+        }
+        *interrupted = INTERRUPTED.load(Ordering::SeqCst);
+        !*reached && !*interrupted
+    });
 }
 
 /// The denoised image, the side images written beside `out` (raw, albedo, normal) and the
