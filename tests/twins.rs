@@ -39,8 +39,10 @@ const TWINS: &[Twin] = &[
         wgsl: "shaders/common/fixed.wgsl",
         rust: "src/cpu/fixed.rs",
         prefix: "fixed_",
-        // WGSL passes values; the host's type has methods over the words.
-        wgsl_only: &["from_words", "to_words", "value", "zero"],
+        // WGSL passes values; the host's type has methods over the words. `mean`: a half's
+        // mean for the passes that read the accumulation (resolve, denoise); the host's is
+        // `common::estimate::half_mean`, over decoded sums.
+        wgsl_only: &["from_words", "to_words", "value", "zero", "mean"],
         rust_only: &["load", "store"],
     },
     Twin {
