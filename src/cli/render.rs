@@ -71,6 +71,16 @@ const TARGET_CHECK_EVERY: Duration = Duration::from_millis(500);
 /// an estimate.
 const TARGET_FIRST_SPP: u32 = 4;
 
+/// Where the team's first claims end: with a target error the samples are claimed in stages
+/// (`accumulate`), the first of TARGET_FIRST_SPP; else all `spp` at once.
+fn first_end(a: &RenderArgs, spp: u32) -> u32 {
+    if a.target_error.is_some() {
+        spp.min(TARGET_FIRST_SPP)
+    } else {
+        spp
+    }
+}
+
 fn positive_seconds(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
         Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
@@ -127,14 +137,7 @@ pub fn run(mut a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         (None, Some(_), None) => u32::MAX,
         (None, _, s) => s.unwrap_or(scene.render.spp),
     };
-    // With a target error the samples are claimed in stages (`accumulate`), the first of
-    // TARGET_FIRST_SPP.
-    let first_end = if a.target_error.is_some() {
-        spp.min(TARGET_FIRST_SPP)
-    } else {
-        spp
-    };
-    let team = Team::new(&backends, &scene, settings, options, 0..first_end);
+    let team = Team::new(&backends, &scene, settings, options, 0..first_end(&a, spp));
     install_ctrlc();
     if !a.quiet {
         announce(&a, &scene, settings, spp, &team);
@@ -267,11 +270,7 @@ fn accumulate(
     // the target (at least one sample more, at most twice the samples). A check by the clock
     // alone stopped far past the target on a small image: 500 ms of samples at 96×54 took
     // `basic` to 0.04 of a 5 % target (BENCHMARKS.md, "An honest error estimate").
-    let mut end = if a.target_error.is_some() {
-        spp.min(TARGET_FIRST_SPP)
-    } else {
-        spp
-    };
+    let mut end = first_end(a, spp);
     loop {
         run_stage(
             a,
