@@ -211,8 +211,24 @@ fn app() -> App {
         doubt: None,
         invalid: 0,
         helped: 0,
+        reached: false,
     };
     a
+}
+
+#[test]
+fn a_reached_target_error_is_said_on_the_status_line() {
+    let text = |a: &App| -> String {
+        view::stats_line(a, 200)
+            .spans
+            .iter()
+            .map(|s| s.content.to_string())
+            .collect()
+    };
+    let mut a = app();
+    assert!(!text(&a).contains("target reached"), "{}", text(&a));
+    a.stats.reached = true;
+    assert!(text(&a).contains("target reached"), "{}", text(&a));
 }
 
 #[test]

@@ -78,6 +78,11 @@ pub struct ViewArgs {
     /// The preview stops accumulating (and leaves the GPU idle) at this many samples per pixel.
     #[arg(long, default_value_t = 16384, value_parser = clap::value_parser!(u32).range(1..))]
     pub max_spp: u32,
+    /// Stop accumulating where the estimated relative RMSE reaches this (0.05 = 5 %; at most
+    /// --max-spp): samples are traced in stages aimed at it, as `render --target-error`
+    /// does, and the status line says `target reached`. Every edit starts over.
+    #[arg(long, value_name = "E", value_parser = positive)]
+    pub target_error: Option<f64>,
     /// A cell whose colour moved by at most this much (0-255 per channel) is not resent.
     #[arg(long, default_value_t = 2)]
     pub threshold: u8,
@@ -227,6 +232,7 @@ fn view(a: ViewArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         max_kbps: a.max_kbps,
         supersample: a.ss,
         max_spp: a.max_spp,
+        target_error: a.target_error,
         threshold: a.threshold,
         generic: a.generic,
         denoise: a.denoise,

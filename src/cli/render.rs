@@ -6,6 +6,7 @@ use crate::common::FrameSettings;
 use crate::output::{ImageFile, LinearImage, check_writable, write_exr, write_png};
 use crate::render::Backend;
 use crate::render::RenderOptions;
+use crate::render::stages;
 use crate::render::team::Team;
 use crate::scene::load_scene;
 use anyhow::Context;
@@ -67,15 +68,11 @@ pub struct RenderArgs {
 /// and (more often) to stop at a target error.
 const ESTIMATE_EVERY: Duration = Duration::from_secs(2);
 const TARGET_CHECK_EVERY: Duration = Duration::from_millis(500);
-/// Samples per pixel of a target error's first stage: two in each half, the fewest that give
-/// an estimate.
-const TARGET_FIRST_SPP: u32 = 4;
-
 /// Where the team's first claims end: with a target error the samples are claimed in stages
-/// (`accumulate`), the first of TARGET_FIRST_SPP; else all `spp` at once.
+/// (`accumulate`, `render::stages`); else all `spp` at once.
 fn first_end(a: &RenderArgs, spp: u32) -> u32 {
     if a.target_error.is_some() {
-        spp.min(TARGET_FIRST_SPP)
+        stages::first_end(spp)
     } else {
         spp
     }
@@ -265,11 +262,8 @@ fn accumulate(
         ESTIMATE_EVERY
     };
     let deadline = time_limit.map(|t| start + t);
-    // With a target error, in stages: each stage's samples are traced to the end, the error
-    // is estimated, and the next stage ends where the estimate, falling as 1/√n, would reach
-    // the target (at least one sample more, at most twice the samples). A check by the clock
-    // alone stopped far past the target on a small image: 500 ms of samples at 96×54 took
-    // `basic` to 0.04 of a 5 % target (BENCHMARKS.md, "An honest error estimate").
+    // With a target error, in stages (`render::stages`): each stage's samples are traced to
+    // the end, the error is estimated, and the next stage aims at the target.
     let mut end = first_end(a, spp);
     loop {
         run_stage(
@@ -293,17 +287,13 @@ fn accumulate(
         }
         state.noise = team.snapshot().noise_estimate();
         state.last_estimate = Instant::now();
-        match state.noise {
-            Some(n) if n <= target => {
+        match stages::next(end, state.noise, target, spp) {
+            stages::Next::Reached => {
                 state.reached = true;
                 break;
             }
-            _ if end >= spp => break,
-            Some(n) => {
-                let want = (end as f64 * (n / target).powi(2)).ceil();
-                end = (want.min(2.0 * end as f64) as u32).max(end + 1).min(spp);
-            }
-            None => end = (2 * end).min(spp),
+            stages::Next::Exhausted => break,
+            stages::Next::To(e) => end = e,
         }
         team.extend(end);
     }

@@ -17,6 +17,7 @@ pub mod frames;
 mod schedule;
 pub mod shard;
 mod snapshot;
+pub mod stages;
 pub mod team;
 pub mod tune;
 

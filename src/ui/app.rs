@@ -49,6 +49,8 @@ pub struct Stats {
     pub invalid: u64,
     /// Of `spp`, the samples per pixel the preview's other devices traced (`--adapter 0,1`).
     pub helped: u32,
+    /// The accumulation stopped where `noise` reached `--target-error`.
+    pub reached: bool,
 }
 
 /// Progress of the background PNG save.

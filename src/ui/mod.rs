@@ -56,6 +56,7 @@ pub fn run(opts: ViewOptions) -> Result<ExitCode, ViewError> {
         WorkerOptions {
             fps: opts.fps,
             max_spp: opts.max_spp,
+            target_error: opts.target_error,
             generic: opts.generic,
             denoise: opts.denoise,
         },

@@ -50,6 +50,8 @@ pub struct ViewOptions {
     /// Trace `n × n` pixels per image pixel and average them (linear light).
     pub supersample: u32,
     pub max_spp: u32,
+    /// Stop accumulating where the estimated error reaches this (`--target-error`).
+    pub target_error: Option<f64>,
     /// A cell whose colour moved by at most this (per 8-bit channel) is not resent.
     pub threshold: u8,
     pub generic: bool,

@@ -205,6 +205,9 @@ pub fn stats_line(app: &App, width: u16) -> Line<'static> {
         (Some(n), None) => parts.push((format!("noise {}", raw(n)), 0)),
         (None, _) => parts.push(("noise –".into(), 0)),
     }
+    if s.reached {
+        parts.push(("target reached".into(), 0));
+    }
     if s.invalid > 0 {
         parts.push((format!("{} invalid", s.invalid), 0));
     }

@@ -25,7 +25,7 @@ use crate::render::claims::{Claims, Fail};
 use crate::render::failure::contained;
 use crate::render::frames::Frames;
 use crate::render::team::live::Helpers;
-use crate::render::{Backend, RenderOptions, Renderer};
+use crate::render::{Backend, RenderOptions, Renderer, stages};
 use crate::scene::Scene;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -68,6 +68,9 @@ pub struct WorkerOptions {
     pub fps: f64,
     /// The preview stops accumulating here (and the GPU idles).
     pub max_spp: u32,
+    /// Or here, where the raw image's estimated error reaches this (`--target-error`): its
+    /// samples are claimed in stages aimed at it (`render::stages`).
+    pub target_error: Option<f64>,
     pub generic: bool,
     pub denoise: crate::denoise::Mode,
 }
@@ -83,7 +86,8 @@ struct SaveJob {
 struct FrameTag {
     generation: u64,
     epoch: u64,
-    /// The accumulation has stopped (`--max-spp`): this is the final image.
+    /// The accumulation has stopped (`--max-spp`, or a stage's end, `--target-error`):
+    /// this is the final image, unless the target asks for another stage.
     last: bool,
     spp: u32,
     /// Of `spp`, the samples per pixel the other devices traced.
@@ -109,6 +113,10 @@ struct Preview {
     last_combined: Option<(Instant, Duration)>,
     /// No samples are left for this device to claim (the others may still be tracing).
     exhausted: bool,
+    /// Where this stage's samples end: `max_spp`, or with a target error the stage's end.
+    stage_end: u32,
+    /// The estimate has reached the target error: the accumulation has stopped.
+    reached: bool,
     /// The other devices have been told to trace this state (after its first frame, so
     /// that they take nothing from this device's first sample).
     helpers_told: bool,
@@ -261,7 +269,7 @@ impl Worker {
     fn preview_busy(&self, helped: u32) -> bool {
         self.preview
             .as_ref()
-            .is_some_and(|p| p.renderer.samples().saturating_add(helped) < self.opts.max_spp)
+            .is_some_and(|p| p.renderer.samples().saturating_add(helped) < p.stage_end)
     }
 
     /// Whether this thread's device has samples to trace.
@@ -342,7 +350,7 @@ impl Worker {
                 && let Some(p) = &mut self.preview
             {
                 p.renderer.wait(QUEUED - 1);
-                match p.renderer.submit(self.opts.max_spp) {
+                match p.renderer.submit(p.stage_end) {
                     Some(paths) => p.paths += paths,
                     None => p.exhausted = true,
                 }
@@ -382,6 +390,8 @@ impl Worker {
                     last_denoise: None,
                     last_combined: None,
                     exhausted: false,
+                    stage_end: self.opts.max_spp,
+                    reached: false,
                     helpers_told: false,
                 })
             }
@@ -402,7 +412,13 @@ impl Worker {
     fn restart_clock(&mut self) {
         self.epoch += 1;
         self.frames.clear_extra();
+        let first_end = match self.opts.target_error {
+            Some(_) => stages::first_end(self.opts.max_spp),
+            None => self.opts.max_spp,
+        };
         if let Some(p) = &mut self.preview {
+            p.stage_end = first_end;
+            p.reached = false;
             p.since_reset = Instant::now();
             p.paths = 0;
             p.last_frame = None;
@@ -414,7 +430,7 @@ impl Worker {
             // On several devices: new claims, this device first to take from them (the
             // others start after the first frame: `tell_helpers`).
             if let Some(h) = &self.helpers {
-                let claims = Arc::new(Claims::new(0..self.opts.max_spp, 1 + h.len()));
+                let claims = Arc::new(Claims::new(0..first_end, 1 + h.len()));
                 #[cfg(test)]
                 if let Some((device, when)) = self.fail {
                     claims.fail_when(device, when);
@@ -492,10 +508,13 @@ impl Worker {
             paths: shown,
         };
         // Denoised frames need a sample in each half of every pixel; once the accumulation
-        // stops (`--max-spp`), `auto` shows the final, unbiased image.
+        // stops (`--max-spp`, the target error), `auto` shows the final, unbiased image. A
+        // stage's end that may be followed by another is not the end.
+        let staged =
+            self.opts.target_error.is_some() && !p.reached && p.stage_end < self.opts.max_spp;
         let denoise = self.opts.denoise.wants(p.noise)
             && spp >= 2
-            && (busy || self.opts.denoise == crate::denoise::Mode::On);
+            && (busy || staged || self.opts.denoise == crate::denoise::Mode::On);
         if denoise
             && let Some((at, took)) = p.last_denoise
             && busy
@@ -583,6 +602,40 @@ impl Worker {
             return true;
         }
         p.noise = resolved.noise.or(p.noise);
+        // The end of a stage (`--target-error`): stop there, or trace on to the next.
+        let mut last = tag.last;
+        if let Some(target) = self.opts.target_error
+            && tag.last
+            && !p.reached
+            && tag.spp >= p.stage_end
+        {
+            match stages::next(p.stage_end, p.noise, target, self.opts.max_spp) {
+                stages::Next::Reached => {
+                    tracing::debug!("target error reached at {} spp", p.stage_end);
+                    p.reached = true;
+                    // A denoised frame was not the final one (`auto` ends on the raw image):
+                    // one more frame of the same samples is.
+                    if resolved.denoised.is_some() && self.opts.denoise != crate::denoise::Mode::On
+                    {
+                        last = false;
+                        p.last_frame = None;
+                    }
+                }
+                stages::Next::Exhausted => {}
+                stages::Next::To(end) => {
+                    tracing::debug!("at {} spp, the next stage ends at {end}", p.stage_end);
+                    p.stage_end = end;
+                    p.exhausted = false;
+                    last = false;
+                    if let Some(c) = &self.claims {
+                        c.extend(end);
+                    }
+                    if let Some(h) = &self.helpers {
+                        h.resume(self.epoch);
+                    }
+                }
+            }
+        }
         let elapsed = p.since_reset.elapsed();
         tracing::debug!(
             "frame at {} spp delivered {:.1} ms after the reset ({} by the other devices)",
@@ -594,7 +647,7 @@ impl Worker {
         let frame = Frame {
             image: resolved.image,
             sigma: resolved.sigma,
-            last: tag.last,
+            last,
             stats: Stats {
                 width: s.width,
                 height: s.height,
@@ -606,6 +659,7 @@ impl Worker {
                 doubt: resolved.doubt,
                 invalid: resolved.invalid,
                 helped: tag.helped,
+                reached: p.reached && last,
             },
             generation: tag.generation,
         };
@@ -709,15 +763,27 @@ mod tests {
         denoise: crate::denoise::Mode,
         fail: Option<(usize, Fail)>,
     ) -> Run {
-        let scene = Scene::load("cornell").unwrap();
-        let settings = FrameSettings::new(size.0, size.1, scene.render.max_bounces, 1);
-        let (events, rx) = std::sync::mpsc::channel();
         let opts = WorkerOptions {
             fps: 30.0,
             max_spp,
+            target_error: None,
             generic: false,
             denoise,
         };
+        frames_with(backends, size, opts, edits, fail)
+    }
+
+    /// As `frames`, with the worker's options `opts`.
+    fn frames_with(
+        backends: Vec<Backend>,
+        size: (u32, u32),
+        opts: WorkerOptions,
+        edits: &[Scene],
+        fail: Option<(usize, Fail)>,
+    ) -> Run {
+        let scene = Scene::load("cornell").unwrap();
+        let settings = FrameSettings::new(size.0, size.1, scene.render.max_bounces, 1);
+        let (events, rx) = std::sync::mpsc::channel();
         let (tx, handle) = spawn_failing(backends, opts, events, fail);
         let mut generation = 1;
         let send = |scene: &Scene, generation| {
@@ -762,6 +828,45 @@ mod tests {
             stats: last.stats,
             denoised_helped,
             lost,
+        }
+    }
+
+    #[test]
+    fn a_preview_with_a_target_error_stops_near_it() {
+        // cornell at 64×48 reaches a 10 % estimate near 100 spp (16 000 at most). The stages
+        // (`render::stages`) end where the estimate should reach the target, each at most
+        // twice the last: the estimate the preview stops at is at or below the target, and
+        // not far below (a stage that overshot ten times in samples would read about 0.3 of
+        // it; 0.5 leaves room for the estimate's own noise). On one device, on two sharing
+        // the claims (extended stage by stage), and after an edit, which starts over.
+        let target = 0.10;
+        let mut edited = Scene::load("cornell").unwrap();
+        edited.camera.vfov += 5.0;
+        for backends in [vec![Backend::Cpu], vec![Backend::Cpu, Backend::Cpu]] {
+            for denoise in [crate::denoise::Mode::Off, crate::denoise::Mode::Auto] {
+                let opts = WorkerOptions {
+                    fps: 30.0,
+                    max_spp: 16_000,
+                    target_error: Some(target),
+                    generic: false,
+                    denoise,
+                };
+                let edits = std::slice::from_ref(&edited);
+                let run = frames_with(backends.clone(), (64, 48), opts, edits, None);
+                let s = run.stats;
+                let noise = s.noise.expect("an estimate");
+                let what = format!(
+                    "{} devices, {denoise:?}: {noise} at {} spp",
+                    backends.len(),
+                    s.spp
+                );
+                eprintln!("{what}");
+                assert!(s.reached, "{what}: not reached");
+                assert!(noise <= target && noise >= 0.5 * target, "{what}");
+                assert!(s.spp > 4 && s.spp < 1000, "{what}");
+                // The final frame is the raw image, as at --max-spp.
+                assert!(s.denoised.is_none(), "{what}: the final frame is denoised");
+            }
         }
     }
 
