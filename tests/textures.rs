@@ -50,6 +50,39 @@ fn a_one_texel_emissive_map_is_exact_on_both_tracers() {
 }
 
 #[test]
+fn a_textured_lecture_material_keeps_its_own_lobes_on_both_tracers() {
+    // A one-texel base colour map on a square given the lecture's Lambertian model
+    // (`specular = 0`), under a uniform sky: a flat square cannot see itself, so every path
+    // that meets it scatters once and escapes, and a pixel that sees only the square is
+    // exactly texel × sky. Until issue 47 a textured lecture material was given a 4 %
+    // fuzzed-mirror lobe whatever its keys said: its pixels scattered between the sky and
+    // texel × sky, some into the square (black).
+    let texel = [200u8, 100, 50, 255];
+    let gltf = square_gltf(
+        r#"{"pbrMetallicRoughness":{"baseColorTexture":{"index":0},"metallicFactor":0,
+            "roughnessFactor":1}}"#,
+        &format!(r#"[{{"uri":"{}"}}]"#, png_uri(1, 1, &[texel])),
+        r#"[{"source":0}]"#,
+        "[]",
+    );
+    let lecture = "[gltf.materials.\"#0\"]\nmodel = \"lecture\"\ncolor = [1, 1, 1]\nspecular = 0\n";
+    let (_dir, s) = gltf_scene(&gltf, 0.25, lecture);
+    let want = [0, 1, 2].map(|k| 0.25 * srgb_decode(texel[k]));
+    on_both(|| {
+        let img = snapshot(&s, settings(W, W, 4), 16).image();
+        for y in 9..23 {
+            for x in 9..23 {
+                let p = img.get(x, y);
+                assert!(
+                    rel_err(p, want) <= 4.0 * f32::EPSILON as f64,
+                    "({x},{y}) {p:?} != {want:?}"
+                );
+            }
+        }
+    });
+}
+
+#[test]
 fn a_two_by_two_map_keeps_its_orientation() {
     // Upper-left red, upper-right green, lower-left blue, lower-right white; clamped, so
     // each quarter of the square near its corner shows its texel's colour alone.

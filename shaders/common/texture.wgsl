@@ -45,8 +45,6 @@ const TEX_TRANSFORMS: u32 = 16u;
 // Texture coordinates are clamped to this before texel arithmetic (a wrap mode maps any
 // coordinate into the image; this only keeps the integer conversion in range).
 const TEX_UV_LIMIT: f32 = 1048576.0;
-// The reflectance of a dielectric at normal incidence in glTF's model (Appendix B).
-const DIELECTRIC_F0: f32 = 0.04;
 
 fn tex_f32(i: u32) -> f32 {
     return bitcast<f32>(tex[i]);
@@ -148,9 +146,9 @@ fn tex_xform(rec: u32, k: u32, uv: vec2f) -> vec2f {
     );
 }
 
-// A glTF material's maps at `uv` mapped onto the model's material (docs/MODEL-NOTES.md):
-// emission where the emissive map is lit, else metallic-roughness as the specular share, its
-// tint, and the fuzz.
+// A glTF material's maps at `uv` applied to the model's material (docs/MODEL-NOTES.md):
+// emission where the emissive map is lit; else the base colour, and for a pbr material its
+// metallic, roughness and extensions' maps (a lecture material keeps its own lobes).
 fn tex_material(m: Material, rec: u32, uv: vec2f) -> Material {
     let flags = tex[rec];
     var base = vec4f(tex_f32(rec + 4u), tex_f32(rec + 5u), tex_f32(rec + 6u), tex_f32(rec + 7u));
@@ -198,12 +196,9 @@ fn tex_material(m: Material, rec: u32, uv: vec2f) -> Material {
         }
         return out;
     }
-    let specular = metallic + (1.0 - metallic) * DIELECTRIC_F0;
+    // A lecture material keeps its own lobes (`specular`, `smoothness`, …, as the user set
+    // them); its maps give the colour alone.
     out.color = base.xyz;
-    out.smoothness = 1.0;
-    out.absorption = roughness;
-    out.specular = specular;
-    out.specular_color = (metallic * base.xyz + vec3f((1.0 - metallic) * DIELECTRIC_F0)) / specular;
     return out;
 }
 

@@ -7,7 +7,6 @@
 //! code that reads them.
 
 use super::Features;
-use crate::scene::gltf::DIELECTRIC_F0;
 use crate::scene::texture::{AlphaMode, IDENTITY_TRANSFORM, Texture, Textured};
 use crate::scene::{Material, Scene, Shape, euler_xyz};
 use glam::DVec3;
@@ -143,8 +142,8 @@ impl<'a> Layout<'a> {
     /// The records: each glTF material's maps and factors, the factors taken from the
     /// model's material as it is now (so that the preview's keys edit a textured material
     /// too: colour keys tint its base colour map, light the emission; a pbr material's
-    /// metallic and roughness are its own, a lecture material's `specular` is the metallic
-    /// share and fuzz the roughness, the inverse of the old lecture mapping).
+    /// metallic and roughness are its own; a lecture material's lobes are its own, and its
+    /// maps give it the colour alone).
     fn records(&self) -> Vec<u32> {
         let mut w = Vec::with_capacity(RECORD_WORDS * self.records.len());
         for (t, m) in &self.records {
@@ -180,13 +179,13 @@ impl<'a> Layout<'a> {
                     t.emissive_factor,
                 )
             } else {
+                // A lecture material keeps its own lobes: its maps give the colour alone, and
+                // the metallic and roughness words are not read.
                 let c = m.color;
-                let metallic =
-                    ((m.specular - DIELECTRIC_F0) / (1.0 - DIELECTRIC_F0)).clamp(0.0, 1.0);
                 (
                     [c.x, c.y, c.z, t.base_factor[3]],
-                    metallic,
-                    m.absorption,
+                    0.0,
+                    0.0,
                     t.emissive_factor,
                 )
             };

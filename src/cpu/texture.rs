@@ -11,7 +11,6 @@ use crate::common::textures::{
     FLAG_SPECULAR_COLOR, FLAG_TRANSMISSION, FRAME_WORDS, FRAMES, MATERIALS, NONE, NORMAL_MAP,
     SRGB_LUT, TRANSFORMS, UV_BASE,
 };
-use crate::scene::gltf::DIELECTRIC_F0;
 use glam::{Vec2, Vec3A, Vec4};
 
 /// Coordinates are clamped to this before texel arithmetic (texture.wgsl: TEX_UV_LIMIT).
@@ -211,13 +210,9 @@ pub fn material(tex: &[u32], m: &Material, rec: u32, uv: Vec2) -> Material {
         }
         return out;
     }
-    let specular = metallic + (1.0 - metallic) * DIELECTRIC_F0;
+    // A lecture material keeps its own lobes (`specular`, `smoothness`, …, as the user set
+    // them); its maps give the colour alone.
     out.color = base;
-    out.smoothness = 1.0;
-    out.absorption = roughness;
-    out.specular = specular;
-    out.specular_color =
-        (metallic * base + Vec3A::splat((1.0 - metallic) * DIELECTRIC_F0)) / specular;
     out
 }
 
