@@ -22,13 +22,19 @@ const TWINS: &[Twin] = &[
         rust: "src/scene/envmap_sampling.rs",
         prefix: "env_",
         // The GPU reads the map's words (`common::envmap`); the host holds typed arrays.
+        // `invert`: the GPU searches a CDF whole; the host through guide tables (`guide`,
+        // `buckets`, `invert_guided`), which find the same interval (tested against the
+        // whole search).
         wgsl_only: &[
-            "cdf", "density", "height", "lookup", "radiance", "texel", "width",
+            "cdf", "density", "height", "invert", "lookup", "radiance", "texel", "width",
         ],
         rust_only: &[
             "bilinear",
+            "buckets",
             "bytes",
             "density_uv",
+            "guide",
+            "invert_guided",
             "new",
             "rgbe_pack",
             "rgbe_unpack",

@@ -149,31 +149,6 @@ pub struct Sample {
     pub uv: (f32, f32),
 }
 
-/// Inverts a CDF of `n + 1` entries at `u`: the interval i with cdf[i] ≤ u < cdf[i + 1] (a
-/// zero-width interval is never returned while a wider one holds u) and u's place in it. The
-/// whole search, which `invert_guided` shortens (and shaders/common/envmap.wgsl does).
-#[cfg(test)]
-fn invert(cdf: &[f32], u: f32) -> (usize, f32) {
-    let n = cdf.len() - 1;
-    // The last i in [0, n) with cdf[i] <= u.
-    let (mut lo, mut hi) = (0usize, n);
-    while hi - lo > 1 {
-        let mid = (lo + hi) / 2;
-        if cdf[mid] <= u {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    let width = cdf[lo + 1] - cdf[lo];
-    let t = if width > 0.0 {
-        ((u - cdf[lo]) / width).clamp(0.0, 1.0)
-    } else {
-        0.5
-    };
-    (lo, t)
-}
-
 /// A guide table over a CDF of `n + 1` entries (the cutpoint method: Chen and Asau, "On
 /// generating random variates from an empirical distribution", AIIE Transactions 6(2), 1974;
 /// Devroye, "Non-Uniform Random Variate Generation", 1986, §III.2.4): for each of `buckets`
@@ -380,6 +355,30 @@ impl Distribution {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Inverts a CDF of `n + 1` entries at `u`: the interval i with cdf[i] ≤ u < cdf[i + 1] (a
+    /// zero-width interval is never returned while a wider one holds u) and u's place in it: the
+    /// whole search, as shaders/common/envmap.wgsl does it, which `invert_guided` shortens.
+    fn invert(cdf: &[f32], u: f32) -> (usize, f32) {
+        let n = cdf.len() - 1;
+        // The last i in [0, n) with cdf[i] <= u.
+        let (mut lo, mut hi) = (0usize, n);
+        while hi - lo > 1 {
+            let mid = (lo + hi) / 2;
+            if cdf[mid] <= u {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let width = cdf[lo + 1] - cdf[lo];
+        let t = if width > 0.0 {
+            ((u - cdf[lo]) / width).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        (lo, t)
+    }
 
     #[test]
     fn a_guided_inversion_finds_the_interval_the_whole_search_finds() {
