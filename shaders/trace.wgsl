@@ -652,6 +652,10 @@ struct LightChoice {
 }
 
 fn choose_light(u: f32, p: vec3f, n: vec3f) -> LightChoice {
+    // One light is chosen for certain (its weight over itself), with no weight to compute.
+    if scene.n_lights == 1u {
+        return LightChoice(0u, 1.0);
+    }
     if scene.n_lights > LOCAL_SELECTION_MAX {
         let i = pick_light_by_power(u);
         return LightChoice(i, lights[i].pmf);
@@ -674,6 +678,9 @@ fn choose_light(u: f32, p: vec3f, n: vec3f) -> LightChoice {
 
 // The probability that choose_light at (p, n) picks light i.
 fn light_choice_pmf(i: u32, p: vec3f, n: vec3f) -> f32 {
+    if scene.n_lights == 1u {
+        return 1.0;
+    }
     if scene.n_lights > LOCAL_SELECTION_MAX {
         return lights[i].pmf;
     }
