@@ -352,8 +352,8 @@ def main():
     dr.set_thread_count(a.threads)
     print(f"machine: {os.cpu_count()} cores; threads {a.threads}; Mitsuba {mi.__version__} "
           f"llvm_ad_rgb; {width}x{height}; references {a.reference_seconds:g} s each")
-    header = "| scene | Msamples/s termtrace / Mitsuba (×) | refs apart |" + "".join(
-        f" rel. RMSE at {t:g} s termtrace / Mitsuba (×) |" for t in times
+    header = "| scene | Msamples/s termtrace / Mitsuba (termtrace ÷ Mitsuba) | refs apart |" + "".join(
+        f" rel. RMSE at {t:g} s termtrace / Mitsuba (Mitsuba ÷ termtrace) |" for t in times
     )
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
