@@ -216,15 +216,18 @@ fn app() -> App {
     a
 }
 
+/// The first status line's text.
+fn stats_text(a: &App) -> String {
+    view::stats_line(a, 200)
+        .spans
+        .iter()
+        .map(|s| s.content.as_ref())
+        .collect()
+}
+
 #[test]
 fn a_reached_target_error_is_said_on_the_status_line() {
-    let text = |a: &App| -> String {
-        view::stats_line(a, 200)
-            .spans
-            .iter()
-            .map(|s| s.content.to_string())
-            .collect()
-    };
+    let text = stats_text;
     let mut a = app();
     assert!(!text(&a).contains("target reached"), "{}", text(&a));
     a.stats.reached = true;
@@ -236,13 +239,7 @@ fn a_rough_noise_figure_is_shown_rounded_with_why() {
     // Fireflies holding the estimate: the status line shows no confident figure, but "~12%"
     // and why; with few samples likewise; a sound estimate keeps its two decimals.
     use termtrace::common::resolved::Doubt;
-    let text = |a: &App| -> String {
-        view::stats_line(a, 200)
-            .spans
-            .iter()
-            .map(|s| s.content.as_ref())
-            .collect()
-    };
+    let text = stats_text;
     let mut a = app();
     a.stats.noise = Some(0.1234);
     a.stats.denoised = None;

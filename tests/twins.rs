@@ -39,6 +39,7 @@ const TWINS: &[Twin] = &[
             "rgbe_pack",
             "rgbe_unpack",
             "row",
+            "search",
         ],
     },
     Twin {

@@ -177,7 +177,17 @@ fn invert_guided(cdf: &[f32], guide: &[u32], u: f32) -> (usize, f32) {
     let k = ((u * buckets as f32) as usize).min(buckets - 1);
     // cdf[lo] ≤ k / buckets ≤ u, and cdf[hi] > (k + 1) / buckets > u unless hi = n: the last
     // i with cdf[i] ≤ u lies in [lo, hi), where the search of `invert` ends too.
-    let (mut lo, mut hi) = (guide[k] as usize, (guide[k + 1] as usize + 1).min(n));
+    search(
+        cdf,
+        u,
+        guide[k] as usize,
+        (guide[k + 1] as usize + 1).min(n),
+    )
+}
+
+/// The last interval i in [lo, hi) of `cdf` with cdf[i] ≤ u, given cdf[lo] ≤ u and cdf[hi] > u
+/// (or hi the last interval's end), by bisection; and u's place in it.
+fn search(cdf: &[f32], u: f32, mut lo: usize, mut hi: usize) -> (usize, f32) {
     while hi - lo > 1 {
         let mid = (lo + hi) / 2;
         if cdf[mid] <= u {
@@ -360,24 +370,7 @@ mod tests {
     /// zero-width interval is never returned while a wider one holds u) and u's place in it: the
     /// whole search, as shaders/common/envmap.wgsl does it, which `invert_guided` shortens.
     fn invert(cdf: &[f32], u: f32) -> (usize, f32) {
-        let n = cdf.len() - 1;
-        // The last i in [0, n) with cdf[i] <= u.
-        let (mut lo, mut hi) = (0usize, n);
-        while hi - lo > 1 {
-            let mid = (lo + hi) / 2;
-            if cdf[mid] <= u {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        let width = cdf[lo + 1] - cdf[lo];
-        let t = if width > 0.0 {
-            ((u - cdf[lo]) / width).clamp(0.0, 1.0)
-        } else {
-            0.5
-        };
-        (lo, t)
+        search(cdf, u, 0, cdf.len() - 1)
     }
 
     #[test]
