@@ -55,7 +55,13 @@ pub fn rgbe_unpack(w: u32) -> [f32; 3] {
     if e == 0 {
         return [0.0; 3];
     }
-    let f = 2f32.powi(e as i32 - 136);
+    // 2^(e − 136) built from its bits, as env_texel does (e ≥ 10: a normal float; `rgbe_pack`
+    // writes e ≥ 29): `powi` was a libcall, four per bilinear lookup.
+    let f = if e >= 10 {
+        f32::from_bits((e - 9) << 23)
+    } else {
+        2f32.powi(e as i32 - 136)
+    };
     [
         (w & 0xff) as f32 * f,
         (w >> 8 & 0xff) as f32 * f,
@@ -354,12 +360,10 @@ impl Distribution {
         self.density_uv(x as usize, y as usize) / (2.0 * PI * PI * sin_t)
     }
 
-    /// Bytes the CDFs take (and their guide tables, on the host).
+    /// Bytes the CDFs take, as both tracers hold them (the host's guide tables add about a
+    /// quarter of this on the CPU tracer).
     pub fn bytes(&self) -> usize {
-        4 * (self.conditional.len()
-            + self.marginal.len()
-            + self.guide_conditional.len()
-            + self.guide_marginal.len())
+        4 * (self.conditional.len() + self.marginal.len())
     }
 }
 #[cfg(test)]
@@ -426,6 +430,14 @@ mod tests {
         assert!(direction(0.5, 0.5, 0.0).abs_diff_eq(Vec3::NEG_Z, 1e-6));
         assert!(direction(0.75, 0.5, 0.0).abs_diff_eq(Vec3::X, 1e-6));
         assert!(direction(0.3, 0.0, 0.0).abs_diff_eq(Vec3::Y, 1e-6));
+    }
+
+    #[test]
+    fn rgbe_unpacks_every_exponent_as_a_power_of_two() {
+        for e in 1..=255u32 {
+            let [r, ..] = rgbe_unpack(128 | e << 24);
+            assert_eq!(r, 128.0 * 2f32.powi(e as i32 - 136), "exponent {e}");
+        }
     }
 
     #[test]
