@@ -811,10 +811,12 @@ fn escaped(path: Path, dir: vec3f) -> vec3f {
     if HAS_ENV_MAP && scene.env_mode != ENV_NONE && (path.bounce > 0u || scene.env_mode == ENV_VISIBLE) {
         var w = 1.0;
         let pe = env_pick();
+        // The map coordinates once, for the radiance and the density.
+        let c = env_coordinates(dir, scene.env_rotation);
         if HAS_NEE && path.prev_pdf > 0.0 && pe > 0.0 {
-            w = power_heuristic(path.prev_pdf, pe * env_pdf(dir, scene.env_rotation));
+            w = power_heuristic(path.prev_pdf, pe * env_pdf_at(c));
         }
-        return env_radiance(dir, scene.env_rotation) * scene.env_intensity * w;
+        return env_lookup(c) * scene.env_intensity * w;
     }
     return sky(dir);
 }

@@ -50,8 +50,7 @@ struct EnvTexel {
     v: f32,
 }
 
-fn env_texel_of(d: vec3f, rotation: f32) -> EnvTexel {
-    let c = env_coordinates(d, rotation);
+fn env_texel_at(c: vec2f) -> EnvTexel {
     let w = env_width();
     let h = env_height();
     let x = min(u32(c.x * f32(w)), w - 1u);
@@ -145,7 +144,13 @@ fn env_lookup(c: vec2f) -> vec3f {
 
 // The solid-angle density with which env_sample gives unit direction d.
 fn env_pdf(d: vec3f, rotation: f32) -> f32 {
-    let t = env_texel_of(d, rotation);
+    return env_pdf_at(env_coordinates(d, rotation));
+}
+
+// env_pdf of the direction at map coordinates c (env_coordinates): an escaped ray computes
+// them once for the radiance and the density.
+fn env_pdf_at(c: vec2f) -> f32 {
+    let t = env_texel_at(c);
     let row = env[2] + t.y * (env_width() + 1u);
     let row_p = env_cdf(ENV_HEADER + t.y + 1u) - env_cdf(ENV_HEADER + t.y);
     let col_p = env_cdf(row + t.x + 1u) - env_cdf(row + t.x);

@@ -459,11 +459,13 @@ impl<'a> Tracer<'a> {
             && u.env_mode != ENV_NONE
             && (bounce > 0 || u.env_mode == ENV_VISIBLE)
         {
-            let d = glam::Vec3::from(dir);
-            let l = Vec3A::from_array(map.radiance(d, u.env_rotation)) * u.env_intensity;
+            // The map coordinates once, for the radiance and the density.
+            let (cu, cv) =
+                crate::scene::envmap_sampling::coordinates(glam::Vec3::from(dir), u.env_rotation);
+            let l = Vec3A::from_array(map.radiance_at(cu, cv)) * u.env_intensity;
             let pe = self.env_pick();
             if self.f.nee && prev_pdf > 0.0 && pe > 0.0 {
-                let pl = pe * map.distribution.pdf(d, u.env_rotation);
+                let pl = pe * map.distribution.pdf_at(cu, cv);
                 return l * power_heuristic(prev_pdf, pl);
             }
             return l;

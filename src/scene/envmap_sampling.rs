@@ -338,10 +338,9 @@ impl Distribution {
         }
     }
 
-    /// The texel unit direction `d` falls in, and its v (`env_texel_of` in
+    /// The texel map coordinates (u, v) fall in, and v (`env_texel_at` in
     /// shaders/common/envmap.wgsl, the same arithmetic).
-    pub fn texel_of(&self, d: Vec3, rotation: f32) -> (u32, u32, f32) {
-        let (u, v) = coordinates(d, rotation);
+    pub fn texel_at(&self, u: f32, v: f32) -> (u32, u32, f32) {
         let x = ((u * self.width as f32) as u32).min(self.width - 1);
         let y = ((v * self.height as f32) as u32).min(self.height - 1);
         (x, y, v)
@@ -349,10 +348,17 @@ impl Distribution {
 
     /// The solid-angle density with which [`Distribution::sample`] gives unit direction `d`.
     pub fn pdf(&self, d: Vec3, rotation: f32) -> f32 {
+        let (u, v) = coordinates(d, rotation);
+        self.pdf_at(u, v)
+    }
+
+    /// [`Distribution::pdf`] of the direction at map coordinates (u, v) (`coordinates`): a
+    /// ray that escapes computes them once for the radiance and the density.
+    pub fn pdf_at(&self, u: f32, v: f32) -> f32 {
         if self.integral <= 0.0 {
             return 0.0;
         }
-        let (x, y, v) = self.texel_of(d, rotation);
+        let (x, y, v) = self.texel_at(u, v);
         let sin_t = (PI * v).sin();
         if sin_t <= 0.0 {
             return 0.0;
