@@ -26,7 +26,7 @@ const TWINS: &[Twin] = &[
         // `buckets`, `invert_guided`), which find the same interval (tested against the
         // whole search).
         wgsl_only: &[
-            "cdf", "density", "height", "invert", "lookup", "radiance", "texel", "width",
+            "cdf", "density", "height", "invert", "lookup", "texel", "width",
         ],
         rust_only: &[
             "bilinear",

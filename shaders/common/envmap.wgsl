@@ -111,15 +111,11 @@ fn env_coordinates(d: vec3f, rotation: f32) -> vec2f {
     return vec2f(u, v);
 }
 
-// The map's radiance seen along unit direction d: bilinear between the four nearest texel
-// centres, wrapping in u, clamped at the poles (src/scene/envmap_sampling.rs: bilinear). Unbiased
-// beside the piecewise-constant sampling density: where the density is 0 and the filtered
-// radiance is not (next to a black texel), the BSDF sample's MIS weight is 1.
-fn env_radiance(d: vec3f, rotation: f32) -> vec3f {
-    return env_lookup(env_coordinates(d, rotation));
-}
-
-// The radiance at map coordinates c = (u, v).
+// The radiance at map coordinates c = (u, v) (env_coordinates of the direction seen):
+// bilinear between the four nearest texel centres, wrapping in u, clamped at the poles
+// (src/scene/envmap_sampling.rs: bilinear). Unbiased beside the piecewise-constant sampling
+// density: where the density is 0 and the filtered radiance is not (next to a black texel),
+// the BSDF sample's MIS weight is 1.
 fn env_lookup(c: vec2f) -> vec3f {
     let w = env_width();
     let h = env_height();

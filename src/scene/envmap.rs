@@ -114,14 +114,9 @@ impl EnvMap {
         rgbe_unpack(self.rgbe[(y * self.width + x) as usize])
     }
 
-    /// The radiance the tracers see along unit direction `d` (bilinear between texels; see
-    /// `envmap_sampling::bilinear`), for the map turned by `rotation` radians.
-    pub fn radiance(&self, d: glam::Vec3, rotation: f32) -> [f32; 3] {
-        let (u, v) = super::envmap_sampling::coordinates(d, rotation);
-        self.radiance_at(u, v)
-    }
-
-    /// The radiance at map coordinates (u, v).
+    /// The radiance the tracers see at map coordinates (u, v) (`envmap_sampling::coordinates`
+    /// of the direction, for the map turned by its rotation): bilinear between texels, see
+    /// `envmap_sampling::bilinear`.
     pub fn radiance_at(&self, u: f32, v: f32) -> [f32; 3] {
         super::envmap_sampling::bilinear(self.width, self.height, u, v, |x, y| self.texel(x, y))
     }
