@@ -155,13 +155,6 @@ fn tex_material(m: Material, rec: u32, uv: vec2f) -> Material {
     if (flags & TEX_FLAG_BASE) != 0u {
         base *= tex_sample(tex[rec + 1u], tex_xform(rec, 0u, uv), TEX_SRGB);
     }
-    var metallic = tex_f32(rec + 8u);
-    var roughness = tex_f32(rec + 9u);
-    if (flags & TEX_FLAG_MR) != 0u {
-        let mr = tex_sample(tex[rec + 2u], tex_xform(rec, 1u, uv), TEX_UNORM);
-        roughness *= mr.y;
-        metallic *= mr.z;
-    }
     var e = vec3f(tex_f32(rec + 10u), tex_f32(rec + 11u), tex_f32(rec + 12u));
     if (flags & TEX_FLAG_EMISSIVE) != 0u {
         e *= tex_sample(tex[rec + 3u], tex_xform(rec, 2u, uv), TEX_SRGB).xyz;
@@ -175,6 +168,15 @@ fn tex_material(m: Material, rec: u32, uv: vec2f) -> Material {
     }
     out.light = 0.0;
     if m.model == MODEL_PBR {
+        // The metallic-roughness map: a pbr material's alone (an emitter's or a lecture
+        // material's is not read).
+        var metallic = tex_f32(rec + 8u);
+        var roughness = tex_f32(rec + 9u);
+        if (flags & TEX_FLAG_MR) != 0u {
+            let mr = tex_sample(tex[rec + 2u], tex_xform(rec, 1u, uv), TEX_UNORM);
+            roughness *= mr.y;
+            metallic *= mr.z;
+        }
         out.color = base.xyz;
         out.metallic = metallic;
         out.roughness = roughness;

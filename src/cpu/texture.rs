@@ -154,18 +154,6 @@ pub fn material(tex: &[u32], m: &Material, rec: u32, uv: Vec2) -> Material {
             Decode::Srgb,
         );
     }
-    let mut metallic = f(tex, rec + 8);
-    let mut roughness = f(tex, rec + 9);
-    if flags & FLAG_MR != 0 {
-        let mr = sample(
-            tex,
-            tex[rec as usize + 2],
-            xform(tex, rec, 1, uv),
-            Decode::Unorm,
-        );
-        roughness *= mr.y;
-        metallic *= mr.z;
-    }
     let mut e = Vec3A::new(f(tex, rec + 10), f(tex, rec + 11), f(tex, rec + 12));
     if flags & FLAG_EMISSIVE != 0 {
         e *= Vec3A::from(
@@ -188,6 +176,20 @@ pub fn material(tex: &[u32], m: &Material, rec: u32, uv: Vec2) -> Material {
     out.light = 0.0;
     let base = Vec3A::from(base.truncate());
     if m.pbr {
+        // The metallic-roughness map: a pbr material's alone (an emitter's or a lecture
+        // material's is not read).
+        let mut metallic = f(tex, rec + 8);
+        let mut roughness = f(tex, rec + 9);
+        if flags & FLAG_MR != 0 {
+            let mr = sample(
+                tex,
+                tex[rec as usize + 2],
+                xform(tex, rec, 1, uv),
+                Decode::Unorm,
+            );
+            roughness *= mr.y;
+            metallic *= mr.z;
+        }
         out.color = base;
         out.metallic = metallic;
         out.roughness = roughness;
