@@ -68,15 +68,6 @@ pub struct RenderArgs {
 /// and (more often) to stop at a target error.
 const ESTIMATE_EVERY: Duration = Duration::from_secs(2);
 const TARGET_CHECK_EVERY: Duration = Duration::from_millis(500);
-/// Where the team's first claims end: with a target error the samples are claimed in stages
-/// (`accumulate`, `render::stages`); else all `spp` at once.
-fn first_end(a: &RenderArgs, spp: u32) -> u32 {
-    if a.target_error.is_some() {
-        stages::first_end(spp)
-    } else {
-        spp
-    }
-}
 
 fn positive_seconds(s: &str) -> Result<f64, String> {
     match s.parse::<f64>() {
@@ -134,7 +125,13 @@ pub fn run(mut a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         (None, Some(_), None) => u32::MAX,
         (None, _, s) => s.unwrap_or(scene.render.spp),
     };
-    let team = Team::new(&backends, &scene, settings, options, 0..first_end(&a, spp));
+    let team = Team::new(
+        &backends,
+        &scene,
+        settings,
+        options,
+        0..stages::first_end(a.target_error, spp),
+    );
     install_ctrlc();
     if !a.quiet {
         announce(&a, &scene, settings, spp, &team);
@@ -264,7 +261,7 @@ fn accumulate(
     let deadline = time_limit.map(|t| start + t);
     // With a target error, in stages (`render::stages`): each stage's samples are traced to
     // the end, the error is estimated, and the next stage aims at the target.
-    let mut end = first_end(a, spp);
+    let mut end = stages::first_end(a.target_error, spp);
     loop {
         run_stage(
             a,

@@ -11,9 +11,13 @@
 /// Samples per pixel of the first stage: two in each half, the fewest that give an estimate.
 pub const FIRST_STAGE_SPP: u32 = 4;
 
-/// Where the first stage ends, of `max` samples in all.
-pub fn first_end(max: u32) -> u32 {
-    max.min(FIRST_STAGE_SPP)
+/// Where the first stage ends, of `max` samples in all: with a target error FIRST_STAGE_SPP,
+/// without one all `max` at once.
+pub fn first_end(target: Option<f64>, max: u32) -> u32 {
+    match target {
+        Some(_) => max.min(FIRST_STAGE_SPP),
+        None => max,
+    }
 }
 
 /// What follows a stage whose samples are all traced.
@@ -61,7 +65,8 @@ mod tests {
         assert_eq!(next(100, Some(0.07), 0.05, 100), Next::Exhausted);
         assert_eq!(next(80, Some(0.07), 0.05, 100), Next::To(100));
         assert_eq!(next(4, None, 0.05, 100), Next::To(8));
-        assert_eq!(first_end(16_384), FIRST_STAGE_SPP);
-        assert_eq!(first_end(2), 2);
+        assert_eq!(first_end(Some(0.05), 16_384), FIRST_STAGE_SPP);
+        assert_eq!(first_end(Some(0.05), 2), 2);
+        assert_eq!(first_end(None, 16_384), 16_384);
     }
 }

@@ -133,9 +133,9 @@ pub struct Distribution {
     /// The integral of the weights over [0, 1]² (their mean): the piecewise-constant density
     /// of texel (x, y) is its weight / `integral`. Zero when the map is black.
     pub integral: f64,
-    /// Guide tables of the CDFs (`Guide`): the marginal's, and the conditionals' row by row,
-    /// `height × (CONDITIONAL buckets + 1)`. The native CPU tracer's; the GPU searches the
-    /// CDFs whole and finds the same intervals.
+    /// Guide tables of the CDFs (`guide`): the marginal's, and the conditionals' row by row,
+    /// `height × (guide_buckets + 1)`. The native CPU tracer's; the GPU searches the CDFs
+    /// whole and finds the same intervals.
     guide_marginal: Vec<u32>,
     guide_conditional: Vec<u32>,
     /// Buckets of each conditional's guide table.

@@ -412,10 +412,7 @@ impl Worker {
     fn restart_clock(&mut self) {
         self.epoch += 1;
         self.frames.clear_extra();
-        let first_end = match self.opts.target_error {
-            Some(_) => stages::first_end(self.opts.max_spp),
-            None => self.opts.max_spp,
-        };
+        let first_end = stages::first_end(self.opts.target_error, self.opts.max_spp);
         if let Some(p) = &mut self.preview {
             p.stage_end = first_end;
             p.reached = false;
