@@ -639,14 +639,15 @@ fn missing_files_and_required_extensions_are_named() {
     // A required extension termtrace does not read; an optional one is only logged.
     let required = text.replacen(
         "\"asset\"",
-        "\"extensionsUsed\": [\"KHR_texture_basisu\"], \"extensionsRequired\": [\"KHR_texture_basisu\"], \"asset\"",
+        "\"extensionsUsed\": [\"KHR_materials_anisotropy\"], \"extensionsRequired\": [\"KHR_materials_anisotropy\"], \"asset\"",
         1,
     );
     // (Said once, by termtrace rather than the glTF crate's validation.)
     let e = import(required.as_bytes()).unwrap_err().to_string();
     assert!(
-        e.contains("requires the extension KHR_texture_basisu, which termtrace does not read")
-            && e.matches("KHR_texture_basisu").count() == 1,
+        e.contains(
+            "requires the extension KHR_materials_anisotropy, which termtrace does not read"
+        ) && e.matches("KHR_materials_anisotropy").count() == 1,
         "{e}"
     );
     let optional = text.replacen(
@@ -730,6 +731,24 @@ fn fuzzer_crashes_are_refused() {
         let bytes = std::fs::read(file).unwrap();
         let e = import(&bytes).expect_err(file);
         assert!(e.message.contains(want), "{file}: {e}");
+    }
+}
+
+/// KTX2 images `fuzz/` (its `ktx2` target) found crashing the transcode, each with what its
+/// refusal must say: a level claiming 10¹² bytes inflated (the transcoder allocated them), and
+/// an ETC1S stream whose run length overflows (a panic inside the transcoder).
+#[test]
+fn ktx2_fuzzer_crashes_are_refused() {
+    for (file, want) in [
+        (
+            "ktx2-inflated-length-huge.ktx2",
+            "claims 1099461361664 bytes inflated",
+        ),
+        ("ktx2-etc1s-repeat-count-overflow.ktx2", "KTX2"),
+    ] {
+        let bytes = std::fs::read(format!("tests/gltf/fuzz/{file}")).unwrap();
+        let e = termtrace::scene::gltf::decode_image(&bytes).expect_err(file);
+        assert!(e.0.contains(want), "{file}: {}", e.0);
     }
 }
 
@@ -952,6 +971,103 @@ fn sparse_positions_are_substituted() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("accessor 1 is sparse"), "{e}");
+}
+
+#[test]
+fn a_ktx2_basis_texture_renders_like_its_png_original() {
+    // BoxTextured with its PNG re-encoded by Basis Universal's encoder as KTX2, ETC1S in
+    // BasisLZ and UASTC in Zstandard (KHR_texture_basisu required, no PNG fallback; see the
+    // folder's LICENSE.md). The transcoded texels must equal Basis Universal's own C++
+    // transcoder's, exactly; the render must match the PNG original's within what the lossy
+    // codec moved (3 % of the mean).
+    let original = Scene::load("tests/gltf/BoxTextured/BoxTextured.gltf").unwrap();
+    let png_texels = image::open("tests/gltf/BoxTextured/CesiumLogoFlat.png")
+        .unwrap()
+        .to_rgba8();
+    for codec in ["etc1s", "uastc"] {
+        let dir = "tests/gltf/BoxTextured-basisu";
+        let ktx = Scene::load(&format!("{dir}/BoxTextured-{codec}.glb")).unwrap();
+        assert!(
+            ktx.gltf[0].left_out.is_empty(),
+            "{:?}",
+            ktx.gltf[0].left_out
+        );
+        let map = ktx.objects[0]
+            .material
+            .textured
+            .as_ref()
+            .and_then(|t| t.0.base_color.clone())
+            .expect("a base colour map");
+        let reference = image::open(format!("{dir}/{codec}-decoded-by-basis-universal.png"))
+            .unwrap()
+            .to_rgba8();
+        assert_eq!((map.width, map.height), reference.dimensions());
+        let same = map
+            .texels
+            .iter()
+            .zip(reference.pixels())
+            .filter(|(t, p)| t.to_le_bytes() == p.0)
+            .count();
+        assert_eq!(
+            same,
+            map.texels.len(),
+            "{codec}: texels equal to Basis Universal's"
+        );
+        // The codec is lossy, but not that lossy: the texels stay near the PNG's.
+        let off = map
+            .texels
+            .iter()
+            .zip(png_texels.pixels())
+            .flat_map(|(t, p)| {
+                (0..3).map(move |c| (t.to_le_bytes()[c] as f64 - p.0[c] as f64).abs())
+            })
+            .sum::<f64>()
+            / (map.texels.len() * 3) as f64;
+        assert!(
+            off < 4.0,
+            "{codec}: mean texel difference from the PNG {off} levels"
+        );
+        on_both(|| {
+            let a = snapshot(&original, settings(32, 32, 3), 4).image();
+            let b = snapshot(&ktx, settings(32, 32, 3), 4).image();
+            let mean = |i: &termtrace::output::LinearImage| {
+                i.pixels.iter().flatten().map(|&c| c as f64).sum::<f64>()
+                    / (i.pixels.len() * 3) as f64
+            };
+            let (ma, mb) = (mean(&a), mean(&b));
+            assert!((ma - mb).abs() <= 0.03 * ma, "{codec}: means {ma} and {mb}");
+        });
+    }
+}
+
+#[test]
+fn a_corrupt_ktx2_texture_is_refused_by_name() {
+    // The ETC1S file with its KTX2 image cut to half, and with its header's width made huge:
+    // each is refused naming the image and what is wrong, without a panic.
+    let glb = std::fs::read("tests/gltf/BoxTextured-basisu/BoxTextured-etc1s.glb").unwrap();
+    let start = glb
+        .windows(12)
+        .position(|w| w == b"\xABKTX 20\xBB\r\n\x1A\n")
+        .expect("the KTX2 image in the GLB");
+    let dir = tempfile::tempdir().unwrap();
+    let mut cut = glb.clone();
+    let len = cut.len();
+    // Zero the image's second half: its BasisLZ stream no longer decodes.
+    for b in &mut cut[start + (len - start) / 2..] {
+        *b = 0;
+    }
+    let mut huge = glb.clone();
+    huge[start + 20..start + 24].copy_from_slice(&1_000_000u32.to_le_bytes());
+    huge[start + 24..start + 28].copy_from_slice(&1_000_000u32.to_le_bytes());
+    for (name, bytes, why) in [
+        ("cut.glb", cut, "cannot transcode its KTX2"),
+        ("huge.glb", huge, "1000000×1000000"),
+    ] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).unwrap();
+        let e = format!("{:#}", Scene::load(path.to_str().unwrap()).unwrap_err());
+        assert!(e.contains("images[0]") && e.contains(why), "{name}: {e}");
+    }
 }
 
 #[test]

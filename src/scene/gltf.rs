@@ -34,6 +34,7 @@ const CANDELA_PER_UNIT: f64 = std::f64::consts::PI;
 /// maximum, a sharp sun that light sampling finds.
 const SUN_SIZE: f32 = 1000.0;
 
+pub use super::gltf_textures::decode_image;
 pub use super::gltf_textures::texture_transform as texture_transform_of;
 
 /// The extensions read; a file that requires another is refused, one that only uses another
@@ -50,6 +51,7 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
     "KHR_mesh_quantization",
     "EXT_mesh_gpu_instancing",
     "EXT_texture_webp",
+    "KHR_texture_basisu",
     "EXT_meshopt_compression",
     "KHR_meshopt_compression",
     "KHR_draco_mesh_compression",

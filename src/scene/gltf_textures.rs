@@ -1,6 +1,7 @@
-//! The textures of a glTF file: the images its materials use, decoded in parallel (PNG and
-//! JPEG through `image`) into the model's RGBA8 textures with their samplers' wrap modes, and
-//! each textured material as the model's [`Textured`].
+//! The textures of a glTF file: the images its materials use, decoded in parallel (PNG, JPEG
+//! and WebP through `image`, KTX2 / Basis Universal through `basisu`) into the model's RGBA8
+//! textures with their samplers' wrap modes, and each textured material as the model's
+//! [`Textured`].
 
 use super::error::Malformed;
 use super::texture::{
@@ -68,11 +69,8 @@ pub fn decode(
                 _ => format!("images[{i}]"),
             };
             let pixels = encoded(&image, base, buffers)
-                .and_then(|bytes| {
-                    image::load_from_memory(&bytes)
-                        .map_err(|e| Malformed(format!("cannot decode it: {e}")))
-                })
-                .map(|img| Arc::new(img.to_rgba8()))
+                .and_then(|bytes| decode_image(&bytes))
+                .map(Arc::new)
                 .map_err(|e| Malformed(format!("{what}: {e}")));
             (i, pixels.map(|p| (p, what)))
         })
@@ -102,24 +100,124 @@ pub fn decode(
         .collect())
 }
 
-/// The textures the maps of KHR_materials_transmission, _specular and _clearcoat name (the
-/// last from its JSON, which the crate does not type).
 /// The image a texture shows: its `EXT_texture_webp` source where it has one (WebP, which
-/// termtrace decodes, in preference to a fallback), else its own source (`None`: neither).
+/// termtrace decodes, in preference to a fallback), else its own source, else its
+/// `KHR_texture_basisu` source (KTX2 is a lossy re-encoding: a fallback, usually the original
+/// PNG or JPEG, is preferred where there is one); `None`: none of them.
 fn image_of(t: &gltf::Texture, doc: &gltf::Document) -> Result<Option<usize>, Malformed> {
-    if let Some(ext) = t.extension_value("EXT_texture_webp") {
-        let i = ext.get("source").and_then(|v| v.as_u64());
-        return match i {
+    let extension_source = |name: &str| -> Result<Option<usize>, Malformed> {
+        let Some(ext) = t.extension_value(name) else {
+            return Ok(None);
+        };
+        match ext.get("source").and_then(|v| v.as_u64()) {
             Some(i) if (i as usize) < doc.images().len() => Ok(Some(i as usize)),
             _ => Err(Malformed(format!(
-                "textures[{}].extensions.EXT_texture_webp.source is not an image",
+                "textures[{}].extensions.{name}.source is not an image",
                 t.index()
             ))),
-        };
+        }
+    };
+    if let Some(i) = extension_source("EXT_texture_webp")? {
+        return Ok(Some(i));
     }
-    Ok(t.source().map(|i| i.index()))
+    let basisu = extension_source("KHR_texture_basisu")?;
+    Ok(t.source().map(|i| i.index()).or(basisu))
 }
 
+/// KTX 2.0's identifier, the file's first 12 bytes (KTX 2.0 specification §3.1).
+const KTX2_IDENTIFIER: [u8; 12] = [
+    0xAB, 0x4B, 0x54, 0x58, 0x20, 0x32, 0x30, 0xBB, 0x0D, 0x0A, 0x1A, 0x0A,
+];
+
+/// The largest image decoded, in texels (16384², 1 GiB as RGBA8): a KTX2 header can claim any
+/// size, and the transcoder allocates what it claims.
+const MAX_TEXELS: u64 = 1 << 28;
+
+/// An encoded image's texels: KTX2 (by its identifier) transcoded from Basis Universal, any
+/// other format decoded by `image` (PNG, JPEG, WebP).
+pub fn decode_image(bytes: &[u8]) -> Result<image::RgbaImage, Malformed> {
+    if bytes.starts_with(&KTX2_IDENTIFIER) {
+        return decode_ktx2(bytes);
+    }
+    image::load_from_memory(bytes)
+        .map(|img| img.to_rgba8())
+        .map_err(|e| Malformed(format!("cannot decode it: {e}")))
+}
+
+/// A KTX2 image (`KHR_texture_basisu`: ETC1S in BasisLZ, or UASTC, possibly in Zstandard)
+/// transcoded to RGBA8: its first level, first layer and face. The texels are the encoded
+/// values, sRGB or linear as the material slot says (glTF §3.9.2), like a PNG's.
+fn decode_ktx2(bytes: &[u8]) -> Result<image::RgbaImage, Malformed> {
+    use basisu::{DecodeFlags, Error, TargetFormat, Transcoder};
+    let why = |e: Error| match e {
+        Error::InvalidData => {
+            "it is not Basis Universal data, or it is corrupt (KHR_texture_basisu \
+                               images are KTX2 in ETC1S or UASTC)"
+                .to_string()
+        }
+        Error::Truncated => "it is cut short (an offset or length reaches past its end)".into(),
+        Error::Unsupported { source, .. } => {
+            format!("its format ({source:?}) has no 8-bit RGBA decoding (an HDR image?)")
+        }
+        Error::UnsupportedFeature(what) => {
+            format!("the transcoder does not read what it holds ({what}), or it is corrupt")
+        }
+        other => format!("{other:?}"),
+    };
+    let ktx = Transcoder::new(bytes)
+        .map_err(|e| Malformed(format!("cannot transcode its KTX2: {}", why(e))))?;
+    let (width, height) = ktx.base_dimensions();
+    if width == 0 || height == 0 || width as u64 * height as u64 > MAX_TEXELS {
+        return Err(Malformed(format!(
+            "its KTX2 header says {width}×{height} texels (at most {MAX_TEXELS} are read)"
+        )));
+    }
+    // The first level's inflated size, which the transcoder allocates as the file states it,
+    // must fit the level: at most 16 bytes per 4×4 block of each layer, face and slice.
+    let u32_at = |o: usize| u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+    let (depth, layers, faces) = (u32_at(28), u32_at(32), u32_at(36));
+    let level_bytes = [depth, layers, faces].into_iter().fold(
+        16 * width.div_ceil(4) as u64 * height.div_ceil(4) as u64,
+        |n, k| n.saturating_mul(k.max(1) as u64),
+    );
+    let inflated = bytes
+        .get(96..104)
+        .map(|b| u64::from_le_bytes(b.try_into().unwrap()))
+        .ok_or_else(|| Malformed("its KTX2 level index is cut short".into()))?;
+    if inflated > level_bytes {
+        return Err(Malformed(format!(
+            "its KTX2 level 0 claims {inflated} bytes inflated, more than its {width}×{height} \
+             texels ({depth} slices, {layers} layers, {faces} faces) can hold ({level_bytes})"
+        )));
+    }
+    if !ktx.supports(TargetFormat::Rgba32) {
+        return Err(Malformed(format!(
+            "its KTX2 format ({:?}) has no 8-bit RGBA decoding (an HDR image?)",
+            ktx.source_format()
+        )));
+    }
+    let info = ktx
+        .image_level_info(0)
+        .map_err(|e| Malformed(format!("cannot transcode its KTX2: {}", why(e))))?;
+    // The transcoder is a port of C++ that trusts the stream's counts: `fuzz/` found an
+    // overflow in its ETC1S run lengths (a panic where overflow checks are on). A panic in it
+    // is this file's error, not the program's end.
+    let texels =
+        std::panic::catch_unwind(|| ktx.transcode(0, TargetFormat::Rgba32, DecodeFlags::NONE))
+            .map_err(|_| {
+                Malformed("its KTX2 stream is corrupt (the transcoder failed on it)".into())
+            })?
+            .map_err(|e| Malformed(format!("cannot transcode its KTX2: {}", why(e))))?;
+    image::RgbaImage::from_raw(info.width, info.height, texels).ok_or_else(|| {
+        Malformed(format!(
+            "its KTX2 level 0 transcoded to a buffer that is not {}×{} RGBA",
+            info.width, info.height
+        ))
+    })
+}
+
+/// The textures the maps of KHR_materials_transmission, _specular and _clearcoat name (the
+/// last from its JSON, which the crate does not type).
 fn extension_textures(m: &gltf::Material) -> Vec<usize> {
     let mut out = Vec::new();
     if let Some(i) = m.transmission().and_then(|t| t.transmission_texture()) {
