@@ -735,8 +735,9 @@ fn fuzzer_crashes_are_refused() {
 }
 
 /// KTX2 images `fuzz/` (its `ktx2` target) found crashing the transcode, each with what its
-/// refusal must say: a level claiming 10¹² bytes inflated (the transcoder allocated them), and
-/// an ETC1S stream whose run length overflows (a panic inside the transcoder).
+/// refusal must say: a level claiming 10¹² bytes inflated (the transcoder allocated them), an
+/// ETC1S stream whose run length overflows, and a key/value entry whose length reaches past
+/// the file's end (both panics inside the transcoder).
 #[test]
 fn ktx2_fuzzer_crashes_are_refused() {
     for (file, want) in [
@@ -745,6 +746,10 @@ fn ktx2_fuzzer_crashes_are_refused() {
             "claims 1099461361664 bytes inflated",
         ),
         ("ktx2-etc1s-repeat-count-overflow.ktx2", "KTX2"),
+        (
+            "ktx2-key-value-length-past-end.ktx2",
+            "KTX2 data is corrupt",
+        ),
     ] {
         let bytes = std::fs::read(format!("tests/gltf/fuzz/{file}")).unwrap();
         let e = termtrace::scene::gltf::decode_image(&bytes).expect_err(file);

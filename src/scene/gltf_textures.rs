@@ -148,6 +148,19 @@ pub fn decode_image(bytes: &[u8]) -> Result<image::RgbaImage, Malformed> {
 /// transcoded to RGBA8: its first level, first layer and face. The texels are the encoded
 /// values, sRGB or linear as the material slot says (glTF §3.9.2), like a PNG's.
 fn decode_ktx2(bytes: &[u8]) -> Result<image::RgbaImage, Malformed> {
+    // The transcoder is a port of C++ that trusts the file's offsets and counts: `fuzz/` found
+    // a key/value length that indexes past the end (a panic in its header parse) and an
+    // overflow in its ETC1S run lengths (a panic where overflow checks are on). A panic in it
+    // is this file's error, not the program's end.
+    std::panic::catch_unwind(|| transcode_ktx2(bytes)).unwrap_or_else(|_| {
+        Err(Malformed(
+            "its KTX2 data is corrupt (the transcoder failed on it)".into(),
+        ))
+    })
+}
+
+/// [`decode_ktx2`]'s work, which may panic on a corrupt file.
+fn transcode_ktx2(bytes: &[u8]) -> Result<image::RgbaImage, Malformed> {
     use basisu::{DecodeFlags, Error, TargetFormat, Transcoder};
     let why = |e: Error| match e {
         Error::InvalidData => {
@@ -199,15 +212,9 @@ fn decode_ktx2(bytes: &[u8]) -> Result<image::RgbaImage, Malformed> {
     let info = ktx
         .image_level_info(0)
         .map_err(|e| Malformed(format!("cannot transcode its KTX2: {}", why(e))))?;
-    // The transcoder is a port of C++ that trusts the stream's counts: `fuzz/` found an
-    // overflow in its ETC1S run lengths (a panic where overflow checks are on). A panic in it
-    // is this file's error, not the program's end.
-    let texels =
-        std::panic::catch_unwind(|| ktx.transcode(0, TargetFormat::Rgba32, DecodeFlags::NONE))
-            .map_err(|_| {
-                Malformed("its KTX2 stream is corrupt (the transcoder failed on it)".into())
-            })?
-            .map_err(|e| Malformed(format!("cannot transcode its KTX2: {}", why(e))))?;
+    let texels = ktx
+        .transcode(0, TargetFormat::Rgba32, DecodeFlags::NONE)
+        .map_err(|e| Malformed(format!("cannot transcode its KTX2: {}", why(e))))?;
     image::RgbaImage::from_raw(info.width, info.height, texels).ok_or_else(|| {
         Malformed(format!(
             "its KTX2 level 0 transcoded to a buffer that is not {}×{} RGBA",
