@@ -24,7 +24,8 @@ const TWINS: &[Twin] = &[
         // The GPU reads the map's words (`common::envmap`); the host holds typed arrays.
         // `invert`: the GPU searches a CDF whole; the host through guide tables (`guide`,
         // `buckets`, `invert_guided`), which find the same interval (tested against the
-        // whole search).
+        // whole search). `floor`: the host's without a libm call (the GPU's is an
+        // instruction); `direction_and_sin`: the host's sample keeps sin θ from the direction.
         wgsl_only: &[
             "cdf", "density", "height", "invert", "lookup", "texel", "width",
         ],
@@ -33,6 +34,8 @@ const TWINS: &[Twin] = &[
             "buckets",
             "bytes",
             "density_uv",
+            "direction_and_sin",
+            "floor",
             "guide",
             "invert_guided",
             "new",
