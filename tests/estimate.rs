@@ -207,7 +207,10 @@ fn write_the_references() {
     // TERMTRACE_REFERENCE_SCENES: a comma-separated subset (all when unset).
     let only = std::env::var("TERMTRACE_REFERENCE_SCENES").ok();
     for (name, _) in BUILTIN_SCENES {
-        if only.as_ref().is_some_and(|o| !o.split(',').any(|n| n == *name)) {
+        if only
+            .as_ref()
+            .is_some_and(|o| !o.split(',').any(|n| n == *name))
+        {
             continue;
         }
         let scene = Scene::load(name).unwrap();
