@@ -17,30 +17,11 @@ fn render_on(backend: Backend, scene: &Scene, seed: u32, spp: u32) -> Snapshot {
     snapshot_on(backend, scene, s, spp, RenderOptions::default())
 }
 
-/// Renders each of `names` (a built-in scene or a file) on both tracers, independent samples
-/// (different seeds) so that the test's variance is right, and checks that no 8×8 tile
-/// differs, Bonferroni-corrected over all tiles of all scenes at α = 0.01; neither tracer
-/// may have an invalid sample.
+/// Each of `names` (a built-in scene or a file) through `common::cpu_converges_to_gpu`.
 fn converge_alike(names: &[String]) {
-    let spp = 48;
-    let mut tally = BiasTally::default();
-    for name in names {
-        let scene = Scene::load(name).unwrap();
-        let gpu = render_on(Backend::Gpu(ctx()), &scene, 1, spp);
-        let cpu = render_on(Backend::Cpu, &scene, 2, spp);
-        assert_eq!(
-            cpu.invalid_samples(),
-            0,
-            "{name}: invalid samples on the CPU"
-        );
-        assert_eq!(
-            gpu.invalid_samples(),
-            0,
-            "{name}: invalid samples on the GPU"
-        );
-        tally.check(name, &cpu, &gpu, 0.01 / names.len() as f64);
-    }
-    tally.assert_none_differ(12 * names.len());
+    let scenes: Vec<Scene> = names.iter().map(|n| Scene::load(n).unwrap()).collect();
+    let named: Vec<(&str, &Scene)> = names.iter().map(|n| n.as_str()).zip(&scenes).collect();
+    cpu_converges_to_gpu(&named);
 }
 
 #[test]

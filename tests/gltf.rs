@@ -978,6 +978,45 @@ fn sparse_positions_are_substituted() {
     assert!(e.contains("accessor 1 is sparse"), "{e}");
 }
 
+/// The base colour map of `s`'s first object, which must have one; nothing of the file left
+/// out.
+fn base_color_map(s: &Scene) -> std::sync::Arc<termtrace::scene::texture::Texture> {
+    assert!(s.gltf[0].left_out.is_empty(), "{:?}", s.gltf[0].left_out);
+    s.objects[0]
+        .material
+        .textured
+        .as_ref()
+        .and_then(|t| t.0.base_color.clone())
+        .expect("a base colour map")
+}
+
+/// `map`'s texels equal, every one, those of the PNG at `path` (an independent decoder's).
+fn assert_texels_are(map: &termtrace::scene::texture::Texture, path: &str, what: &str) {
+    let png = image::open(path).unwrap().to_rgba8();
+    assert_eq!((map.width, map.height), png.dimensions(), "{what}");
+    let same = map
+        .texels
+        .iter()
+        .zip(png.pixels())
+        .filter(|(t, p)| t.to_le_bytes() == p.0)
+        .count();
+    assert_eq!(same, map.texels.len(), "{what}: texels equal to {path}'s");
+}
+
+/// `twin` renders like BoxTextured with its PNG, on both tracers: image means within 3 %.
+fn renders_like_the_png_original(twin: &Scene, what: &str) {
+    let original = Scene::load("tests/gltf/BoxTextured/BoxTextured.gltf").unwrap();
+    on_both(|| {
+        let a = snapshot(&original, settings(32, 32, 3), 4).image();
+        let b = snapshot(twin, settings(32, 32, 3), 4).image();
+        let mean = |i: &termtrace::output::LinearImage| {
+            i.pixels.iter().flatten().map(|&c| c as f64).sum::<f64>() / (i.pixels.len() * 3) as f64
+        };
+        let (ma, mb) = (mean(&a), mean(&b));
+        assert!((ma - mb).abs() <= 0.03 * ma, "{what}: means {ma} and {mb}");
+    });
+}
+
 #[test]
 fn a_ktx2_basis_texture_renders_like_its_png_original() {
     // BoxTextured with its PNG re-encoded by Basis Universal's encoder as KTX2, ETC1S in
@@ -985,38 +1024,17 @@ fn a_ktx2_basis_texture_renders_like_its_png_original() {
     // folder's LICENSE.md). The transcoded texels must equal Basis Universal's own C++
     // transcoder's, exactly; the render must match the PNG original's within what the lossy
     // codec moved (3 % of the mean).
-    let original = Scene::load("tests/gltf/BoxTextured/BoxTextured.gltf").unwrap();
     let png_texels = image::open("tests/gltf/BoxTextured/CesiumLogoFlat.png")
         .unwrap()
         .to_rgba8();
     for codec in ["etc1s", "uastc"] {
         let dir = "tests/gltf/BoxTextured-basisu";
         let ktx = Scene::load(&format!("{dir}/BoxTextured-{codec}.glb")).unwrap();
-        assert!(
-            ktx.gltf[0].left_out.is_empty(),
-            "{:?}",
-            ktx.gltf[0].left_out
-        );
-        let map = ktx.objects[0]
-            .material
-            .textured
-            .as_ref()
-            .and_then(|t| t.0.base_color.clone())
-            .expect("a base colour map");
-        let reference = image::open(format!("{dir}/{codec}-decoded-by-basis-universal.png"))
-            .unwrap()
-            .to_rgba8();
-        assert_eq!((map.width, map.height), reference.dimensions());
-        let same = map
-            .texels
-            .iter()
-            .zip(reference.pixels())
-            .filter(|(t, p)| t.to_le_bytes() == p.0)
-            .count();
-        assert_eq!(
-            same,
-            map.texels.len(),
-            "{codec}: texels equal to Basis Universal's"
+        let map = base_color_map(&ktx);
+        assert_texels_are(
+            &map,
+            &format!("{dir}/{codec}-decoded-by-basis-universal.png"),
+            codec,
         );
         // The codec is lossy, but not that lossy: the texels stay near the PNG's.
         let off = map
@@ -1032,16 +1050,7 @@ fn a_ktx2_basis_texture_renders_like_its_png_original() {
             off < 4.0,
             "{codec}: mean texel difference from the PNG {off} levels"
         );
-        on_both(|| {
-            let a = snapshot(&original, settings(32, 32, 3), 4).image();
-            let b = snapshot(&ktx, settings(32, 32, 3), 4).image();
-            let mean = |i: &termtrace::output::LinearImage| {
-                i.pixels.iter().flatten().map(|&c| c as f64).sum::<f64>()
-                    / (i.pixels.len() * 3) as f64
-            };
-            let (ma, mb) = (mean(&a), mean(&b));
-            assert!((ma - mb).abs() <= 0.03 * ma, "{codec}: means {ma} and {mb}");
-        });
+        renders_like_the_png_original(&ktx, codec);
     }
 }
 
@@ -1081,42 +1090,14 @@ fn a_webp_texture_renders_like_its_png_original() {
     // fallback). Its encoder (sharp) applied the PNG's ICC profile (Apple's Generic RGB), so
     // the texels moved by up to 19 levels of 255 (mean 8): the image is compared with its
     // own independent decode, and the render with the original's within 3 %.
-    let original = Scene::load("tests/gltf/BoxTextured/BoxTextured.gltf").unwrap();
     let webp = Scene::load("tests/gltf/BoxTextured-webp/BoxTextured-webp.glb").unwrap();
-    assert!(
-        webp.gltf[0].left_out.is_empty(),
-        "{:?}",
-        webp.gltf[0].left_out
-    );
-    let t = |s: &Scene| {
-        s.objects[0]
-            .material
-            .textured
-            .as_ref()
-            .and_then(|t| t.0.base_color.clone())
-            .expect("a base colour map")
-    };
     // The texels are the WebP's as an independent decoder reads it (ImageMagick's decode,
     // committed beside the file), exactly.
-    let png = image::open("tests/gltf/BoxTextured-webp/decoded-by-imagemagick.png")
-        .unwrap()
-        .to_rgba8();
-    let b = t(&webp);
-    assert_eq!((b.width, b.height), png.dimensions());
-    let same = b
-        .texels
-        .iter()
-        .zip(png.pixels())
-        .filter(|(t, p)| t.to_le_bytes() == p.0)
-        .count();
-    assert_eq!(same, b.texels.len(), "texels equal to ImageMagick's");
-    on_both(|| {
-        let a = snapshot(&original, settings(32, 32, 3), 4).image();
-        let b = snapshot(&webp, settings(32, 32, 3), 4).image();
-        let mean = |i: &termtrace::output::LinearImage| {
-            i.pixels.iter().flatten().map(|&c| c as f64).sum::<f64>() / (i.pixels.len() * 3) as f64
-        };
-        let (ma, mb) = (mean(&a), mean(&b));
-        assert!((ma - mb).abs() <= 0.03 * ma, "means {ma} and {mb}");
-    });
+    let map = base_color_map(&webp);
+    assert_texels_are(
+        &map,
+        "tests/gltf/BoxTextured-webp/decoded-by-imagemagick.png",
+        "WebP",
+    );
+    renders_like_the_png_original(&webp, "WebP");
 }

@@ -129,37 +129,22 @@ fn instanced_and_flattened_twins_render_the_same_image_on_both_tracers() {
 
 #[test]
 fn instanced_scenes_converge_to_the_gpu_image_on_the_cpu() {
-    // The CPU-against-GPU bias check of tests/cpu.rs (independent seeds, 8×8 tiles,
-    // Bonferroni at α = 0.01 over every tile) on the two-level walk: both instanced files and
-    // the mirrored, unevenly scaled, normal-mapped copy, each forced to instance.
+    // The CPU-against-GPU bias check of tests/cpu.rs (`common::cpu_converges_to_gpu`) on the
+    // two-level walk: both instanced files and the mirrored, unevenly scaled, normal-mapped
+    // copy, each forced to instance.
     let cases = [
         ("nodes", placed(NODES, "always")),
         ("EXT_mesh_gpu_instancing", placed(GPU_INSTANCING, "always")),
         ("mirrored copy", mirrored_twice(Instancing::Always)),
     ];
-    let mut tally = BiasTally::default();
     for (name, scene) in &cases {
         assert!(
             meshes(scene).iter().any(|&n| n >= 2),
             "{name}: not instanced"
         );
-        let render = |backend, seed| {
-            let s = termtrace::common::FrameSettings {
-                seed,
-                ..settings(32, 24, 6)
-            };
-            snapshot_on(backend, scene, s, 48, RenderOptions::default())
-        };
-        let gpu = render(termtrace::render::Backend::Gpu(ctx()), 1);
-        let cpu = render(termtrace::render::Backend::Cpu, 2);
-        assert_eq!(
-            (gpu.invalid_samples(), cpu.invalid_samples()),
-            (0, 0),
-            "{name}"
-        );
-        tally.check(name, &cpu, &gpu, 0.01 / cases.len() as f64);
     }
-    tally.assert_none_differ(12 * cases.len());
+    let named: Vec<(&str, &Scene)> = cases.iter().map(|(n, s)| (*n, s)).collect();
+    cpu_converges_to_gpu(&named);
 }
 
 /// Khronos's NormalTangentMirrorTest (normal maps, the file's tangents, mirrored UVs), drawn

@@ -201,6 +201,37 @@ pub fn image_diff(a: &LinearImage, b: &LinearImage) -> (usize, f32, Option<(u32,
     (n, worst, first)
 }
 
+/// The CPU tracer against the GPU's on each named scene: 32×24, the scene's bounces (at most
+/// 12), 48 spp, independent samples (seed 1 on the GPU, 2 on the CPU) so that the test's
+/// variance is right. No 8×8 tile may differ, Bonferroni-corrected over all tiles of all the
+/// scenes at α = 0.01, and neither tracer may have an invalid sample.
+pub fn cpu_converges_to_gpu(scenes: &[(&str, &Scene)]) {
+    let mut tally = BiasTally::default();
+    for &(name, scene) in scenes {
+        let render = |b: Backend, seed| {
+            let s = FrameSettings {
+                seed,
+                ..settings(32, 24, scene.render.max_bounces.min(12))
+            };
+            snapshot_on(b, scene, s, 48, RenderOptions::default())
+        };
+        let gpu = render(Backend::Gpu(ctx()), 1);
+        let cpu = render(Backend::Cpu, 2);
+        assert_eq!(
+            cpu.invalid_samples(),
+            0,
+            "{name}: invalid samples on the CPU"
+        );
+        assert_eq!(
+            gpu.invalid_samples(),
+            0,
+            "{name}: invalid samples on the GPU"
+        );
+        tally.check(name, &cpu, &gpu, 0.01 / scenes.len() as f64);
+    }
+    tally.assert_none_differ(12 * scenes.len());
+}
+
 /// The bias check of `converge` over several scenes (8×8 tiles, Welch t-tests): the tiles
 /// tested and those that differ, each named by its scene.
 #[derive(Default)]
