@@ -162,23 +162,24 @@ fn decode_ktx2(bytes: &[u8]) -> Result<image::RgbaImage, Malformed> {
 /// [`decode_ktx2`]'s work, which may panic on a corrupt file.
 fn transcode_ktx2(bytes: &[u8]) -> Result<image::RgbaImage, Malformed> {
     use basisu::{DecodeFlags, Error, TargetFormat, Transcoder};
-    let why = |e: Error| match e {
-        Error::InvalidData => {
-            "it is not Basis Universal data, or it is corrupt (KHR_texture_basisu \
-                               images are KTX2 in ETC1S or UASTC)"
-                .to_string()
-        }
-        Error::Truncated => "it is cut short (an offset or length reaches past its end)".into(),
-        Error::Unsupported { source, .. } => {
-            format!("its format ({source:?}) has no 8-bit RGBA decoding (an HDR image?)")
-        }
-        Error::UnsupportedFeature(what) => {
-            format!("the transcoder does not read what it holds ({what}), or it is corrupt")
-        }
-        other => format!("{other:?}"),
+    // A transcoder error as this image's.
+    let fail = |e: Error| {
+        let why = match e {
+            Error::InvalidData => "it is not Basis Universal data, or it is corrupt \
+                                   (KHR_texture_basisu images are KTX2 in ETC1S or UASTC)"
+                .to_string(),
+            Error::Truncated => "it is cut short (an offset or length reaches past its end)".into(),
+            Error::Unsupported { source, .. } => {
+                format!("its format ({source:?}) has no 8-bit RGBA decoding (an HDR image?)")
+            }
+            Error::UnsupportedFeature(what) => {
+                format!("the transcoder does not read what it holds ({what}), or it is corrupt")
+            }
+            other => format!("{other:?}"),
+        };
+        Malformed(format!("cannot transcode its KTX2: {why}"))
     };
-    let ktx = Transcoder::new(bytes)
-        .map_err(|e| Malformed(format!("cannot transcode its KTX2: {}", why(e))))?;
+    let ktx = Transcoder::new(bytes).map_err(fail)?;
     let (width, height) = ktx.base_dimensions();
     if width == 0 || height == 0 || width as u64 * height as u64 > MAX_TEXELS {
         return Err(Malformed(format!(
@@ -209,12 +210,10 @@ fn transcode_ktx2(bytes: &[u8]) -> Result<image::RgbaImage, Malformed> {
             ktx.source_format()
         )));
     }
-    let info = ktx
-        .image_level_info(0)
-        .map_err(|e| Malformed(format!("cannot transcode its KTX2: {}", why(e))))?;
+    let info = ktx.image_level_info(0).map_err(fail)?;
     let texels = ktx
         .transcode(0, TargetFormat::Rgba32, DecodeFlags::NONE)
-        .map_err(|e| Malformed(format!("cannot transcode its KTX2: {}", why(e))))?;
+        .map_err(fail)?;
     image::RgbaImage::from_raw(info.width, info.height, texels).ok_or_else(|| {
         Malformed(format!(
             "its KTX2 level 0 transcoded to a buffer that is not {}×{} RGBA",
