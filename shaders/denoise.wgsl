@@ -543,10 +543,14 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
     let lx = lid % TILE;
     let ly = lid / TILE;
     var proxy = ProxySums();
+    var whole = WindowSums();
     for (var dy = 0u; dy <= 2u * r; dy++) {
         for (var dx = 0u; dx <= 2u * r; dx++) {
             let k = (ly + dy) * WINDOW + lx + dx;
-            proxy_add(&proxy, window(k, 0u), window(k, 1u));
+            window_add(&whole, window(k, 0u), window(k, 1u));
+            if dx != r || dy != r {
+                proxy_add(&proxy, window(k, 0u), window(k, 1u));
+            }
         }
     }
     let centre = (ly + r) * WINDOW + lx + r;
@@ -582,11 +586,12 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
         if k > 0.0 {
             let x = e.xyz;
             let y = o.xyz;
-            let scale = relative_weight(proxy);
+            let scale = relative_weight(proxy, e, o);
             let r = (x - y) * (x - y) * k;
             let rr = dot(r * scale, vec3f(1.0));
-            let ta = estimate_terms(fa, fb, x, y, scale);
-            let tg = estimate_terms(ga, gb, x, y, scale);
+            let filtered = filtered_weight(whole);
+            let ta = estimate_terms(fa, fb, x, y, filtered);
+            let tg = estimate_terms(ga, gb, x, y, filtered);
             let odd = select(0.0, 1.0, ((gid.x + gid.y) & 1u) == 1u);
             // The choice's sums (src/common/estimate.rs, `choice_weight`).
             let cw = 1.0 / (max(x * y, vec3f(0.0)) + REL_MSE_EPSILON);

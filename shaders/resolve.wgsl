@@ -47,11 +47,14 @@ fn window_weight(x: u32, y: u32) -> vec3f {
     var s = ProxySums();
     for (var qy = win.y; qy < win.w; qy++) {
         for (var qx = win.x; qx < win.z; qx++) {
-            let q = qy * params.width + qx;
-            proxy_add(&s, half_mean(0u, q), half_mean(1u, q));
+            if qx != x || qy != y {
+                let q = qy * params.width + qx;
+                proxy_add(&s, half_mean(0u, q), half_mean(1u, q));
+            }
         }
     }
-    return relative_weight(s);
+    let p = y * params.width + x;
+    return relative_weight(s, half_mean(0u, p), half_mean(1u, p));
 }
 
 @compute @workgroup_size(8, 8, 1)

@@ -1,9 +1,9 @@
 // The two-halves error estimate's per-pixel terms (src/common/estimate.rs, whose comments
 // say why): the factor that makes a pixel's (A − B)² the variance of its pooled mean, and the
 // weight of its squared error in pbrt's relative MSE, 1 / (reference² proxy + 0.01), the
-// proxy being the smaller of the halves' 3×3 means times their pooled 3×3 mean. Included by
-// resolve.wgsl and denoise.wgsl, whose `window_weight` walks `proxy_window` with their own
-// `half_mean` (each reads the accumulation its own way).
+// proxy being the mean of the pixel's 3×3 neighbours clamped to the range of its two half
+// means; and the filtered images' weights (`filtered_weight`). Included by resolve.wgsl and denoise.wgsl, which walk `proxy_window`
+// with their own `half_mean` (each reads the accumulation its own way).
 
 // pbrt's relative-MSE epsilon (src/common/estimate.rs: REL_MSE_EPSILON).
 const REL_MSE_EPSILON: f32 = 0.01;
@@ -18,12 +18,30 @@ fn pair_factor(na: f32, nb: f32) -> f32 {
     return 0.0;
 }
 
-// The halves' sums over a pixel's window, for the reference² proxy.
+// A pixel's proxy terms (src/common/estimate.rs, `proxy_terms`): its mean (the mean of its
+// halves' means where both have samples, else the one half's), the smaller and the larger of
+// its halves' means, and whether it has samples at all.
+struct ProxyTerms {
+    mean: vec3f,
+    lo: vec3f,
+    hi: vec3f,
+    some: bool,
+}
+
+fn proxy_terms(a: vec4f, b: vec4f) -> ProxyTerms {
+    if a.w > 0.0 && b.w > 0.0 {
+        return ProxyTerms(0.5 * (a.xyz + b.xyz), min(a.xyz, b.xyz), max(a.xyz, b.xyz), true);
+    }
+    if a.w > 0.0 {
+        return ProxyTerms(a.xyz, a.xyz, a.xyz, true);
+    }
+    return ProxyTerms(b.xyz, b.xyz, b.xyz, b.w > 0.0);
+}
+
+// The neighbours' sum of means over a pixel's window, and how many have samples.
 struct ProxySums {
-    a: vec3f,
-    b: vec3f,
-    na: f32,
-    nb: f32,
+    sum: vec3f,
+    count: f32,
 }
 
 // The window around traced pixel (x, y) of a `size` image, clipped at its edges: x0, y0
@@ -33,9 +51,39 @@ fn proxy_window(x: u32, y: u32, size: vec2u) -> vec4u {
     return vec4u(max(x, r) - r, max(y, r) - r, min(x + r + 1u, size.x), min(y + r + 1u, size.y));
 }
 
-// Adds one window pixel's half means `a` and `b` (mean, samples; common/estimate.wgsl's
-// includers' `half_mean`), each where its half has samples.
+// Adds one neighbour's half means `a` and `b` (mean, samples; common/estimate.wgsl's
+// includers' `half_mean`), if it has samples.
 fn proxy_add(s: ptr<function, ProxySums>, a: vec4f, b: vec4f) {
+    let t = proxy_terms(a, b);
+    if t.some {
+        (*s).sum += t.mean;
+        (*s).count += 1.0;
+    }
+}
+
+// The relative MSE's weight of a pixel with half means `a` and `b` from its neighbours'
+// sums, per channel (src/common/estimate.rs, `proxy_weight`).
+fn relative_weight(s: ProxySums, a: vec4f, b: vec4f) -> vec3f {
+    let t = proxy_terms(a, b);
+    var v = t.mean;
+    if s.count > 0.0 {
+        v = max(min(s.sum / s.count, t.hi), t.lo);
+    }
+    v = max(v, vec3f(0.0));
+    return 1.0 / (v * v + REL_MSE_EPSILON);
+}
+
+// The halves' sums over a pixel's window, the pixel included, for the filtered images'
+// weights (src/common/estimate.rs, `filtered_weights`).
+struct WindowSums {
+    a: vec3f,
+    b: vec3f,
+    na: f32,
+    nb: f32,
+}
+
+// Adds one window pixel's half means `a` and `b`, each where its half has samples.
+fn window_add(s: ptr<function, WindowSums>, a: vec4f, b: vec4f) {
     if a.w > 0.0 {
         (*s).a += a.xyz;
         (*s).na += 1.0;
@@ -46,8 +94,8 @@ fn proxy_add(s: ptr<function, ProxySums>, a: vec4f, b: vec4f) {
     }
 }
 
-// The relative MSE's weight of a pixel from its window's sums, per channel.
-fn relative_weight(s: ProxySums) -> vec3f {
+// The filtered images' weight of a pixel from its window's sums, per channel.
+fn filtered_weight(s: WindowSums) -> vec3f {
     let a = s.a / max(s.na, 1.0);
     let b = s.b / max(s.nb, 1.0);
     let square = max(min(a, b), vec3f(0.0)) * max(0.5 * (a + b), vec3f(0.0));

@@ -8,20 +8,22 @@
 //! pbrt's relative MSE: each channel's squared error over reference² + 0.01, and the
 //! reference is not known.
 //!
-//! **The reference² proxy.** The estimate divides by the product of the halves' smaller 3×3
-//! mean and their pooled 3×3 mean. The proxy it replaces, A·B, is unbiased for reference²,
-//! but it is correlated with the numerator exactly where the error is: a firefly in one half
-//! makes (A − B)² and A·B large together, so a pixel whose true relative error is
-//! (firefly/n)²/reference² counted for firefly/B. A 3×3 mean takes most of a single pixel's
-//! noise out of the proxy. Of the two means, the smaller one (the half without the firefly)
-//! is right where the firefly is rare (a sun's caustic landing in a diffuse pixel) and counts
-//! a firefly many times over where such samples are the light's usual path (a glossy lobe
-//! that finds a small lamp: there the true reference holds their mean); the pooled mean is
-//! right there and counts for little a rare one. Their product (a geometric mean of the two
-//! squares) was measured against both and against A·B on every shipped scene
-//! (tests/estimate.rs; BENCHMARKS.md, "An honest error estimate"): the smaller mean alone read
-//! 2–5× the true error on `pbr` and the caustic scene, the pooled mean 0.3–0.6× on `glass`,
-//! A·B 0.24–0.60× on `glass` and 0.27–0.80× on the caustic scene.
+//! **The reference² proxy.** The estimate divides each pixel's (A − B)² by a proxy of its
+//! reference², which must not grow with the pixel's own noise: a firefly in one half makes
+//! (A − B)² large, and a proxy that grows with it (A·B, or any window mean that holds the
+//! pixel) counts that pixel's error for little exactly where it is large. Such proxies made
+//! the estimate's *expectation* 0.14–0.52 of the true relative MSE's on the firefly scenes,
+//! though a run's figure often looked right (BENCHMARKS.md, "An estimate that counts
+//! fireflies"). The proxy is now the mean of the pixel's 3×3 neighbours, which its own
+//! samples do not touch, clamped to the range of its two half means: the clamp keeps a pixel
+//! that both halves find bright (a highlight, a lamp) from being divided by its darker
+//! neighbours, and a dark pixel beside an emitter from being divided by the emitter. With the
+//! exact reference as the proxy the expectation is right on every shipped scene
+//! (tests/estimate.rs, `the_reference_as_the_proxy`), so what is left is the proxy's: a
+//! bright path that only one half found, where the neighbours did not, reads as a firefly
+//! even where it is the pixel's usual light (`pbr`'s glossy highlights of small lamps and the
+//! caustic scene read up to 2.5× high). The denoiser's estimates of its filtered images keep
+//! the halves' 3×3 means (`filtered_weights`, which says why).
 
 use rayon::prelude::*;
 
@@ -47,12 +49,78 @@ pub fn pair_factor(na: f64, nb: f64) -> Option<f64> {
     (na >= 1.0 && nb >= 1.0).then(|| na * nb / ((na + nb) * (na + nb)))
 }
 
+/// A pixel's terms for the proxy, per channel: its mean (the mean of its halves' means where
+/// both have samples, else the one half's), and the smaller and the larger of its halves'
+/// means; `None` without samples.
+type ProxyTerms = ([f32; 3], [f32; 3], [f32; 3]);
+
+fn proxy_terms(e: [f32; 4], o: [f32; 4]) -> Option<ProxyTerms> {
+    let (a, b) = (half_mean(e), half_mean(o));
+    match (e[3] > 0.0, o[3] > 0.0) {
+        (true, true) => Some((
+            std::array::from_fn(|c| 0.5 * (a[c] + b[c])),
+            std::array::from_fn(|c| a[c].min(b[c])),
+            std::array::from_fn(|c| a[c].max(b[c])),
+        )),
+        (true, false) => Some((a, a, a)),
+        (false, true) => Some((b, b, b)),
+        (false, false) => None,
+    }
+}
+
+/// 1 / (proxy² + ε) from a pixel's mean `m`, its halves' smaller and larger means `lo` and
+/// `hi`, and its neighbours' mean `n` (`None` without neighbours): the proxy is `n` clamped
+/// to [lo, hi], or `m` without neighbours.
+fn proxy_weight(m: f32, lo: f32, hi: f32, n: Option<f32>) -> f32 {
+    let v = n.map_or(m, |n| n.min(hi).max(lo)).max(0.0);
+    1.0 / (v * v + REL_MSE_EPSILON as f32)
+}
+
 /// Per pixel and channel of a `w × h` image whose halves' sums are `even` and `odd`
 /// (`[r, g, b, samples]`), 1 / (reference² proxy + ε): the weight of the pixel's squared
-/// error in the relative MSE. The proxy is the smaller of the halves' means over the 3×3
-/// window (clipped at the image's edges, and over the pixels where that half has samples)
-/// times the mean of the two.
+/// error in the relative MSE. The proxy is the mean of its 3×3 neighbours' means (clipped at
+/// the image's edges, over the neighbours with samples; the pixel itself left out) clamped
+/// to the range of the pixel's two half means (`proxy_weight`).
 pub fn relative_weights(even: &[[f32; 4]], odd: &[[f32; 4]], w: usize, h: usize) -> Vec<[f32; 3]> {
+    assert_eq!(even.len(), w * h);
+    assert_eq!(odd.len(), w * h);
+    let terms: Vec<Option<ProxyTerms>> = (0..w * h)
+        .into_par_iter()
+        .map(|p| proxy_terms(even[p], odd[p]))
+        .collect();
+    let r = PROXY_RADIUS;
+    (0..w * h)
+        .into_par_iter()
+        .map(|p| {
+            let (x, y) = (p % w, p / w);
+            let (mut sum, mut count) = ([0.0f32; 3], 0.0f32);
+            for qy in y.saturating_sub(r)..(y + r + 1).min(h) {
+                for qx in x.saturating_sub(r)..(x + r + 1).min(w) {
+                    let q = qy * w + qx;
+                    if let (true, Some((m, _, _))) = (q != p, terms[q]) {
+                        for c in 0..3 {
+                            sum[c] += m[c];
+                        }
+                        count += 1.0;
+                    }
+                }
+            }
+            let (m, lo, hi) = terms[p].unwrap_or(([0.0; 3], [0.0; 3], [0.0; 3]));
+            std::array::from_fn(|c| {
+                proxy_weight(m[c], lo[c], hi[c], (count > 0.0).then(|| sum[c] / count))
+            })
+        })
+        .collect()
+}
+
+/// The weights of the filtered images' estimates (`denoise`'s per-pixel terms), per pixel and
+/// channel as `relative_weights`: 1 / (proxy + ε), the proxy being the halves' smaller 3×3
+/// mean times their pooled 3×3 mean, the window clipped at the image's edges and over the
+/// pixels where that half has samples. Those estimates are differences of large terms
+/// (src/denoise/mod.rs, "The estimator"), unbiased only where the weight does not follow the
+/// pixel's own halves; the raw estimate's clamp does, and made the shown estimate 10× the
+/// true error at one sample a half (tests/denoise.rs). A 3×3 mean holds a ninth of them.
+pub fn filtered_weights(even: &[[f32; 4]], odd: &[[f32; 4]], w: usize, h: usize) -> Vec<[f32; 3]> {
     assert_eq!(even.len(), w * h);
     assert_eq!(odd.len(), w * h);
     // Each half's mean, and 1 where it has samples (0: left out of the window).
@@ -106,30 +174,53 @@ pub fn choice_weight(a: f64, b: f64) -> f64 {
 mod tests {
     use super::*;
 
-    #[test]
-    fn a_firefly_in_one_half_raises_the_proxy_by_the_root_of_its_share() {
-        // A 3×3 image of value 0.5 in both halves, but for a firefly of 9.5 in the centre of
-        // the even half: at the centre that half's window mean is 1.5, the smaller one 0.5, the pooled one
-        // 1.0; the proxy 0.5 · 1.0 (A·B would say 9.5 · 0.5 at the centre).
-        let mut even = vec![[0.5, 0.5, 0.5, 1.0]; 9];
-        let odd = vec![[0.5, 0.5, 0.5, 1.0]; 9];
-        even[4] = [9.5, 9.5, 9.5, 1.0];
-        let wts = relative_weights(&even, &odd, 3, 3);
+    /// Asserts that every channel of `w` is the weight of a proxy of `proxy`.
+    fn weight_is(w: [f32; 3], proxy: f32) {
+        let want = 1.0 / (proxy * proxy + REL_MSE_EPSILON as f32);
         assert!(
-            (wts[4][0] - 1.0 / (0.5 + 0.01)).abs() < 1e-4,
-            "{:?}",
-            wts[4]
+            w.iter().all(|v| (v - want).abs() < 1e-3 * want),
+            "{w:?}: not {want}"
         );
     }
 
     #[test]
-    fn the_window_is_clipped_at_the_edges_and_skips_empty_halves() {
-        // A 2×1 image: pixel 0 even half empty, so the even window is pixel 1's alone.
-        let even = vec![[0.0, 0.0, 0.0, 0.0], [0.8, 0.8, 0.8, 2.0]];
-        let odd = vec![[0.2, 0.2, 0.2, 1.0], [0.2, 0.2, 0.2, 1.0]];
-        let wts = relative_weights(&even, &odd, 2, 1);
-        // even window mean 0.4, odd 0.2: proxy 0.2 · 0.3.
-        assert!((wts[0][1] - 1.0 / 0.07).abs() < 1e-3, "{:?}", wts[0]);
+    fn a_firefly_in_one_half_leaves_the_proxy_at_its_neighbours() {
+        // A 3×3 image of value 0.5 in both halves, but for a firefly of 9.5 in the centre of
+        // the even half: the neighbours' mean is 0.5, inside [0.5, 9.5] (the centre's half
+        // means), so the proxy is 0.5, as without the firefly (A·B would say 9.5 · 0.5).
+        let mut even = vec![[0.5, 0.5, 0.5, 1.0]; 9];
+        let odd = vec![[0.5, 0.5, 0.5, 1.0]; 9];
+        even[4] = [9.5, 9.5, 9.5, 1.0];
+        let wts = relative_weights(&even, &odd, 3, 3);
+        weight_is(wts[4], 0.5);
+        // A neighbour of the firefly: its neighbours' mean (0.5·7 + 5.0)/8 is above both of
+        // its half means, 0.5, which cap it.
+        weight_is(wts[1], 0.5);
+    }
+
+    #[test]
+    fn a_pixel_both_halves_find_bright_keeps_its_smaller_half() {
+        // A highlight: 4.0 and 3.0 in the centre's halves, 0.5 around: the neighbours' mean
+        // (0.5) is below the smaller half mean, 3.0, the proxy.
+        let mut even = vec![[0.5, 0.5, 0.5, 1.0]; 9];
+        let mut odd = vec![[0.5, 0.5, 0.5, 1.0]; 9];
+        even[4] = [4.0, 4.0, 4.0, 1.0];
+        odd[4] = [3.0, 3.0, 3.0, 1.0];
+        let wts = relative_weights(&even, &odd, 3, 3);
+        weight_is(wts[4], 3.0);
+    }
+
+    #[test]
+    fn the_window_is_clipped_at_the_edges_and_skips_empty_pixels() {
+        // A 3×1 image: pixel 0 has no samples, so pixel 1's only neighbour with samples is
+        // pixel 2 (mean 0.2), inside pixel 1's half means [0.1, 0.4].
+        let even = vec![[0.0; 4], [0.8, 0.8, 0.8, 2.0], [0.2, 0.2, 0.2, 1.0]];
+        let odd = vec![[0.0; 4], [0.1, 0.1, 0.1, 1.0], [0.2, 0.2, 0.2, 1.0]];
+        let wts = relative_weights(&even, &odd, 3, 1);
+        weight_is(wts[1], 0.2);
+        // A 1×1 image has no neighbours: the proxy is the pixel's mean, 0.25.
+        let wts = relative_weights(&even[1..2], &odd[1..2], 1, 1);
+        weight_is(wts[0], 0.25);
     }
 
     #[test]

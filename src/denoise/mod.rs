@@ -31,12 +31,16 @@
 //!
 //! The raw image's estimate is `render::Snapshot::error_estimate`'s: (A − B)²·n_A·n_B/(n_A +
 //! n_B)². Both are reported as pbrt's relative MSE, each channel's term divided by the
-//! estimated reference² (A·B, unbiased) + 0.01, as the preview's noise figure is.
+//! reference² proxy + 0.01 (`common::estimate::relative_weights` for the raw image's terms,
+//! `filtered_weights` for the filters'), as the preview's noise figure is; the per-tile
+//! choice divides by A·B + 0.01 (`choice_weight`).
 
 pub mod atrous;
 pub mod regress;
 
-use crate::common::estimate::{choice_weight, half_mean, pair_factor, relative_weights};
+use crate::common::estimate::{
+    choice_weight, filtered_weights, half_mean, pair_factor, relative_weights,
+};
 use crate::common::resolved::{Doubt, Estimate};
 use crate::common::{Guides, Resolved};
 use crate::output::LinearImage;
@@ -405,6 +409,7 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
     let mut tile_choice = vec![[[0.0f64; 3]; 2]; tiles_x * tiles_y];
     let filters = [(&fa, &fb), (&ra, &rb)];
     let weights = relative_weights(even, odd, w, h);
+    let filtered = filtered_weights(even, odd, w, h);
     for p in 0..w * h {
         let t = tile_index(p % w, p / w, tiles_x);
         let Some(k) = pair_factor(even[p][3] as f64, odd[p][3] as f64) else {
@@ -424,6 +429,7 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
                 ..Sums::default()
             });
             pixel_r += r * scale;
+            let scale = filtered[p][c] as f64;
             for (f, (da, db)) in filters.iter().enumerate() {
                 let (dx, dy) = (da[p][c] as f64, db[p][c] as f64);
                 let e = 0.5 * (dx - y).powi(2) + 0.5 * (dy - x).powi(2)
