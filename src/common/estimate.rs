@@ -49,6 +49,14 @@ pub fn pair_factor(na: f64, nb: f64) -> Option<f64> {
     (na >= 1.0 && nb >= 1.0).then(|| na * nb / ((na + nb) * (na + nb)))
 }
 
+/// The pixels of pixel `p`'s window in a `w × h` image (radius `PROXY_RADIUS`, clipped at
+/// the edges), row by row: the order the GPU sums them in.
+fn window(p: usize, w: usize, h: usize) -> impl Iterator<Item = usize> {
+    let (x, y, r) = (p % w, p / w, PROXY_RADIUS);
+    (y.saturating_sub(r)..(y + r + 1).min(h))
+        .flat_map(move |qy| (x.saturating_sub(r)..(x + r + 1).min(w)).map(move |qx| qy * w + qx))
+}
+
 /// A pixel's terms for the proxy, per channel: its mean (the mean of its halves' means where
 /// both have samples, else the one half's), and the smaller and the larger of its halves'
 /// means; `None` without samples.
@@ -88,21 +96,16 @@ pub fn relative_weights(even: &[[f32; 4]], odd: &[[f32; 4]], w: usize, h: usize)
         .into_par_iter()
         .map(|p| proxy_terms(even[p], odd[p]))
         .collect();
-    let r = PROXY_RADIUS;
     (0..w * h)
         .into_par_iter()
         .map(|p| {
-            let (x, y) = (p % w, p / w);
             let (mut sum, mut count) = ([0.0f32; 3], 0.0f32);
-            for qy in y.saturating_sub(r)..(y + r + 1).min(h) {
-                for qx in x.saturating_sub(r)..(x + r + 1).min(w) {
-                    let q = qy * w + qx;
-                    if let (true, Some((m, _, _))) = (q != p, terms[q]) {
-                        for c in 0..3 {
-                            sum[c] += m[c];
-                        }
-                        count += 1.0;
+            for q in window(p, w, h) {
+                if let (true, Some((m, _, _))) = (q != p, terms[q]) {
+                    for c in 0..3 {
+                        sum[c] += m[c];
                     }
+                    count += 1.0;
                 }
             }
             let (m, lo, hi) = terms[p].unwrap_or(([0.0; 3], [0.0; 3], [0.0; 3]));
@@ -133,19 +136,14 @@ pub fn filtered_weights(even: &[[f32; 4]], odd: &[[f32; 4]], w: usize, h: usize)
             })
         })
         .collect();
-    let r = PROXY_RADIUS;
     (0..w * h)
         .into_par_iter()
         .map(|p| {
-            let (x, y) = (p % w, p / w);
             let mut sums = [[0.0f32; 4]; 2];
-            for qy in y.saturating_sub(r)..(y + r + 1).min(h) {
-                let row = qy * w;
-                for cell in &means[row + x.saturating_sub(r)..row + (x + r + 1).min(w)] {
-                    for (k, m) in cell.iter().enumerate() {
-                        for c in 0..4 {
-                            sums[k][c] += m[c];
-                        }
+            for q in window(p, w, h) {
+                for (k, m) in means[q].iter().enumerate() {
+                    for c in 0..4 {
+                        sums[k][c] += m[c];
                     }
                 }
             }
