@@ -279,12 +279,18 @@ fn write_the_references() {
 #[test]
 #[ignore = "a measurement for BENCHMARKS.md: it prints, and holds nothing"]
 fn the_reference_as_the_proxy() {
-    use termtrace::common::estimate::{REL_MSE_EPSILON, half_mean, pair_factor};
+    use termtrace::common::estimate::REL_MSE_EPSILON;
     eprintln!("\n| scene | raw 16 | raw 64 | raw 256 |");
     eprintln!("|---|---|---|---|");
     for (name, _) in BUILTIN_SCENES {
         let scene = Scene::load(name).unwrap();
         let reference = reference(name);
+        // 1 / (reference² + ε): the weights of a perfect proxy.
+        let exact: Vec<[f32; 3]> = reference
+            .pixels
+            .iter()
+            .map(|t| t.map(|v| (1.0 / (v as f64 * v as f64 + REL_MSE_EPSILON)) as f32))
+            .collect();
         let mut fs = frame_settings(&scene);
         let mut per = vec![Vec::new(); SPPS.len()];
         for run in 0..16 {
@@ -293,23 +299,7 @@ fn the_reference_as_the_proxy() {
             for (i, &spp) in SPPS.iter().enumerate() {
                 r.render_spp(spp);
                 let snap = r.snapshot();
-                let mut rel = 0.0;
-                for ((e, o), t) in snap
-                    .data
-                    .even
-                    .iter()
-                    .zip(&snap.data.odd)
-                    .zip(&reference.pixels)
-                {
-                    let k = pair_factor(e[3] as f64, o[3] as f64).unwrap();
-                    let (a, b) = (half_mean(*e), half_mean(*o));
-                    for c in 0..3 {
-                        let t = t[c] as f64;
-                        rel += (a[c] - b[c]) as f64 * (a[c] - b[c]) as f64 * k
-                            / (t * t + REL_MSE_EPSILON);
-                    }
-                }
-                let estimate = (rel / (3 * snap.data.even.len()) as f64).sqrt();
+                let estimate = snap.error_estimate_weighted(&exact).unwrap().rel_rmse;
                 per[i].push((estimate, errors(&snap.image(), &reference).rel_rmse()));
             }
         }

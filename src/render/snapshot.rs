@@ -79,9 +79,17 @@ impl Snapshot {
             return None;
         }
         let (w, h) = (self.width as usize, self.height as usize);
-        let weights = relative_weights(&self.data.even, &self.data.odd, w, h);
+        self.error_estimate_weighted(&relative_weights(&self.data.even, &self.data.odd, w, h))
+    }
+
+    /// [`Self::error_estimate`] with each pixel's squared error weighted by `weights` (per
+    /// pixel and channel, 1 / (reference² + 0.01)) for the relative figure, instead of the
+    /// proxy's: with the true reference's, what a perfect proxy would estimate
+    /// (tests/estimate.rs, `the_reference_as_the_proxy`).
+    pub fn error_estimate_weighted(&self, weights: &[[f32; 3]]) -> Option<ErrorEstimate> {
+        assert_eq!(weights.len(), self.data.even.len());
         let (mut mse, mut rel) = (0.0f64, 0.0f64);
-        for ((e, o), wt) in self.data.even.iter().zip(&self.data.odd).zip(&weights) {
+        for ((e, o), wt) in self.data.even.iter().zip(&self.data.odd).zip(weights) {
             let k = pair_factor(e[3] as f64, o[3] as f64)?;
             for c in 0..3 {
                 let (me, mo) = (e[c] as f64 / e[3] as f64, o[c] as f64 / o[3] as f64);
