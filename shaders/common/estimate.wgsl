@@ -2,8 +2,9 @@
 // say why): the factor that makes a pixel's (A − B)² the variance of its pooled mean, and the
 // weight of its squared error in pbrt's relative MSE, 1 / (reference² proxy + 0.01), the
 // proxy being the mean of the pixel's 3×3 neighbours clamped to the range of its two half
-// means; and the filtered images' weights (`filtered_weight`). Included by resolve.wgsl and denoise.wgsl, which walk `proxy_window`
-// with their own `half_mean` (each reads the accumulation its own way).
+// means; and the filtered images' weights (`filtered_weight`). Included by resolve.wgsl and
+// denoise.wgsl, which walk `proxy_window` with their own `half_mean` (each reads the
+// accumulation its own way).
 
 // pbrt's relative-MSE epsilon (src/common/estimate.rs: REL_MSE_EPSILON).
 const REL_MSE_EPSILON: f32 = 0.01;
