@@ -26,7 +26,7 @@ const TILE_FLOATS: u32 = 10u;
 // Terms summed per tile in `finish`: raw, à-trous and regression (mse, rel, rel²) each, the
 // pixels; the relative terms of the raw image and both filters over the odd pixels, and
 // those pixels; the choice's relative terms of the three (src/common/estimate.rs,
-// `choice_weight`), over all pixels and over the odd ones. Reduced CHUNK at a time.
+// `product_weight`), over all pixels and over the odd ones. Reduced CHUNK at a time.
 const TERMS: u32 = 20u;
 const CHUNK: u32 = 10u;
 // The regression (src/denoise/regress.rs): window radius, spatial sigma, luminance sigma and
@@ -543,11 +543,9 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
     let lx = lid % TILE;
     let ly = lid / TILE;
     var proxy = ProxySums();
-    var whole = WindowSums();
     for (var dy = 0u; dy <= 2u * r; dy++) {
         for (var dx = 0u; dx <= 2u * r; dx++) {
             let k = (ly + dy) * WINDOW + lx + dx;
-            window_add(&whole, window(k, 0u), window(k, 1u));
             if dx != r || dy != r {
                 proxy_add(&proxy, window(k, 0u), window(k, 1u));
             }
@@ -589,12 +587,11 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
             let scale = relative_weight(proxy, e, o);
             let r = (x - y) * (x - y) * k;
             let rr = dot(r * scale, vec3f(1.0));
-            let filtered = filtered_weight(whole);
-            let ta = estimate_terms(fa, fb, x, y, filtered);
-            let tg = estimate_terms(ga, gb, x, y, filtered);
+            let ta = estimate_terms(fa, fb, x, y, product_weight(fa, fb));
+            let tg = estimate_terms(ga, gb, x, y, product_weight(ga, gb));
             let odd = select(0.0, 1.0, ((gid.x + gid.y) & 1u) == 1u);
-            // The choice's sums (src/common/estimate.rs, `choice_weight`).
-            let cw = 1.0 / (max(x * y, vec3f(0.0)) + REL_MSE_EPSILON);
+            // The choice's sums (src/common/estimate.rs, `product_weight`).
+            let cw = product_weight(x, y);
             let cr = dot(r * cw, vec3f(1.0));
             let ca = estimate_terms(fa, fb, x, y, cw).y;
             let cg = estimate_terms(ga, gb, x, y, cw).y;

@@ -39,14 +39,17 @@ const REFERENCES: &str = "tests/estimate";
 const SIZE: (u32, u32) = (64, 36);
 
 /// Cells (scene, image, spp) whose mean ratio is outside 0.8–1.25 on either tracer, or within
-/// 0.01 of a bound (BENCHMARKS.md, "An estimate that counts fireflies", has their figures):
-/// the raw estimate where a glossy lobe or a caustic finds a small, bright light in one half
-/// of a pixel and not around it (the proxy cannot tell the pixel's usual light from a
-/// firefly there, and reads the error up to 2.5× high); and the shown image's, which keeps
-/// the proxy of the halves' 3×3 means for its filtered tiles (`common::estimate::
-/// filtered_weights` says why), where fireflies reach the denoiser (its filters' weights read
-/// the noise of both halves, so a filtered half is not independent of the other's fireflies:
-/// src/denoise/mod.rs, "The estimator") and on `cornell` and `basic` in the first samples.
+/// 0.01 of a bound (BENCHMARKS.md, "An estimate that counts fireflies" and "The filtered
+/// images' estimate", has their figures): the raw estimate where a glossy lobe or a caustic
+/// finds a small, bright light in one half of a pixel and not around it (the proxy cannot tell
+/// the pixel's usual light from a firefly there, and reads the error up to 2.5× high); and the
+/// shown image's where fireflies reach the denoiser. There its estimate of a filtered image
+/// is not unbiased: both filters read one noise-variance map made of both halves, so a firefly
+/// in one half loosens the other half's filter where it is (src/denoise/mod.rs, "The
+/// estimator"). Measured: with the exact reference as the weight the shown estimate of
+/// `outdoor` and `glass` still reads 0.5–0.7, and with per-half variance maps instead (each
+/// filter independent of the other half) 0.88–1.0; but those maps, made from one half's
+/// spatial variance, made the shown image's true error up to 2.1× larger (`cornell`).
 const OPEN: &[(&str, &str, u32)] = &[
     ("outdoor", "raw", 64),
     ("outdoor", "raw", 256),
@@ -57,10 +60,6 @@ const OPEN: &[(&str, &str, u32)] = &[
     ("pbr", "raw", 64),
     ("pbr", "raw", 256),
     ("glass", "raw", 256),
-    ("basic", "shown", 16),
-    ("emissive", "shown", 64),
-    ("cornell", "shown", 16),
-    ("cornell", "shown", 64),
     ("outdoor", "shown", 16),
     ("outdoor", "shown", 64),
     ("outdoor", "shown", 256),
@@ -68,7 +67,6 @@ const OPEN: &[(&str, &str, u32)] = &[
     ("outdoor-caustics", "shown", 256),
     ("pbr", "shown", 16),
     ("pbr", "shown", 64),
-    ("pbr", "shown", 256),
     ("glass", "shown", 16),
     ("glass", "shown", 64),
     ("glass", "shown", 256),

@@ -2,9 +2,9 @@
 // say why): the factor that makes a pixel's (A − B)² the variance of its pooled mean, and the
 // weight of its squared error in pbrt's relative MSE, 1 / (reference² proxy + 0.01), the
 // proxy being the mean of the pixel's 3×3 neighbours clamped to the range of its two half
-// means; and the filtered images' weights (`filtered_weight`). Included by resolve.wgsl and
-// denoise.wgsl, which walk `proxy_window` with their own `half_mean` (each reads the
-// accumulation its own way).
+// means; and the weight made of two independent estimates (`product_weight`). Included by
+// resolve.wgsl and denoise.wgsl, which walk `proxy_window` with their own `half_mean` (each
+// reads the accumulation its own way).
 
 // pbrt's relative-MSE epsilon (src/common/estimate.rs: REL_MSE_EPSILON).
 const REL_MSE_EPSILON: f32 = 0.01;
@@ -74,31 +74,9 @@ fn relative_weight(s: ProxySums, a: vec4f, b: vec4f) -> vec3f {
     return 1.0 / (v * v + REL_MSE_EPSILON);
 }
 
-// The halves' sums over a pixel's window, the pixel included, for the filtered images'
-// weights (src/common/estimate.rs, `filtered_weights`).
-struct WindowSums {
-    a: vec3f,
-    b: vec3f,
-    na: f32,
-    nb: f32,
-}
-
-// Adds one window pixel's half means `a` and `b`, each where its half has samples.
-fn window_add(s: ptr<function, WindowSums>, a: vec4f, b: vec4f) {
-    if a.w > 0.0 {
-        (*s).a += a.xyz;
-        (*s).na += 1.0;
-    }
-    if b.w > 0.0 {
-        (*s).b += b.xyz;
-        (*s).nb += 1.0;
-    }
-}
-
-// The filtered images' weight of a pixel from its window's sums, per channel.
-fn filtered_weight(s: WindowSums) -> vec3f {
-    let a = s.a / max(s.na, 1.0);
-    let b = s.b / max(s.nb, 1.0);
-    let square = max(min(a, b), vec3f(0.0)) * max(0.5 * (a + b), vec3f(0.0));
-    return 1.0 / (square + REL_MSE_EPSILON);
+// 1 / (max(a·b, 0) + 0.01) per channel from two independent estimates of a value: the
+// weight of the denoiser's choice (the half means) and of a filtered image's estimate (the
+// filter's two outputs); src/common/estimate.rs, `product_weight`.
+fn product_weight(a: vec3f, b: vec3f) -> vec3f {
+    return 1.0 / (max(a * b, vec3f(0.0)) + REL_MSE_EPSILON);
 }

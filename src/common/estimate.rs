@@ -22,8 +22,8 @@
 //! (tests/estimate.rs, `the_reference_as_the_proxy`), so what is left is the proxy's: a
 //! bright path that only one half found, where the neighbours did not, reads as a firefly
 //! even where it is the pixel's usual light (`pbr`'s glossy highlights of small lamps and the
-//! caustic scene read up to 2.5× high). The denoiser's estimates of its filtered images keep
-//! the halves' 3×3 means (`filtered_weights`, which says why).
+//! caustic scene read up to 2.5× high). The denoiser's estimates of its filtered images divide
+//! by the product of the filter's two outputs instead (`product_weight`, which says why).
 
 use rayon::prelude::*;
 
@@ -116,55 +116,22 @@ pub fn relative_weights(even: &[[f32; 4]], odd: &[[f32; 4]], w: usize, h: usize)
         .collect()
 }
 
-/// The weights of the filtered images' estimates (`denoise`'s per-pixel terms), per pixel and
-/// channel as `relative_weights`: 1 / (proxy + ε), the proxy being the halves' smaller 3×3
-/// mean times their pooled 3×3 mean, the window clipped at the image's edges and over the
-/// pixels where that half has samples. Those estimates are differences of large terms
-/// (src/denoise/mod.rs, "The estimator"), unbiased only where the weight does not follow the
-/// pixel's own halves; the raw estimate's clamp does, and made the shown estimate 10× the
-/// true error at one sample a half (tests/denoise.rs). A 3×3 mean holds a ninth of them.
-pub fn filtered_weights(even: &[[f32; 4]], odd: &[[f32; 4]], w: usize, h: usize) -> Vec<[f32; 3]> {
-    assert_eq!(even.len(), w * h);
-    assert_eq!(odd.len(), w * h);
-    // Each half's mean, and 1 where it has samples (0: left out of the window).
-    let means: Vec<[[f32; 4]; 2]> = (0..w * h)
-        .into_par_iter()
-        .map(|p| {
-            [even[p], odd[p]].map(|half| {
-                let [r, g, b] = half_mean(half);
-                [r, g, b, if half[3] > 0.0 { 1.0 } else { 0.0 }]
-            })
-        })
-        .collect();
-    (0..w * h)
-        .into_par_iter()
-        .map(|p| {
-            let mut sums = [[0.0f32; 4]; 2];
-            for q in window(p, w, h) {
-                for (k, m) in means[q].iter().enumerate() {
-                    for c in 0..4 {
-                        sums[k][c] += m[c];
-                    }
-                }
-            }
-            std::array::from_fn(|c| {
-                let a = sums[0][c] / sums[0][3].max(1.0);
-                let b = sums[1][c] / sums[1][3].max(1.0);
-                let square = a.min(b).max(0.0) * (0.5 * (a + b)).max(0.0);
-                1.0 / (square + REL_MSE_EPSILON as f32)
-            })
-        })
-        .collect()
-}
-
-/// The weight of a pixel's squared error in the denoiser's per-tile choice (its relative
-/// sums), from the channel's half means `a` and `b`: 1 / (A·B + ε), the unbiased
-/// per-pixel estimate of reference² that the choice was tuned with. The choice keeps it:
-/// chosen with the error estimate's proxy instead, the shown images lost against Open Image
-/// Denoise (cornell at 16 spp 4.93 % against 4.22 %; BENCHMARKS.md, "An honest error
-/// estimate"). Where the choice reads a firefly as small, the shown image's estimate, made
-/// with `relative_weights`, does not.
-pub fn choice_weight(a: f64, b: f64) -> f64 {
+/// 1 / (max(a·b, 0) + ε) from two independent estimates `a` and `b` of one channel's value:
+/// their product is an unbiased estimate of its square, which no proxy that reads one of
+/// them twice is. Two uses:
+/// - **The denoiser's per-tile choice**, with the pixel's half means A and B: the choice was
+///   tuned with it, and chosen with the error estimate's proxy instead the shown images lost
+///   against Open Image Denoise (cornell at 16 spp 4.93 % against 4.22 %; BENCHMARKS.md, "An
+///   honest error estimate"). Where the choice reads a firefly as small, the shown image's
+///   estimate, made with [`relative_weights`] for raw tiles, does not.
+/// - **The estimate of a filtered image**, with the filter's two outputs D(A) and D(B) at the
+///   pixel: its terms are differences of large ones (src/denoise/mod.rs, "The estimator"),
+///   unbiased only where the weight hardly follows the pixel's own halves, as a filtered half
+///   does (it averages many pixels). The halves' 3×3 means, used before, held the pixel's
+///   own firefly and read the shown estimate 0.69–0.79 of the truth on `cornell` and `basic`
+///   in the first samples; the raw estimate's clamp reads the pixel's halves themselves, and
+///   made the shown estimate 10× the truth at one sample a half (tests/denoise.rs).
+pub fn product_weight(a: f64, b: f64) -> f64 {
     1.0 / ((a * b).max(0.0) + REL_MSE_EPSILON)
 }
 
