@@ -136,6 +136,55 @@ impl Bvh8 {
         self.nodes.len()
     }
 
+    /// Where the tree is one node whose children are all leaves (a scene of a few
+    /// primitives), its leaf slots in the order the walk tests them: (slot, first reference,
+    /// count).
+    pub fn one_node_leaves(&self) -> Option<Vec<(u32, u32, u16)>> {
+        let n = self.nodes.first()?;
+        (self.nodes.len() == 1 && n.leaves == n.valid).then(|| {
+            slots(n.valid as u32)
+                .map(|s| (s as u32, n.child[s], n.count[s]))
+                .collect()
+        })
+    }
+
+    /// The root's slots whose boxes `ray` enters before t_max, as `closest` tests them.
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[target_feature(enable = "avx")]
+    pub unsafe fn root_mask(&self, ray: &Ray, t_max: f32) -> u32 {
+        let n = &self.nodes[0];
+        let inv = safe_inverse(ray.dir);
+        let o = [ray.origin.x, ray.origin.y, ray.origin.z].map(|x| _mm256_set1_ps(x));
+        let inv = [inv.x, inv.y, inv.z].map(|x| _mm256_set1_ps(x));
+        Self::slab(n, &o, &inv, t_max).1
+    }
+
+    /// The slab test of `n`'s eight boxes (one AVX operation per term) for the ray from `o`
+    /// with inverse direction `inv`: each slot's entry distance, and the slots entered before
+    /// `t_best`.
+    #[target_feature(enable = "avx")]
+    fn slab(n: &Node8, o: &[__m256; 3], inv: &[__m256; 3], t_best: f32) -> (__m256, u32) {
+        let slab = |k: usize| {
+            let t0 = _mm256_mul_ps(_mm256_sub_ps(n.min[k], o[k]), inv[k]);
+            let t1 = _mm256_mul_ps(_mm256_sub_ps(n.max[k], o[k]), inv[k]);
+            (_mm256_min_ps(t0, t1), _mm256_max_ps(t0, t1))
+        };
+        let ((nx, fx), (ny, fy), (nz, fz)) = (slab(0), slab(1), slab(2));
+        let near = _mm256_max_ps(
+            _mm256_max_ps(nx, ny),
+            _mm256_max_ps(nz, _mm256_setzero_ps()),
+        );
+        let far = _mm256_min_ps(
+            _mm256_min_ps(fx, fy),
+            _mm256_min_ps(fz, _mm256_set1_ps(t_best)),
+        );
+        let mask =
+            _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32 & n.valid as u32;
+        (near, mask)
+    }
+
     /// `Bvh4::closest` over the eight-wide nodes (`refs` the four-wide tree's references).
     ///
     /// # Safety
@@ -156,25 +205,12 @@ impl Bvh8 {
         let inv = safe_inverse(ray.dir);
         let o = [ray.origin.x, ray.origin.y, ray.origin.z].map(|x| _mm256_set1_ps(x));
         let inv = [inv.x, inv.y, inv.z].map(|x| _mm256_set1_ps(x));
-        let zero = _mm256_setzero_ps();
         let mut w = Walk::new(&mut *stack.0, t_max);
         let mut node = 0usize;
         loop {
             let n = &self.nodes[node];
             tally.visits += 1;
-            let slab = |k: usize| {
-                let t0 = _mm256_mul_ps(_mm256_sub_ps(n.min[k], o[k]), inv[k]);
-                let t1 = _mm256_mul_ps(_mm256_sub_ps(n.max[k], o[k]), inv[k]);
-                (_mm256_min_ps(t0, t1), _mm256_max_ps(t0, t1))
-            };
-            let ((nx, fx), (ny, fy), (nz, fz)) = (slab(0), slab(1), slab(2));
-            let near = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, zero));
-            let far = _mm256_min_ps(
-                _mm256_min_ps(fx, fy),
-                _mm256_min_ps(fz, _mm256_set1_ps(w.t_best)),
-            );
-            let mask =
-                _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32 & n.valid as u32;
+            let (near, mask) = Self::slab(n, &o, &inv, w.t_best);
             let mut t = [0.0f32; WIDE];
             // SAFETY: eight floats.
             unsafe { _mm256_storeu_ps(t.as_mut_ptr(), near) };

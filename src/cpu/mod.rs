@@ -15,6 +15,8 @@
 pub mod bvh;
 #[cfg(target_arch = "x86_64")]
 pub mod bvh8;
+#[cfg(target_arch = "x86_64")]
+pub mod few;
 pub mod fixed;
 pub mod intersect;
 pub mod material;

@@ -142,6 +142,9 @@ pub struct CpuScene {
     /// The BVH collapsed to eight-wide nodes, for the single-ray walk on a CPU with AVX.
     #[cfg(target_arch = "x86_64")]
     pub bvh8: Option<Bvh8>,
+    /// A scene of a few quads and boxes: all of them tested at once instead of the walk.
+    #[cfg(target_arch = "x86_64")]
+    pub few: Option<super::few::Few>,
     /// The texture words (`common::textures`; empty when no material has maps), and whether
     /// any material cuts out.
     pub tex: Vec<u32>,
@@ -199,6 +202,8 @@ impl CpuScene {
             bvh,
             #[cfg(target_arch = "x86_64")]
             bvh8,
+            #[cfg(target_arch = "x86_64")]
+            few: None,
             node_count: nodes.len(),
             build_seconds,
             origin,
@@ -207,7 +212,19 @@ impl CpuScene {
         };
         c.take(&p);
         c.take_textures(scene);
+        c.take_few();
         c
+    }
+
+    /// The test of every primitive at once, where the scene is a few quads and boxes.
+    fn take_few(&mut self) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            self.few = self
+                .bvh8
+                .as_ref()
+                .and_then(|b8| super::few::Few::of(b8, &self.bvh.refs, &self.quads, &self.boxes));
+        }
     }
 
     /// Whether shading normals can differ from the geometric one (a normal map or smooth
@@ -241,6 +258,7 @@ impl CpuScene {
         let triangles = std::mem::take(&mut self.triangles);
         self.take(&p);
         self.triangles = triangles;
+        self.take_few();
         // The texture words are made again only when the textured materials changed; an edit
         // of their factors rewrites the records alone (as `SceneBuffers::update` does).
         let key = crate::common::textures::material_key(scene);

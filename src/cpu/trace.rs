@@ -251,6 +251,14 @@ impl<'a> Tracer<'a> {
             }
             return best;
         }
+        #[cfg(target_arch = "x86_64")]
+        if let (Some(few), Some(b8)) = (&s.few, &s.bvh8) {
+            // SAFETY: `bvh8` exists only where the CPU has AVX.
+            let (hit, tests) = unsafe { few.closest(b8, ray, T_FAR, skip) };
+            self.tally.visits += 1;
+            self.tally.tests += tests;
+            return hit.map(|(t, r)| hit_of(t, r));
+        }
         // Walks count the primitives of the leaves they enter as tested; the one skipped is
         // not.
         let mut skipped = 0;
@@ -301,6 +309,14 @@ impl<'a> Tracer<'a> {
             return self
                 .all_refs()
                 .any(|r| r != skip && r != from && hit_primitive::<P>(s, r, ray, t_max) > 0.0);
+        }
+        #[cfg(target_arch = "x86_64")]
+        if let (Some(few), Some(b8)) = (&s.few, &s.bvh8) {
+            // SAFETY: `bvh8` exists only where the CPU has AVX.
+            let (hit, tests) = unsafe { few.any(b8, ray, t_max, skip, from) };
+            self.tally.visits += 1;
+            self.tally.tests += tests;
+            return hit;
         }
         s.bvh.any(
             ray,
