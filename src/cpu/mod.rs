@@ -3,7 +3,8 @@
 //!
 //! It reads the scene the GPU reads (`common::arrays`: the same primitives, lights and
 //! BVH, the latter collapsed to four-wide nodes in `cpu::bvh`, and to eight-wide ones in
-//! `cpu::bvh8` for single rays on a CPU with AVX), traces the same random streams (a group
+//! `cpu::bvh8` for single rays on a CPU with AVX, and where that is one node of a few quads
+//! and boxes, tested all at once in `cpu::few`), traces the same random streams (a group
 //! of eight pixels' samplers made at once: `rng::Rng::group`), and keeps the same exact
 //! fixed-point sums of even and odd samples in the GPU's word layout (`cpu::fixed`), so that
 //! the renderer's rounds, the snapshot, the noise estimate, `converge`, `--target-error` and
