@@ -10,6 +10,7 @@
 
 use super::bvh8::Bvh8;
 use super::intersect::{Cuboid, NO_HIT, Quad, Ray, hit_box};
+use crate::common::arrays::REF_INDEX;
 use std::arch::x86_64::*;
 
 /// The most quads and boxes a scene may have for this test (two blocks of eight quads).
@@ -58,7 +59,7 @@ impl Few {
         let (mut lane_quads, mut few_boxes, mut steps) = (Vec::new(), Vec::new(), Vec::new());
         for (slot, first, count) in leaves {
             for &r in &refs[first as usize..first as usize + count as usize] {
-                let i = (r & 0x3fff_ffff) as usize;
+                let i = (r & REF_INDEX) as usize;
                 let what = match r >> 30 {
                     1 => {
                         lane_quads.push(quads[i]);

@@ -251,14 +251,14 @@ impl CpuScene {
             *self = CpuScene::new(scene, s);
             return;
         }
-        // The geometry is unchanged: the triangles stay (10⁶ of them take 0.2 s to make).
+        // The geometry is unchanged: the triangles stay (10⁶ of them take 0.2 s to make), and
+        // so do the trees and `few`, made of the same quads and boxes.
         let p = Primitives::without_meshes(scene, self.origin, s.nee);
         self.u = Uniforms::of(&scene_uniforms(scene, s, self.origin));
         self.env = scene.environment.as_ref().map(|e| e.map.clone());
         let triangles = std::mem::take(&mut self.triangles);
         self.take(&p);
         self.triangles = triangles;
-        self.take_few();
         // The texture words are made again only when the textured materials changed; an edit
         // of their factors rewrites the records alone (as `SceneBuffers::update` does).
         let key = crate::common::textures::material_key(scene);
