@@ -506,7 +506,7 @@ fn cross_fitted(all: vec3f, odd: vec3f, choice_all: vec3f, choice_odd: vec3f, pi
     if by_odd == shown && by_even != shown && even_pixels > 0.0 {
         return even[shown] * pixels / even_pixels;
     }
-    return even[by_odd] + odd[by_even];
+    return all[shown];
 }
 
 // The estimate's terms of one denoised image at a pixel (src/denoise/mod.rs, "The

@@ -19,6 +19,13 @@
 //! found them, so each cell also prints the estimate in expectation (the mean estimated
 //! relative MSE over the mean true one), and the raw estimate's must be at least
 //! `EXPECTED_FLOOR` on every scene, the open ones included: it must not undercount fireflies.
+//!
+//! Eight runs say little of a firefly scene: its ratios are heavy-tailed, and eight runs of
+//! `outdoor` read its shown estimate 0.51–0.62 where 96 read it 2.2–2.7 (and 9 in
+//! expectation: one candidate's firefly counted for another's image, `denoise::cross_fitted`).
+//! So the CPU tracer runs the `FIREFLY` scenes `FIREFLY_RUNS` times, and the light-tailed ones
+//! eight; the GPU tracer (lavapipe, slower) runs every scene four times and holds only the
+//! light-tailed ones to the bounds (its estimator is the host's: tests/denoise.rs).
 mod common;
 
 use common::{ctx, settings, snapshot_on};
@@ -38,33 +45,37 @@ const REFERENCES: &str = "tests/estimate";
 /// Large enough for 4 × 3 of the denoiser's 16-pixel tiles.
 const SIZE: (u32, u32) = (64, 36);
 
-/// Cells (scene, image, spp) whose mean ratio is outside 0.8–1.25 on either tracer, or within
-/// 0.01 of a bound (BENCHMARKS.md, "An estimate that counts fireflies" and "The filtered
-/// images' estimate", has their figures): the raw estimate where a glossy lobe or a caustic
-/// finds a small, bright light in one half of a pixel and not around it (the proxy cannot tell
-/// the pixel's usual light from a firefly there, and reads the error up to 2.5× high); and the
-/// shown image's where fireflies reach the denoiser. There its estimate of a filtered image
-/// is not unbiased: both filters read one noise-variance map made of both halves, so a firefly
-/// in one half loosens the other half's filter where it is (src/denoise/mod.rs, "The
-/// estimator"). Measured: with the exact reference as the weight the shown estimate of
-/// `outdoor` and `glass` still reads 0.5–0.7, and with per-half variance maps instead (each
-/// filter independent of the other half) 0.88–1.0; but those maps, made from one half's
-/// spatial variance, made the shown image's true error up to 2.1× larger (`cornell`).
+/// The shipped scenes whose sampling makes fireflies: a caustic, or a glossy lobe or a mirror
+/// finding a small bright light.
+const FIREFLY: &[&str] = &["outdoor", "outdoor-caustics", "pbr", "glass"];
+/// Runs of each `FIREFLY` scene on the CPU tracer (about 50 s in all here).
+const FIREFLY_RUNS: u32 = 96;
+
+/// Cells (scene, image, spp) whose mean ratio over the CPU tracer's `FIREFLY_RUNS` runs is
+/// outside 0.8–1.25, or within 0.01 of a bound (BENCHMARKS.md, "An estimate that counts
+/// fireflies" and "The filtered images' estimate", has their figures):
+/// - the raw estimate, 1.24–2.89, where a glossy lobe or a caustic finds a small, bright light
+///   in one half of a pixel and not around it: the reference² proxy cannot tell the pixel's
+///   usual light from a firefly there, and reads its error high;
+/// - the shown image's on `glass` (0.57–0.72), `outdoor` at 256 spp (0.73) and `pbr` at 16
+///   and 64 (1.27–1.28). Measured on `outdoor` and `glass` (96 runs, the à-trous image shown
+///   everywhere so that no choice enters): with the exact reference as the weight it reads
+///   0.57–0.85; with each filter's own noise-variance map as well (from each half's squared
+///   luminances, so that D(A) is independent of B and the estimator unbiased), 0.63–0.90. What is
+///   left is the error of the bright paths a run did not find: the filters average the noise
+///   the run holds away, not the light it missed, so that part of the error grows in the
+///   shown image's share, and only the runs that found those paths see it.
 const OPEN: &[(&str, &str, u32)] = &[
+    ("outdoor", "raw", 16),
     ("outdoor", "raw", 64),
     ("outdoor", "raw", 256),
     ("outdoor-caustics", "raw", 16),
     ("outdoor-caustics", "raw", 64),
     ("outdoor-caustics", "raw", 256),
-    ("pbr", "raw", 16),
     ("pbr", "raw", 64),
     ("pbr", "raw", 256),
     ("glass", "raw", 256),
-    ("outdoor", "shown", 16),
-    ("outdoor", "shown", 64),
     ("outdoor", "shown", 256),
-    ("outdoor-caustics", "shown", 64),
-    ("outdoor-caustics", "shown", 256),
     ("pbr", "shown", 16),
     ("pbr", "shown", 64),
     ("glass", "shown", 16),
@@ -177,13 +188,27 @@ fn mean(v: impl Iterator<Item = f64>) -> f64 {
 /// each cell the mean of the runs' estimated ÷ true, and in brackets the same in expectation
 /// (`summary`); returns the cells whose mean ratio is outside 0.8–1.25 and not `OPEN`, and
 /// those whose raw estimate counts less than `EXPECTED_FLOOR` in expectation.
-fn check_all(b: Backend, runs: u32) -> Vec<String> {
-    eprintln!("\n{} runs on {}", runs, b.describe());
+fn check_all(b: Backend, runs: u32, firefly_runs: Option<u32>) -> Vec<String> {
+    eprintln!(
+        "\n{} runs on {} ({} of each firefly scene)",
+        runs,
+        b.describe(),
+        firefly_runs.map_or("as many, not held to the bounds,".into(), |n| n.to_string())
+    );
     eprintln!("| scene | raw 16 | raw 64 | raw 256 | shown 16 | shown 64 | shown 256 |");
     eprintln!("|---|---|---|---|---|---|---|");
     let mut failures = Vec::new();
     for (name, _) in BUILTIN_SCENES {
-        let r = ratios(&b, name, runs);
+        let firefly = FIREFLY.contains(name);
+        let r = ratios(
+            &b,
+            name,
+            if firefly {
+                firefly_runs.unwrap_or(runs)
+            } else {
+                runs
+            },
+        );
         let raw: Vec<(f64, f64)> = r.iter().map(|c| summary(c.iter().map(|x| x.raw))).collect();
         let shown: Vec<(f64, f64)> = r
             .iter()
@@ -204,7 +229,8 @@ fn check_all(b: Backend, runs: u32) -> Vec<String> {
                 ));
             }
             for (what, (v, _)) in [("raw", raw[i]), ("shown", shown[i])] {
-                if !(0.8..=1.25).contains(&v) && !OPEN.contains(&(name, what, *spp)) {
+                let held = !firefly || firefly_runs.is_some();
+                if !(0.8..=1.25).contains(&v) && held && !OPEN.contains(&(name, what, *spp)) {
                     failures.push(format!(
                         "{name} at {spp} spp, {what}: estimate ÷ true {v:.3}"
                     ));
@@ -217,13 +243,13 @@ fn check_all(b: Backend, runs: u32) -> Vec<String> {
 
 #[test]
 fn the_estimate_tracks_the_true_error_on_every_shipped_scene_on_the_cpu_tracer() {
-    let failures = check_all(Backend::Cpu, 8);
+    let failures = check_all(Backend::Cpu, 8, Some(FIREFLY_RUNS));
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 #[test]
 fn the_estimate_tracks_the_true_error_on_every_shipped_scene_on_the_gpu_tracer() {
-    let failures = check_all(Backend::Gpu(ctx()), 4);
+    let failures = check_all(Backend::Gpu(ctx()), 4, None);
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
@@ -316,7 +342,7 @@ fn the_reference_as_the_proxy() {
 /// "References of 2²⁰ samples"): where the estimate itself is open above. At 5 % they mostly
 /// trace all 4096 samples without the estimate reaching it, and stop 2–16× above it (their
 /// true error at 4096 spp).
-const STOP_OPEN: &[&str] = &["outdoor", "outdoor-caustics", "pbr", "glass"];
+const STOP_OPEN: &[&str] = FIREFLY;
 
 /// The stop at a target error (`render --target-error`, the preview's `--target-error`: both
 /// claim their samples through `render::stages`), against the committed references: on every
@@ -372,15 +398,18 @@ fn the_stop_at_a_target_error_lands_near_it_on_every_shipped_scene() {
 /// The status line's doubt (`common::resolved::Doubt`: "fireflies" or "few samples" beside a
 /// rounded figure) against how far its figure is from the truth, on every shipped scene at 64
 /// and 256 spp, 8 runs on the CPU tracer (issue 45: the status line says when its estimate is
-/// unreliable). Where a run's figure is off by more than 2× either way, at least 90 % of such
-/// runs must be doubted (measured: 20 of 21, all on the firefly scenes); and on the
-/// light-tailed scenes at 256 spp, at most one run in 8 of each (no crying wolf).
+/// unreliable). Where a run's raw figure is off by more than 2× either way, at least 90 % of
+/// such runs must be doubted (measured: 16 of 17, all on the firefly scenes); where the
+/// denoised image's figure (the shown image's, which the same doubt marks rough) is, at least
+/// 80 % (measured: 18 of 22, all on the firefly scenes); and on the light-tailed scenes at
+/// 256 spp, at most one run in 8 of each (no crying wolf).
 #[test]
 fn the_status_line_doubts_where_its_figure_is_off() {
     use termtrace::common::Resolved;
     eprintln!("\n| scene | 64 spp: doubted runs, estimate ÷ true (`?` doubted) | 256 spp |");
     eprintln!("|---|---|---|");
     let (mut off, mut off_doubted) = (0, 0);
+    let (mut shown_off, mut shown_off_doubted) = (0, 0);
     let mut wolf = Vec::new();
     for (name, _) in BUILTIN_SCENES {
         let scene = Scene::load(name).unwrap();
@@ -399,6 +428,19 @@ fn the_status_line_doubts_where_its_figure_is_off() {
                 let truth = errors(&frame.image, &reference).rel_rmse();
                 let ratio = frame.noise.unwrap_or(f64::NAN) / truth;
                 per[i].push((frame.doubt.is_some(), ratio));
+                // The denoised image shown, whose figure follows the raw one's on the line.
+                let snap = r.snapshot();
+                let d = denoise(&snap.data.even, &snap.data.odd, r.guides());
+                let shown = LinearImage {
+                    width: SIZE.0,
+                    height: SIZE.1,
+                    pixels: d.shown(),
+                };
+                let x = d.rel_rmse(d.shown_sums()) / errors(&shown, &reference).rel_rmse();
+                if !(0.5..=2.0).contains(&x) {
+                    shown_off += 1;
+                    shown_off_doubted += frame.doubt.is_some() as usize;
+                }
             }
         }
         let mut cells = Vec::new();
@@ -426,6 +468,16 @@ fn the_status_line_doubts_where_its_figure_is_off() {
         eprintln!("| {name} | {} |", cells.join(" | "));
     }
     eprintln!("{off_doubted} of {off} runs off by more than 2× were doubted");
+    eprintln!("{shown_off_doubted} of {shown_off} runs whose shown figure was off were doubted");
+    assert!(
+        shown_off > 0,
+        "no shown figure was off by 2×: the test tests nothing"
+    );
+    assert!(
+        shown_off_doubted as f64 >= 0.8 * shown_off as f64,
+        "only {shown_off_doubted} of {shown_off} runs whose shown figure was off by more than 2× \
+         were doubted"
+    );
     assert!(off > 0, "no run was off by 2×: the test tests nothing");
     assert!(
         off_doubted as f64 >= 0.9 * off as f64,

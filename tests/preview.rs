@@ -246,13 +246,26 @@ fn a_rough_noise_figure_is_shown_rounded_with_why() {
     assert!(text(&a).contains("noise 12.34%"), "{}", text(&a));
     a.stats.doubt = Some(Doubt::FewPixels);
     assert!(text(&a).contains("noise ~12% (fireflies)"), "{}", text(&a));
+    // The denoised image's figure is as rough as the raw one it comes with.
+    use termtrace::common::resolved::Estimate;
     a.stats.doubt = Some(Doubt::FewSamples);
-    a.stats.denoised = Some(termtrace::common::resolved::Estimate::Value(0.0087));
+    a.stats.denoised = Some(Estimate::Value(0.0087));
     assert!(
-        text(&a).contains("noise ~12% (few samples) → 0.87%"),
+        text(&a).contains("noise ~12% → ~0.87% (few samples)"),
         "{}",
         text(&a)
     );
+    a.stats.doubt = Some(Doubt::FewPixels);
+    a.stats.denoised = Some(Estimate::Below(0.0041));
+    assert!(
+        text(&a).contains("noise ~12% → <0.41% (fireflies)"),
+        "{}",
+        text(&a)
+    );
+    // A sound raw estimate: both figures with their decimals.
+    a.stats.doubt = None;
+    a.stats.denoised = Some(Estimate::Value(0.0087));
+    assert!(text(&a).contains("noise 12.34% → 0.87%"), "{}", text(&a));
 }
 
 /// A grid with a gradient, so the snapshot shows where the image goes.

@@ -19,11 +19,12 @@
 //! of D̄'s squared error at every pixel (one term per channel), whatever the filter. It is
 //! noisy pixel by pixel, and is summed over tiles. Two biases remain:
 //! - the filters' luminance weights read a noise variance that is a 7×7 mean of (A − B)², so
-//!   D(A) depends on B through it. Small where the noise is light-tailed; where fireflies
-//!   reach the denoiser, a firefly in B loosens A's filter around it, so D(A) is not
-//!   independent of B where B is far off, and the estimate reads 0.4–0.7 of the true error
-//!   (`outdoor`, `glass`; with a variance map per half, 0.88–1.0: tests/estimate.rs, whose
-//!   `OPEN` says what was measured);
+//!   D(A) depends on B through it. Measured, it is small: over 96 runs of the firefly scenes,
+//!   a map per half made of each half's own samples (which needs their squared luminances
+//!   accumulated) moved the estimate by 0.04–0.07 (tests/estimate.rs, whose `OPEN` says what
+//!   was measured). What reads `glass` low is not a bias but the tail: the error of bright
+//!   paths a run did not find, which the filters do not average away and the run's samples
+//!   do not show; only the runs that find them do;
 //! - choosing per tile the lowest of three noisy estimates (the raw image's, the à-trous
 //!   filter's, the regression's) understates the shown image's error (the minimum of noisy
 //!   estimates is biased low), most where they are close; [`cross_fitted`] corrects it.
@@ -519,19 +520,21 @@ pub fn choose(rel: [f64; 3]) -> usize {
 /// The tile shows the choice of all its pixels, the lowest of three noisy estimates, and that
 /// estimate is biased low (the minimum of noisy estimates is below the minimum of their
 /// means), most where they are close. So each parity's pixels choose by their own sums
-/// ([`choose`]):
+/// ([`choose`]), and the image shown is judged by the pixels whose noise did not select it (a
+/// pixel's estimate terms carry mostly its own samples' noise):
 /// - where both parities choose the image shown, each parity's sum judges the other's choice,
 ///   and the estimate is the tile's sum;
-/// - where they differ, the image shown is judged by the parity that did not choose it alone,
-///   its sum scaled to the tile's pixels: those pixels' noise did not select it (a pixel's
-///   estimate terms carry mostly its own samples' noise);
-/// - where neither parity chose it (three candidates), each parity's choice is judged by the
-///   other.
+/// - where only one parity chose it, by the other parity alone, its sum scaled to the tile's
+///   pixels;
+/// - where neither parity chose it (three candidates), by both: the tile's sum.
 ///
-/// An earlier version judged each parity's choice by the other parity also where they
-/// differed. That estimates an image the tile does not show, and where one candidate's error
-/// sits in a few pixels (a filter smearing an emitter's edge) it read 40 for a raw tile whose
-/// true error was 0.4.
+/// Earlier versions judged each parity's own choice by the other parity also where the image
+/// shown was not that choice. That estimates an image the tile does not show: where one
+/// candidate's error sits in a few pixels (a filter smearing an emitter's edge) it read 40 for
+/// a raw tile whose true error was 0.4, and where neither parity chose the image shown, a
+/// firefly in one parity's raw sum made the shown image's estimate of `outdoor` 2.2–2.7× its
+/// true error over 96 runs (9× in expectation; BENCHMARKS.md, "The filtered images'
+/// estimate").
 pub fn cross_fitted(
     (all, odd): ([f64; 3], [f64; 3]),
     [choice_all, choice_odd]: [[f64; 3]; 2],
@@ -546,7 +549,7 @@ pub fn cross_fitted(
     } else if by_odd == shown && by_even != shown && even_pixels > 0.0 {
         even[shown] * pixels / even_pixels
     } else {
-        even[by_odd] + odd[by_even]
+        all[shown]
     }
 }
 
@@ -580,6 +583,13 @@ mod tests {
         // the odd ones (whose filter sums are low) choose the filter; the raw image shown is
         // judged by the odd pixels, not the filter by the even ones.
         assert_eq!(same([0.3, 37.0, 38.0], [0.15, -0.1, 0.0]), 0.3);
+        // Three ways: the tile shows the à-trous filter's image (3.0 against raw 3.5 and the
+        // regression's 3.2), the even pixels chose the raw image (even sums 0.5, 1.8, 2.1),
+        // the odd ones the regression (3.0, 1.2, 1.1). Neither chose the image shown, so both
+        // judge it: its tile sum, 3.0, not the sum of each parity's choice judged by the
+        // other (even's regression 2.1 + odd's raw 3.0 = 5.1, a firefly in the odd pixels'
+        // raw sum counted for an image the tile does not show).
+        assert_eq!(same([3.5, 3.0, 3.2], [3.0, 1.2, 1.1]), 3.0);
         // Chosen by other sums than those estimated: both parities choose the regression by
         // the choice's sums, and the estimate is the regression's estimated sum.
         assert_eq!(

@@ -195,16 +195,15 @@ pub fn stats_line(app: &App, width: u16) -> Line<'static> {
         (duration(s.elapsed), 4),
     ];
     // The raw image's estimated error (rough, and why, where few samples or a few pixels
-    // make it), and the denoised image's after an arrow.
-    let raw = |n: f64| match s.doubt {
-        Some(d) => d.text(n),
-        None => format!("{:.2}%", n * 100.0),
+    // make it), and the denoised image's after an arrow (as rough as the raw one).
+    let text = match (s.noise, s.denoised, s.doubt) {
+        (Some(n), Some(d), Some(why)) => format!("noise {}", why.pair_text(n, d)),
+        (Some(n), Some(d), None) => format!("noise {:.2}% → {}", n * 100.0, d.text()),
+        (Some(n), None, Some(why)) => format!("noise {}", why.text(n)),
+        (Some(n), None, None) => format!("noise {:.2}%", n * 100.0),
+        (None, _, _) => "noise –".into(),
     };
-    match (s.noise, s.denoised) {
-        (Some(n), Some(d)) => parts.push((format!("noise {} → {}", raw(n), d.text()), 0)),
-        (Some(n), None) => parts.push((format!("noise {}", raw(n)), 0)),
-        (None, _) => parts.push(("noise –".into(), 0)),
-    }
+    parts.push((text, 0));
     if s.reached {
         parts.push(("target reached".into(), 0));
     }
