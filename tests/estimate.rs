@@ -129,6 +129,21 @@ fn frame_settings(scene: &Scene) -> FrameSettings {
     settings(SIZE.0, SIZE.1, scene.render.max_bounces.min(8))
 }
 
+/// The estimated and the true relative RMSE of the image the preview shows (per tile raw or
+/// denoised) from `r`'s samples so far, `snap` their snapshot.
+fn shown_errors(r: &mut Renderer, snap: &Snapshot, reference: &LinearImage) -> (f64, f64) {
+    let d = denoise(&snap.data.even, &snap.data.odd, r.guides());
+    let shown = LinearImage {
+        width: SIZE.0,
+        height: SIZE.1,
+        pixels: d.shown(),
+    };
+    (
+        d.rel_rmse(d.shown_sums()),
+        errors(&shown, reference).rel_rmse(),
+    )
+}
+
 /// Per checkpoint of `SPPS`, the ratios of each of `runs` independent runs of `name` on `b`.
 fn ratios(b: &Backend, name: &str, runs: u32) -> Vec<Vec<Ratios>> {
     let scene = Scene::load(name).unwrap();
@@ -145,13 +160,7 @@ fn ratios(b: &Backend, name: &str, runs: u32) -> Vec<Vec<Ratios>> {
             r.render_spp(spp);
             let snap: Snapshot = r.snapshot();
             let raw = (snap.noise_estimate().unwrap(), truth(&snap.image()));
-            let d = denoise(&snap.data.even, &snap.data.odd, r.guides());
-            let shown = termtrace::output::LinearImage {
-                width: SIZE.0,
-                height: SIZE.1,
-                pixels: d.shown(),
-            };
-            let shown = (d.rel_rmse(d.shown_sums()), truth(&shown));
+            let shown = shown_errors(&mut r, &snap, &ref_image);
             out[i].push(Ratios { raw, shown });
             if i + 1 == SPPS.len() {
                 run_means.push(image_mean(&snap.image()));
@@ -430,13 +439,8 @@ fn the_status_line_doubts_where_its_figure_is_off() {
                 per[i].push((frame.doubt.is_some(), ratio));
                 // The denoised image shown, whose figure follows the raw one's on the line.
                 let snap = r.snapshot();
-                let d = denoise(&snap.data.even, &snap.data.odd, r.guides());
-                let shown = LinearImage {
-                    width: SIZE.0,
-                    height: SIZE.1,
-                    pixels: d.shown(),
-                };
-                let x = d.rel_rmse(d.shown_sums()) / errors(&shown, &reference).rel_rmse();
+                let (estimate, truth) = shown_errors(&mut r, &snap, &reference);
+                let x = estimate / truth;
                 if !(0.5..=2.0).contains(&x) {
                     shown_off += 1;
                     shown_off_doubted += frame.doubt.is_some() as usize;
@@ -458,7 +462,7 @@ fn the_status_line_doubts_where_its_figure_is_off() {
                 }
             }
         }
-        let light_tailed = !STOP_OPEN.contains(name);
+        let light_tailed = !FIREFLY.contains(name);
         let doubted_256 = per[1].iter().filter(|(d, _)| *d).count();
         if light_tailed && doubted_256 > 1 {
             wolf.push(format!(
