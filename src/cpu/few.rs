@@ -28,26 +28,22 @@ struct Block {
     w: [__m256; 3],
 }
 
-/// One primitive in the walk's order: the root slot of its leaf, its reference, and its
-/// quad lane or box.
-#[derive(Clone, Copy)]
-struct Step {
-    slot: u32,
-    r: u32,
-    what: What,
-}
-
-#[derive(Clone, Copy)]
-enum What {
-    Quad(usize),
-    Box(usize),
-}
-
-/// The quads in blocks (lanes in the walk's order), the boxes, and the walk's order.
+/// The quads in blocks (lanes in the walk's order), the boxes, and where each stands in the
+/// walk's order (its step: the walk tests primitives slot by slot, each leaf's in turn).
 pub struct Few {
     blocks: Vec<Block>,
     boxes: Vec<Cuboid>,
-    steps: Vec<Step>,
+    /// Per quad lane: its reference and its step.
+    quad_r: Vec<u32>,
+    quad_step: Vec<u32>,
+    /// Per box: its reference, its step and its root slot.
+    box_r: Vec<u32>,
+    box_step: Vec<u32>,
+    box_slot: Vec<u32>,
+    /// Per mask of root slots (the slab test's answer): the quad lanes and the steps whose
+    /// slot it holds, as bits.
+    lanes_in: Box<[u16; 256]>,
+    steps_in: Box<[u32; 256]>,
 }
 
 impl Few {
@@ -56,27 +52,40 @@ impl Few {
     /// whose leaves index `refs`).
     pub fn of(bvh8: &Bvh8, refs: &[u32], quads: &[Quad], boxes: &[Cuboid]) -> Option<Few> {
         let leaves = bvh8.one_node_leaves()?;
-        let (mut lane_quads, mut few_boxes, mut steps) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut lane_quads, mut few_boxes) = (Vec::new(), Vec::new());
+        let (mut quad_r, mut quad_step, mut quad_slot) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut box_r, mut box_step, mut box_slot) = (Vec::new(), Vec::new(), Vec::new());
+        let mut step_slot = Vec::new();
         for (slot, first, count) in leaves {
             for &r in &refs[first as usize..first as usize + count as usize] {
                 let i = (r & REF_INDEX) as usize;
-                let what = match r >> 30 {
+                let step = step_slot.len() as u32;
+                match r >> 30 {
                     1 => {
                         lane_quads.push(quads[i]);
-                        What::Quad(lane_quads.len() - 1)
+                        (quad_r.push(r), quad_step.push(step), quad_slot.push(slot));
                     }
                     2 => {
                         few_boxes.push(boxes[i]);
-                        What::Box(few_boxes.len() - 1)
+                        (box_r.push(r), box_step.push(step), box_slot.push(slot));
                     }
                     _ => return None,
-                };
-                steps.push(Step { slot, r, what });
+                }
+                step_slot.push(slot);
             }
         }
         if lane_quads.len() > MAX_QUADS || few_boxes.len() > MAX_BOXES {
             return None;
         }
+        let bits_in = |slots: &[u32], mask: usize| {
+            slots
+                .iter()
+                .enumerate()
+                .filter(|(_, s)| mask >> **s & 1 != 0)
+                .fold(0u32, |b, (i, _)| b | 1 << i)
+        };
+        let lanes_in = Box::new(std::array::from_fn(|m| bits_in(&quad_slot, m) as u16));
+        let steps_in = Box::new(std::array::from_fn(|m| bits_in(&step_slot, m)));
         let lanes = |i: usize, f: fn(&Quad) -> glam::Vec3A| -> [[f32; 8]; 3] {
             let mut out = [[0.0f32; 8]; 3];
             for (lane, q) in lane_quads.iter().skip(i * 8).take(8).enumerate() {
@@ -102,14 +111,20 @@ impl Few {
         Some(Few {
             blocks,
             boxes: few_boxes,
-            steps,
+            quad_r,
+            quad_step,
+            box_r,
+            box_step,
+            box_slot,
+            lanes_in,
+            steps_in,
         })
     }
 
     /// Per lane of `b`, the distance to its quad if in (0, t_max), else NO_HIT: `hit_quad`
-    /// in lanes.
+    /// in lanes; and the lanes hit, as bits.
     #[target_feature(enable = "avx")]
-    fn block(b: &Block, o: &[__m256; 3], d: &[__m256; 3], t_max: __m256) -> __m256 {
+    fn block(b: &Block, o: &[__m256; 3], d: &[__m256; 3], t_max: __m256) -> (__m256, u32) {
         let dot = |a: &[__m256; 3], c: &[__m256; 3]| {
             _mm256_add_ps(
                 _mm256_add_ps(_mm256_mul_ps(a[0], c[0]), _mm256_mul_ps(a[1], c[1])),
@@ -148,22 +163,38 @@ impl Few {
             _mm256_and_ps(facing, in_range),
             _mm256_and_ps(inside(alpha), inside(beta)),
         );
-        _mm256_blendv_ps(_mm256_set1_ps(NO_HIT), t, hit)
+        (
+            _mm256_blendv_ps(_mm256_set1_ps(NO_HIT), t, hit),
+            _mm256_movemask_ps(hit) as u32,
+        )
     }
 
-    /// Every quad's distance along `ray` (NO_HIT where it is missed or not before t_max).
+    /// Every quad's distance along `ray` (NO_HIT where it is missed or not before t_max), and
+    /// the lanes hit, as bits.
     #[target_feature(enable = "avx")]
-    fn distances(&self, ray: &Ray, t_max: f32) -> [f32; MAX_QUADS] {
+    fn distances(&self, ray: &Ray, t_max: f32) -> ([f32; MAX_QUADS], u32) {
         let o = [ray.origin.x, ray.origin.y, ray.origin.z].map(|x| _mm256_set1_ps(x));
         let d = [ray.dir.x, ray.dir.y, ray.dir.z].map(|x| _mm256_set1_ps(x));
         let t_max = _mm256_set1_ps(t_max);
-        let mut out = [NO_HIT; MAX_QUADS];
+        let (mut out, mut hits) = ([NO_HIT; MAX_QUADS], 0);
         for (i, b) in self.blocks.iter().enumerate() {
-            let t = Self::block(b, &o, &d, t_max);
+            let (t, hit) = Self::block(b, &o, &d, t_max);
             // SAFETY: eight floats at 8·i, within MAX_QUADS (at most two blocks).
             unsafe { _mm256_storeu_ps(out.as_mut_ptr().add(8 * i), t) };
+            hits |= hit << (8 * i);
         }
-        out
+        (out, hits)
+    }
+
+    /// The bits of the quad lanes and of the boxes whose reference is one of `rs`.
+    fn named(&self, rs: [u32; 2]) -> (u32, u32) {
+        let of = |refs: &[u32]| {
+            refs.iter()
+                .enumerate()
+                .filter(|(_, r)| rs.contains(r))
+                .fold(0u32, |b, (i, _)| b | 1 << i)
+        };
+        (of(&self.quad_r), of(&self.box_r))
     }
 
     /// The nearest primitive along `ray` before t_max (its distance and reference), `skip`
@@ -184,24 +215,40 @@ impl Few {
         if mask == 0 {
             return (None, 0);
         }
-        let ts = self.distances(ray, t_max);
-        let (mut best, mut t_best, mut tests) = (None, t_max, 0);
-        for step in self.steps.iter().filter(|s| mask >> s.slot & 1 != 0) {
-            if step.r == skip {
-                continue;
-            }
-            tests += 1;
-            let t = match step.what {
-                What::Quad(lane) if ts[lane] < t_best => ts[lane],
-                What::Quad(_) => NO_HIT,
-                What::Box(i) => hit_box(&self.boxes[i], ray, t_best),
-            };
-            if t > 0.0 {
-                t_best = t;
-                best = Some((t, step.r));
+        let (ts, hits) = self.distances(ray, t_max);
+        let (skip_lane, skip_box) = self.named([skip, skip]);
+        // The walk keeps the first primitive at the nearest distance, in its order: the
+        // quads hit, lowest lane (earliest step) first, then the boxes at their steps.
+        let (mut best, mut t_best, mut best_step) = (None, t_max, u32::MAX);
+        let mut lanes = hits & u32::from(self.lanes_in[mask as usize]) & !skip_lane;
+        while lanes != 0 {
+            let l = lanes.trailing_zeros() as usize;
+            lanes &= lanes - 1;
+            if ts[l] < t_best {
+                (t_best, best_step) = (ts[l], self.quad_step[l]);
+                best = Some((ts[l], self.quad_r[l]));
             }
         }
-        (best, tests)
+        for (i, bx) in self.boxes.iter().enumerate() {
+            if mask >> self.box_slot[i] & 1 == 0 || skip_box >> i & 1 != 0 {
+                continue;
+            }
+            let t = hit_box(bx, ray, t_max);
+            if t > 0.0 && (t < t_best || (t == t_best && self.box_step[i] < best_step)) {
+                (t_best, best_step) = (t, self.box_step[i]);
+                best = Some((t, self.box_r[i]));
+            }
+        }
+        // The walk tests every primitive of the slots entered but the one left.
+        let in_mask = self.steps_in[mask as usize];
+        let skipped = if skip_lane != 0 {
+            in_mask >> self.quad_step[skip_lane.trailing_zeros() as usize] & 1
+        } else if skip_box != 0 {
+            in_mask >> self.box_step[skip_box.trailing_zeros() as usize] & 1
+        } else {
+            0
+        };
+        (best, u64::from(in_mask.count_ones() - skipped))
     }
 
     /// Whether a primitive but `skip` and `from` lies on `ray` before t_max, and the
@@ -223,22 +270,34 @@ impl Few {
         if mask == 0 {
             return (false, 0);
         }
-        let ts = self.distances(ray, t_max);
-        let mut tests = 0;
-        for step in self.steps.iter().filter(|s| mask >> s.slot & 1 != 0) {
-            tests += 1;
-            if step.r == skip || step.r == from {
-                continue;
-            }
-            let hit = match step.what {
-                What::Quad(lane) => ts[lane] > 0.0,
-                What::Box(i) => hit_box(&self.boxes[i], ray, t_max) > 0.0,
-            };
-            if hit {
-                return (true, tests);
+        let (_, hits) = self.distances(ray, t_max);
+        let (left_lanes, left_boxes) = self.named([skip, from]);
+        // The walk stops at the first primitive in its order that blocks the ray: the
+        // lowest lane hit, or a box before it.
+        let lanes = hits & u32::from(self.lanes_in[mask as usize]) & !left_lanes;
+        let mut first = if lanes != 0 {
+            self.quad_step[lanes.trailing_zeros() as usize]
+        } else {
+            u32::MAX
+        };
+        for (i, bx) in self.boxes.iter().enumerate() {
+            if self.box_step[i] < first
+                && mask >> self.box_slot[i] & 1 != 0
+                && left_boxes >> i & 1 == 0
+                && hit_box(bx, ray, t_max) > 0.0
+            {
+                first = self.box_step[i];
+                break;
             }
         }
-        (false, tests)
+        // The walk counts every primitive of the slots entered up to where it stops.
+        let in_mask = self.steps_in[mask as usize];
+        let counted = if first == u32::MAX {
+            in_mask
+        } else {
+            in_mask & (u32::MAX >> (31 - first))
+        };
+        (first != u32::MAX, u64::from(counted.count_ones()))
     }
 }
 
