@@ -1,12 +1,14 @@
 //! Scenes of a few quads and boxes (a Cornell box): where the eight-wide BVH is one node of
 //! leaves, its walk is one slab test and then each leaf's primitives tested one by one. Here
 //! the slab test is the walk's, and every quad is tested at once, eight to an AVX operation;
-//! the nearest hit is then chosen in the walk's order (slot by slot, each leaf's references
-//! in turn), boxes tested there as the walk tests them. The quad test is `intersect::
+//! the nearest hit is then chosen as the walk chooses it, the first at the nearest distance
+//! in its order (slot by slot, each leaf's references in turn): from the lanes hit, and the
+//! boxes tested one by one. The quad test is `intersect::
 //! hit_quad` term for term in the same order (glam's dot is (x + y) + z, its cross the
 //! textbook one, and nothing is fused), so each distance is the scalar test's bit for bit, and
 //! the hit is the walk's, ties included (a ray through the edge two quads share: tested on
-//! the rays the scenes trace).
+//! the rays the scenes trace). Spheres stay with the walk: tested here in lanes, bit for bit,
+//! they made `lamp` 24 % and `basic` 12 % slower (BENCHMARKS.md, "The peer measured again").
 
 use super::bvh8::Bvh8;
 use super::intersect::{Cuboid, NO_HIT, Quad, Ray, hit_box};
