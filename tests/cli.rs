@@ -321,6 +321,47 @@ fn a_cut_glb_is_named_once() {
 }
 
 #[test]
+fn the_summary_rounds_an_estimate_it_cannot_trust_and_says_why() {
+    // Two samples in each half of a pixel say little of its noise: the summary rounds the
+    // estimate and says why, as the preview's status line does. With 64 it is a sure figure.
+    let d = tmpdir();
+    let out = d.path().join("t.exr");
+    let summary = |spp: &str| {
+        let (code, _, err) = run(termtrace().args([
+            "render",
+            "basic",
+            "--adapter",
+            "cpu-native",
+            "--width",
+            "48",
+            "--height",
+            "27",
+            "--spp",
+            spp,
+            "-o",
+            out.to_str().unwrap(),
+        ]));
+        assert_eq!(code, 0, "{err}");
+        let line = err
+            .lines()
+            .find(|l| l.starts_with("wrote "))
+            .unwrap_or_else(|| panic!("{err}"));
+        line.split("estimated error ").nth(1).unwrap().to_string()
+    };
+    let rough = summary("4");
+    assert!(
+        rough.starts_with('~') && rough.contains("% (few samples)"),
+        "{rough}"
+    );
+    let sure = summary("64");
+    let figure = sure.split('%').next().unwrap();
+    assert!(
+        figure.parse::<f64>().is_ok() && figure.split('.').nth(1).map(str::len) == Some(3),
+        "{sure}"
+    );
+}
+
+#[test]
 fn a_target_error_stops_near_it_not_past_it() {
     // The samples are claimed in stages that aim at the target (cli/render.rs, `accumulate`):
     // the reported estimate ends at or below 5 % and above 0.6 × 5 % (one stage at most

@@ -142,10 +142,11 @@ pub fn run(mut a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
     let paths = team.paths();
     let snap = team.snapshot();
     let mut image = snap.image();
-    let estimate = snap.noise_estimate();
+    let estimate = snap.error_estimate();
     let (mut extra, mut denoised_text) = (Vec::new(), String::new());
     if a.denoise {
-        (image, extra, denoised_text) = denoised(&out, &team, &snap, image)?;
+        let rough = estimate.is_some_and(|e| e.doubt.is_some());
+        (image, extra, denoised_text) = denoised(&out, &team, &snap, image, rough)?;
     }
     let written = match kind {
         ImageFile::Png => save(&out, &image, |p| {
@@ -177,7 +178,7 @@ pub fn run(mut a: RenderArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         elapsed.as_secs_f64(),
         rate_text(rate),
         team.describe(),
-        pct(estimate),
+        estimate.map_or("–".into(), |e| e.text()),
         snap.invalid_samples(),
     );
     report_shares(&team);
@@ -249,6 +250,7 @@ fn accumulate(
     ));
     let mut state = StageState {
         noise: None,
+        doubt: None,
         last_estimate: Instant::now(),
         reached: false,
         interrupted: false,
@@ -308,6 +310,8 @@ fn accumulate(
 /// render ended.
 struct StageState {
     noise: Option<f64>,
+    /// Why `noise` is rough, if it is (the progress line says so).
+    doubt: Option<crate::common::resolved::Doubt>,
     last_estimate: Instant,
     reached: bool,
     interrupted: bool,
@@ -326,6 +330,7 @@ fn run_stage(
 ) {
     let StageState {
         noise,
+        doubt,
         last_estimate,
         reached,
         interrupted,
@@ -333,7 +338,8 @@ fn run_stage(
     team.run(Duration::from_millis(250), deadline, |team| {
         let rate = team.paths() as f64 / start.elapsed().as_secs_f64().max(1e-9);
         if last_estimate.elapsed() >= every {
-            *noise = team.snapshot().noise_estimate();
+            let e = team.snapshot().error_estimate();
+            (*noise, *doubt) = (e.map(|e| e.rel_rmse), e.and_then(|e| e.doubt));
             *last_estimate = Instant::now();
             if let (Some(n), Some(target)) = (*noise, a.target_error)
                 && n <= target
@@ -341,7 +347,11 @@ fn run_stage(
                 *reached = true;
             }
         }
-        let noise_text = noise.map_or(String::new(), |n| format!("  noise {:.2}%", n * 100.0));
+        let noise_text = match (*noise, *doubt) {
+            (Some(n), Some(d)) => format!("  noise {}", d.text(n)),
+            (Some(n), None) => format!("  noise {:.2}%", n * 100.0),
+            (None, _) => String::new(),
+        };
         let samples = team.samples();
         match time_limit {
             Some(t) => {
@@ -368,6 +378,7 @@ fn denoised(
     team: &Team,
     snap: &crate::render::Snapshot,
     image: LinearImage,
+    rough: bool,
 ) -> anyhow::Result<(LinearImage, Vec<String>, String)> {
     let guides = team.first().guides().clone();
     let d = crate::denoise::denoise(&snap.data.even, &snap.data.odd, &guides);
@@ -381,9 +392,14 @@ fn denoised(
         pixels,
     };
     let n = d.tiles.iter().filter(|&&t| t).count();
+    let shown = d.shown_estimate();
     let denoised_text = format!(
         ", denoised {} in {n} of {} tiles",
-        d.shown_estimate().text(),
+        if rough {
+            shown.rough_text()
+        } else {
+            shown.text()
+        },
         d.tiles.len()
     );
     let mut extra = Vec::new();
@@ -425,11 +441,6 @@ pub(crate) fn report_shares(team: &Team) {
             s.device
         );
     }
-}
-
-/// An estimated relative error as a percentage (– where not known).
-fn pct(e: Option<f64>) -> String {
-    e.map_or("–".into(), |e| format!("{:.3}%", e * 100.0))
 }
 
 /// Writes with `write`; if that fails, saves the image to the temporary directory instead so

@@ -23,6 +23,15 @@ impl Estimate {
             Estimate::Below(v) => format!("<{:.2}%", v * 100.0),
         }
     }
+
+    /// Rounded to two digits (`~0.9%`, `<0.12%`): where the raw estimate it was made beside
+    /// is rough (`Doubt`), so is this one.
+    pub fn rough_text(self) -> String {
+        match self {
+            Estimate::Value(v) => rough(v),
+            Estimate::Below(v) => format!("<{}%", round_to_two_digits(v * 100.0)),
+        }
+    }
 }
 
 /// Fewer samples than this in either half of some pixel, and the noise estimate is shown as
@@ -76,11 +85,12 @@ impl Doubt {
     /// doubt marks 18 of the 22 runs whose denoised figure was off by more than 2×
     /// (tests/estimate.rs, `the_status_line_doubts_where_its_figure_is_off`).
     pub fn pair_text(self, raw: f64, denoised: Estimate) -> String {
-        let d = match denoised {
-            Estimate::Value(v) => rough(v),
-            Estimate::Below(v) => format!("<{}%", round_to_two_digits(v * 100.0)),
-        };
-        format!("{} → {d} ({})", rough(raw), self.why())
+        format!(
+            "{} → {} ({})",
+            rough(raw),
+            denoised.rough_text(),
+            self.why()
+        )
     }
 }
 

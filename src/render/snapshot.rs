@@ -3,6 +3,7 @@
 
 use crate::common::AccumData;
 use crate::common::estimate::{pair_factor, relative_weights};
+use crate::common::resolved::Doubt;
 use crate::output::LinearImage;
 
 /// An image's estimated error, in linear radiance.
@@ -10,6 +11,20 @@ use crate::output::LinearImage;
 pub struct ErrorEstimate {
     pub rmse: f64,
     pub rel_rmse: f64,
+    /// Why `rel_rmse` is rough, if it is: the status line's doubt (few samples in some
+    /// pixel's half, or a few pixels holding most of it), from the same terms.
+    pub doubt: Option<Doubt>,
+}
+
+impl ErrorEstimate {
+    /// `rel_rmse` as `render` reports it: `4.912%`, or rounded with why it is rough,
+    /// `~26% (fireflies)`.
+    pub fn text(&self) -> String {
+        match self.doubt {
+            Some(d) => d.text(self.rel_rmse),
+            None => format!("{:.3}%", self.rel_rmse * 100.0),
+        }
+    }
 }
 
 #[derive(Clone, Debug)]
@@ -88,20 +103,26 @@ impl Snapshot {
     /// (tests/estimate.rs, `the_reference_as_the_proxy`).
     pub fn error_estimate_weighted(&self, weights: &[[f32; 3]]) -> Option<ErrorEstimate> {
         assert_eq!(weights.len(), self.data.even.len());
-        let (mut mse, mut rel) = (0.0f64, 0.0f64);
+        let (mut mse, mut rel, mut rel2) = (0.0f64, 0.0f64, 0.0f64);
+        let mut fewest = f32::INFINITY;
         for ((e, o), wt) in self.data.even.iter().zip(&self.data.odd).zip(weights) {
             let k = pair_factor(e[3] as f64, o[3] as f64)?;
+            let mut pixel = 0.0;
             for c in 0..3 {
                 let (me, mo) = (e[c] as f64 / e[3] as f64, o[c] as f64 / o[3] as f64);
                 let var = (me - mo).powi(2) * k;
                 mse += var;
-                rel += var * wt[c] as f64;
+                pixel += var * wt[c] as f64;
             }
+            rel += pixel;
+            rel2 += pixel * pixel;
+            fewest = fewest.min(e[3].min(o[3]));
         }
         let n = (3 * self.data.even.len()).max(1) as f64;
         Some(ErrorEstimate {
             rmse: (mse / n).sqrt(),
             rel_rmse: (rel / n).sqrt(),
+            doubt: Doubt::of(Some(fewest), rel, rel2),
         })
     }
 
@@ -124,5 +145,49 @@ impl Snapshot {
     /// Samples discarded as NaN or infinite since the last reset.
     pub fn invalid_samples(&self) -> u64 {
         self.data.invalid
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 16 × 16 snapshot whose pixels' halves hold `n` samples each, with means 0.5 ± 0.05,
+    /// and, where `firefly`, one pixel's even half at 50.
+    fn snapshot(n: f32, firefly: bool) -> Snapshot {
+        let half = |m: f32| [m * n, m * n, m * n, n];
+        let mut even = vec![half(0.55); 256];
+        if firefly {
+            even[100] = half(50.0);
+        }
+        Snapshot {
+            width: 16,
+            height: 16,
+            data: AccumData {
+                even,
+                odd: vec![half(0.45); 256],
+                invalid: 0,
+                segments: 0,
+                node_visits: 0,
+                primitive_tests: 0,
+            },
+            samples: 2 * n as u32,
+        }
+    }
+
+    #[test]
+    fn the_estimate_says_when_it_is_rough_as_the_status_line_does() {
+        // Every pixel alike, 8 samples a half: a sure figure, three decimals.
+        let e = snapshot(8.0, false).error_estimate().unwrap();
+        assert_eq!(e.doubt, None);
+        assert_eq!(e.text(), format!("{:.3}%", e.rel_rmse * 100.0));
+        // Two samples a half: rough.
+        let e = snapshot(2.0, false).error_estimate().unwrap();
+        assert_eq!(e.doubt, Some(Doubt::FewSamples));
+        assert!(e.text().starts_with('~') && e.text().ends_with("% (few samples)"));
+        // One pixel holds nearly all of it.
+        let e = snapshot(8.0, true).error_estimate().unwrap();
+        assert_eq!(e.doubt, Some(Doubt::FewPixels));
+        assert!(e.text().ends_with("% (fireflies)"), "{}", e.text());
     }
 }
