@@ -65,11 +65,15 @@ impl Few {
                 match r >> 30 {
                     1 => {
                         lane_quads.push(quads[i]);
-                        (quad_r.push(r), quad_step.push(step), quad_slot.push(slot));
+                        quad_r.push(r);
+                        quad_step.push(step);
+                        quad_slot.push(slot);
                     }
                     2 => {
                         few_boxes.push(boxes[i]);
-                        (box_r.push(r), box_step.push(step), box_slot.push(slot));
+                        box_r.push(r);
+                        box_step.push(step);
+                        box_slot.push(slot);
                     }
                     _ => return None,
                 }
