@@ -83,12 +83,15 @@ const TWINS: &[Twin] = &[
         wgsl: "shaders/common/rng.wgsl",
         rust: "src/cpu/rng.rs",
         prefix: "rng_",
-        // The host also draws points ahead, in AVX lanes (`group*`, `next_point`).
+        // The host also draws points ahead, in AVX lanes (`group*`, `next_point`; AVX-512
+        // where the CPU has it, `has_avx512`).
         wgsl_only: &["init", "seed_mix", "slot", "unit_float"],
         rust_only: &[
             "group",
             "group_avx2",
+            "group_avx512",
             "group_lanes",
+            "has_avx512",
             "mix",
             "new",
             "next_point",
