@@ -320,14 +320,11 @@ fn a_cut_glb_is_named_once() {
     }
 }
 
-#[test]
-fn the_summary_rounds_an_estimate_it_cannot_trust_and_says_why() {
-    // Two samples in each half of a pixel say little of its noise: the summary rounds the
-    // estimate and says why, as the preview's status line does. With 64 it is a sure figure.
-    let d = tmpdir();
-    let out = d.path().join("t.exr");
-    let summary = |spp: &str| {
-        let (code, _, err) = run(termtrace().args([
+/// `render basic` at 48×27 on the CPU tracer with `args` into `out`: its stderr, and what
+/// follows the summary's "estimated error " (the figure first).
+fn render_basic(out: &Path, args: &[&str]) -> (String, String) {
+    let (code, _, err) = run(termtrace()
+        .args([
             "render",
             "basic",
             "--adapter",
@@ -336,24 +333,32 @@ fn the_summary_rounds_an_estimate_it_cannot_trust_and_says_why() {
             "48",
             "--height",
             "27",
-            "--spp",
-            spp,
             "-o",
             out.to_str().unwrap(),
-        ]));
-        assert_eq!(code, 0, "{err}");
-        let line = err
-            .lines()
-            .find(|l| l.starts_with("wrote "))
-            .unwrap_or_else(|| panic!("{err}"));
-        line.split("estimated error ").nth(1).unwrap().to_string()
-    };
-    let rough = summary("4");
+        ])
+        .args(args));
+    assert_eq!(code, 0, "{err}");
+    // The summary's is the last (the announcement may name the target).
+    let estimate = err
+        .rsplit_once("estimated error ")
+        .unwrap_or_else(|| panic!("no estimate in {err}"))
+        .1
+        .to_string();
+    (err, estimate)
+}
+
+#[test]
+fn the_summary_rounds_an_estimate_it_cannot_trust_and_says_why() {
+    // Two samples in each half of a pixel say little of its noise: the summary rounds the
+    // estimate and says why, as the preview's status line does. With 64 it is a sure figure.
+    let d = tmpdir();
+    let out = d.path().join("t.exr");
+    let (_, rough) = render_basic(&out, &["--spp", "4"]);
     assert!(
         rough.starts_with('~') && rough.contains("% (few samples)"),
         "{rough}"
     );
-    let sure = summary("64");
+    let (_, sure) = render_basic(&out, &["--spp", "64"]);
     let figure = sure.split('%').next().unwrap();
     assert!(
         figure.parse::<f64>().is_ok() && figure.split('.').nth(1).map(str::len) == Some(3),
@@ -370,29 +375,11 @@ fn a_target_error_stops_near_it_not_past_it() {
     // of the target.
     let d = tmpdir();
     let out = d.path().join("t.exr");
-    let (code, _, err) = run(termtrace().args([
-        "render",
-        "basic",
-        "--adapter",
-        "cpu-native",
-        "--width",
-        "48",
-        "--height",
-        "27",
-        "--seed",
-        "1",
-        "--target-error",
-        "0.05",
-        "-o",
-        out.to_str().unwrap(),
-    ]));
-    assert_eq!(code, 0, "{err}");
+    let (err, estimate) = render_basic(&out, &["--seed", "1", "--target-error", "0.05"]);
     assert!(err.contains("target error reached"), "{err}");
-    // The summary's (the announcement names the target too).
-    let e: f64 = err
-        .rsplit("estimated error ")
+    let e: f64 = estimate
+        .split('%')
         .next()
-        .and_then(|s| s.split('%').next())
         .and_then(|s| s.parse().ok())
         .unwrap_or_else(|| panic!("no estimate in {err}"));
     assert!(

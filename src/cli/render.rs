@@ -4,10 +4,10 @@
 use super::args::{FrameArgs, GlobalArgs, ImageArgs};
 use crate::common::FrameSettings;
 use crate::output::{ImageFile, LinearImage, check_writable, write_exr, write_png};
-use crate::render::Backend;
 use crate::render::RenderOptions;
 use crate::render::stages;
 use crate::render::team::Team;
+use crate::render::{Backend, ErrorEstimate};
 use crate::scene::load_scene;
 use anyhow::Context;
 use clap::Args;
@@ -249,8 +249,7 @@ fn accumulate(
         settings.height
     ));
     let mut state = StageState {
-        noise: None,
-        doubt: None,
+        estimate: None,
         last_estimate: Instant::now(),
         reached: false,
         interrupted: false,
@@ -284,9 +283,9 @@ fn accumulate(
         if traced < end {
             break; // every device failed or stopped short
         }
-        state.noise = team.snapshot().noise_estimate();
+        state.estimate = team.snapshot().error_estimate();
         state.last_estimate = Instant::now();
-        match stages::next(end, state.noise, target, spp) {
+        match stages::next(end, state.estimate.map(|e| e.rel_rmse), target, spp) {
             stages::Next::Reached => {
                 state.reached = true;
                 break;
@@ -309,9 +308,8 @@ fn accumulate(
 /// What `accumulate`'s stages share: the last estimate and when it was made, and how the
 /// render ended.
 struct StageState {
-    noise: Option<f64>,
-    /// Why `noise` is rough, if it is (the progress line says so).
-    doubt: Option<crate::common::resolved::Doubt>,
+    /// The last estimate of the error (the progress line says whether it is rough).
+    estimate: Option<ErrorEstimate>,
     last_estimate: Instant,
     reached: bool,
     interrupted: bool,
@@ -329,8 +327,7 @@ fn run_stage(
     state: &mut StageState,
 ) {
     let StageState {
-        noise,
-        doubt,
+        estimate,
         last_estimate,
         reached,
         interrupted,
@@ -338,19 +335,22 @@ fn run_stage(
     team.run(Duration::from_millis(250), deadline, |team| {
         let rate = team.paths() as f64 / start.elapsed().as_secs_f64().max(1e-9);
         if last_estimate.elapsed() >= every {
-            let e = team.snapshot().error_estimate();
-            (*noise, *doubt) = (e.map(|e| e.rel_rmse), e.and_then(|e| e.doubt));
+            *estimate = team.snapshot().error_estimate();
             *last_estimate = Instant::now();
-            if let (Some(n), Some(target)) = (*noise, a.target_error)
-                && n <= target
+            if let (Some(e), Some(target)) = (*estimate, a.target_error)
+                && e.rel_rmse <= target
             {
                 *reached = true;
             }
         }
-        let noise_text = match (*noise, *doubt) {
-            (Some(n), Some(d)) => format!("  noise {}", d.text(n)),
-            (Some(n), None) => format!("  noise {:.2}%", n * 100.0),
-            (None, _) => String::new(),
+        let noise_text = match *estimate {
+            Some(ErrorEstimate {
+                rel_rmse,
+                doubt: Some(d),
+                ..
+            }) => format!("  noise {}", d.text(rel_rmse)),
+            Some(e) => format!("  noise {:.2}%", e.rel_rmse * 100.0),
+            None => String::new(),
         };
         let samples = team.samples();
         match time_limit {
