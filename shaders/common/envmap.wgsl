@@ -1,7 +1,8 @@
 // Twin: src/scene/envmap_sampling.rs (tests/twins.rs keeps their functions paired).
 // The environment map (src/scene/envmap_sampling.rs does the same arithmetic for the CPU tracer):
 // its texels, looked up where a ray leaves the scene, and its piecewise-constant
-// distribution (luminance × sin θ per texel), sampled by inverting the marginal CDF over rows
+// distribution (per texel its luminance less the map's mean, where above it, × sin θ: MIS
+// compensation, built on the host), sampled by inverting the marginal CDF over rows
 // and the conditional CDF within the row (PBRT 4th ed. §A.5.6, §12.5.2).
 // Every function is only called under HAS_ENV_MAP (declared in trace.wgsl); `rotation` is the
 // map's turn about +y in radians, the caller's intensity multiplies what they return.
@@ -114,8 +115,8 @@ fn env_coordinates(d: vec3f, rotation: f32) -> vec2f {
 // The radiance at map coordinates c = (u, v) (env_coordinates of the direction seen):
 // bilinear between the four nearest texel centres, wrapping in u, clamped at the poles
 // (src/scene/envmap_sampling.rs: bilinear). Unbiased beside the piecewise-constant sampling
-// density: where the density is 0 and the filtered radiance is not (next to a black texel),
-// the BSDF sample's MIS weight is 1.
+// density: where the density is 0 and the filtered radiance is not (next to a black texel, or
+// at or below the map's mean), the BSDF sample's MIS weight is 1.
 fn env_lookup(c: vec2f) -> vec3f {
     let w = env_width();
     let h = env_height();

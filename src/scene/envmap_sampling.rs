@@ -1,7 +1,8 @@
 //! An environment map's directions and its importance sampling, the same arithmetic for both
 //! tracers (`common::envmap` lays it out for the GPU; shaders/common/envmap.wgsl mirrors it):
 //! RGBE texels, the equirectangular mapping from a direction to the map's (u, v), the
-//! bilinear lookup, and a piecewise-constant 2D distribution over the texels, sampled by
+//! bilinear lookup, and a piecewise-constant 2D distribution over the texels (their light
+//! above the map's mean: MIS compensation, `Distribution::build`), sampled by
 //! inverting a marginal CDF over rows and a conditional CDF within the row (Pharr, Jakob and
 //! Humphreys, "Physically Based Rendering", 4th ed., §A.5.6 and §12.5.2). CDFs rather than
 //! alias tables: the inversion is continuous (neighbouring random numbers give neighbouring
@@ -156,7 +157,8 @@ pub struct Distribution {
     /// The marginal CDF over rows, `height + 1`.
     pub marginal: Vec<f32>,
     /// The integral of the weights over [0, 1]² (their mean): the piecewise-constant density
-    /// of texel (x, y) is its weight / `integral`. Zero when the map is black.
+    /// of texel (x, y) is its weight / `integral`. Zero when the map is black (and only
+    /// then: a map with nothing above its mean is weighted by its luminance alone).
     pub integral: f64,
     /// Guide tables of the CDFs (`guide`): the marginal's, and the conditionals' row by row,
     /// `height × (guide_buckets + 1)`. The native CPU tracer's; the GPU searches the CDFs
@@ -244,18 +246,35 @@ fn buckets(n: usize, per_bucket: usize) -> usize {
 }
 
 impl Distribution {
-    /// The distribution of `texels` (row-major, rows from the top), each weighted by the
-    /// luminance of the bilinear lookup averaged over its area × sin θ at its row's centre
-    /// (the solid angle it spans).
+    /// The distribution of `texels` (row-major, rows from the top): each texel weighted by the
+    /// luminance of the bilinear lookup averaged over its area, less the map's mean over the
+    /// sphere where that leaves anything (MIS compensation, below), × sin θ at its row's
+    /// centre (the solid angle it spans).
     pub fn new(width: u32, height: u32, texels: &[[f32; 3]]) -> Distribution {
+        Self::build(width, height, texels, true)
+    }
+
+    /// [`Distribution::new`], or with `compensate` false the texels' luminance alone (what
+    /// the tracers sampled before; the tests and `benches/` compare the two).
+    ///
+    /// MIS compensation (Karlík, Šik, Vévoda, Skřivan and Křivánek, "MIS Compensation:
+    /// Optimizing Sampling Techniques in Multiple Importance Sampling", ACM TOG 38(6), 2019,
+    /// §5): light sampling is always combined with the BSDF's sampling, which finds the dim,
+    /// even part of a sky well, so the map's distribution takes the sphere's mean radiance off
+    /// every texel and samples only the excess: a sun and the bright sky near it get the light
+    /// samples that the dim sky took. Texels at or below the mean get density 0 and are found
+    /// by the BSDF's samples alone, whose MIS weight is then 1: unbiased. A map with nothing
+    /// above its mean (a constant one) keeps the luminance alone, so that its light sampling
+    /// is not left with nothing to sample.
+    pub fn build(width: u32, height: u32, texels: &[[f32; 3]], compensate: bool) -> Distribution {
         let (w, h) = (width as usize, height as usize);
         assert_eq!(texels.len(), w * h, "texels of a {width}×{height} map");
         // Rows in parallel: each row's CDF is its own.
         use rayon::prelude::*;
         // Each texel's weight is the mean over its area of the bilinear radiance the tracers
         // look up (`bilinear`): in each direction ¾ of the texel and ⅛ of either neighbour
-        // (wrapping in u, clamped at the poles), so that wherever the lookup sees light, the
-        // density is above zero (pbrt-v4's ImageInfiniteLight does the same).
+        // (wrapping in u, clamped at the poles), so that wherever the lookup sees more light
+        // than the mean, the density is above zero (pbrt-v4's ImageInfiniteLight blurs alike).
         // In f32 (an 8k map's two passes take 256 MiB, not 512); the sums below are f64.
         let lum: Vec<f32> = texels.par_iter().map(|t| luminance(*t).max(0.0)).collect();
         let across: Vec<f32> = (0..w * h)
@@ -266,37 +285,59 @@ impl Distribution {
                 0.75 * at(x) + 0.125 * (at((x + w - 1) % w) + at((x + 1) % w))
             })
             .collect();
-        let mut conditional = vec![0f32; h * (w + 1)];
-        let rows: Vec<f64> = conditional
-            .par_chunks_mut(w + 1)
-            .enumerate()
-            .map(|(y, cdf)| {
-                let sin_t = (std::f64::consts::PI * (y as f64 + 0.5) / h as f64).sin();
-                let row = |y: usize| &across[y * w..(y + 1) * w];
-                let (above, here, below) =
-                    (row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)));
-                let mut sum = 0f64;
-                cdf[0] = 0.0;
-                // The running sums in f64 first (in place of the f32 CDF would lose them).
-                let mut acc = Vec::with_capacity(w);
-                for x in 0..w {
-                    let weight =
-                        0.75 * here[x] as f64 + 0.125 * (above[x] as f64 + below[x] as f64);
-                    sum += weight * sin_t;
-                    acc.push(sum);
-                }
-                for (x, a) in acc.iter().enumerate() {
-                    // A black row's CDF is uniform; the marginal never picks it.
-                    cdf[x + 1] = if sum > 0.0 {
-                        (a / sum) as f32
-                    } else {
-                        (x + 1) as f32 / w as f32
-                    };
-                }
-                cdf[w] = 1.0;
-                sum / w as f64
-            })
-            .collect();
+        drop(lum);
+        let sin_of = |y: usize| (std::f64::consts::PI * (y as f64 + 0.5) / h as f64).sin();
+        // Row y's blurred weights, before the sine.
+        let blurred = |y: usize| {
+            let row = |y: usize| &across[y * w..(y + 1) * w];
+            let (above, here, below) = (row(y.saturating_sub(1)), row(y), row((y + 1).min(h - 1)));
+            (0..w).map(move |x| 0.75 * here[x] as f64 + 0.125 * (above[x] as f64 + below[x] as f64))
+        };
+        // The mean over the sphere: Σ weight × sin θ / Σ sin θ.
+        let mean = if compensate {
+            let (sum, solid): (f64, f64) = (0..h)
+                .into_par_iter()
+                .map(|y| (blurred(y).sum::<f64>() * sin_of(y), w as f64 * sin_of(y)))
+                .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+            sum / solid
+        } else {
+            0.0
+        };
+        // The conditional CDFs and each row's mean weight × sin θ, with `less` taken off every
+        // texel's weight.
+        let rows_with = |less: f64| {
+            let mut conditional = vec![0f32; h * (w + 1)];
+            let rows: Vec<f64> = conditional
+                .par_chunks_mut(w + 1)
+                .enumerate()
+                .map(|(y, cdf)| {
+                    let sin_t = sin_of(y);
+                    let mut sum = 0f64;
+                    cdf[0] = 0.0;
+                    // The running sums in f64 first (in place of the f32 CDF would lose them).
+                    let mut acc = Vec::with_capacity(w);
+                    for weight in blurred(y) {
+                        sum += (weight - less).max(0.0) * sin_t;
+                        acc.push(sum);
+                    }
+                    for (x, a) in acc.iter().enumerate() {
+                        // A black row's CDF is uniform; the marginal never picks it.
+                        cdf[x + 1] = if sum > 0.0 {
+                            (a / sum) as f32
+                        } else {
+                            (x + 1) as f32 / w as f32
+                        };
+                    }
+                    cdf[w] = 1.0;
+                    sum / w as f64
+                })
+                .collect();
+            (conditional, rows)
+        };
+        let (mut conditional, mut rows) = rows_with(mean);
+        if mean > 0.0 && rows.iter().all(|&r| r <= 0.0) {
+            (conditional, rows) = rows_with(0.0);
+        }
         let total: f64 = rows.iter().sum();
         let mut marginal = Vec::with_capacity(h + 1);
         let mut acc = 0f64;
@@ -533,27 +574,31 @@ mod tests {
         assert_eq!(black.integral, 0.0);
         assert_eq!(black.sample(0.3, 0.6, 0.0).pdf, 0.0);
         // Rows 0 and 1 black: the lookup sees no light in row 0, but some in row 1 (blended
-        // with row 2), so row 0 is never chosen and row 1 is, rarely.
+        // with row 2), so without compensation row 0 is never chosen and row 1 is, rarely;
+        // with it, row 1 is below the mean and never chosen either.
         let mut t = vec![[1.0f32; 3]; 16];
         t[..8].fill([0.0; 3]);
-        let d = Distribution::new(4, 4, &t);
-        let mut rows = [0; 4];
-        for i in 0..1000 {
-            let s = d.sample((i as f32 + 0.5) / 1000.0, (i as f32 * 0.3719) % 1.0, 0.0);
-            rows[s.texel.1 as usize] += 1;
-            assert!(s.pdf > 0.0);
+        for (compensate, row_1) in [(false, true), (true, false)] {
+            let d = Distribution::build(4, 4, &t, compensate);
+            let mut rows = [0; 4];
+            for i in 0..1000 {
+                let s = d.sample((i as f32 + 0.5) / 1000.0, (i as f32 * 0.3719) % 1.0, 0.0);
+                rows[s.texel.1 as usize] += 1;
+                assert!(s.pdf > 0.0);
+            }
+            assert_eq!(rows[0], 0, "{rows:?}");
+            assert_eq!(rows[1] > 0, row_1, "{rows:?}");
+            assert!(rows[1] < rows[2], "{rows:?}");
         }
-        assert_eq!(rows[0], 0, "{rows:?}");
-        assert!(rows[1] > 0 && rows[1] < rows[2], "{rows:?}");
     }
 
     #[test]
-    fn the_density_is_above_zero_wherever_the_lookup_sees_light() {
+    fn without_compensation_the_density_is_above_zero_wherever_the_lookup_sees_light() {
         // One bright texel of an 8 × 4 map: the bilinear lookup spreads it half a texel into
         // each neighbour, which the density must cover.
         let mut t = vec![[0.0f32; 3]; 32];
         t[8 + 3] = [5.0; 3];
-        let d = Distribution::new(8, 4, &t);
+        let d = Distribution::build(8, 4, &t, false);
         let texel = |x: u32, y: u32| t[(y * 8 + x) as usize];
         let mut lit = 0;
         for i in 0..400 {
@@ -566,5 +611,36 @@ mod tests {
             }
         }
         assert!(lit > 10, "{lit}");
+    }
+
+    #[test]
+    fn compensation_samples_the_light_above_the_mean_in_proportion_to_its_excess() {
+        // Columns 0–3 of radiance 1, 4–7 of 3, every row alike: blurred across (¾ own, ⅛ each
+        // neighbour, wrapping), columns 0–7 read 1.25, 1, 1, 1.25, 2.75, 3, 3, 2.75, whose
+        // mean over the sphere is 2. Less the mean: 0 on the left half, then 0.75, 1, 1, 0.75.
+        let t: Vec<[f32; 3]> = (0..32)
+            .map(|i| if i % 8 < 4 { [1.0; 3] } else { [3.0; 3] })
+            .collect();
+        let d = Distribution::new(8, 4, &t);
+        let pdf = |x: u32| d.pdf_at((x as f32 + 0.5) / 8.0, 0.375);
+        for x in 0..4 {
+            assert_eq!(pdf(x), 0.0, "column {x}");
+        }
+        let ratio = pdf(5) / pdf(4);
+        assert!((ratio - 4.0 / 3.0).abs() < 1e-5, "{ratio}");
+        // (Equal weights, equal densities but for the f32 CDFs' rounding.)
+        let near = |a: f32, b: f32| (a / b - 1.0).abs() < 1e-5;
+        assert!(
+            near(pdf(5), pdf(6)) && near(pdf(4), pdf(7)),
+            "{:?}",
+            (4..8).map(pdf).collect::<Vec<_>>()
+        );
+        // Without it, the blurred luminance alone: 3 against 2.75.
+        let plain = Distribution::build(8, 4, &t, false);
+        let ratio = plain.pdf_at(5.5 / 8.0, 0.375) / plain.pdf_at(4.5 / 8.0, 0.375);
+        assert!((ratio - 3.0 / 2.75).abs() < 1e-5, "{ratio}");
+        // A constant map has nothing above its mean: it keeps the uniform density.
+        let flat = Distribution::new(8, 4, &[[2.0; 3]; 32]);
+        assert_eq!(flat, Distribution::build(8, 4, &[[2.0; 3]; 32], false));
     }
 }
