@@ -31,6 +31,9 @@ const TWINS: &[Twin] = &[
         ],
         rust_only: &[
             "bilinear",
+            // The host builds the distribution (`new`, `build`: MIS-compensated or not) and
+            // the GPU reads what it built.
+            "build",
             "buckets",
             "bytes",
             "density_uv",

@@ -255,7 +255,7 @@ impl Distribution {
     }
 
     /// [`Distribution::new`], or with `compensate` false the texels' luminance alone (what
-    /// the tracers sampled before; the tests and `benches/` compare the two).
+    /// the tracers sampled before; the tests compare the two).
     ///
     /// MIS compensation (Karlík, Šik, Vévoda, Skřivan and Křivánek, "MIS Compensation:
     /// Optimizing Sampling Techniques in Multiple Importance Sampling", ACM TOG 38(6), 2019,
