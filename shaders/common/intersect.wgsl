@@ -179,20 +179,33 @@ fn hit_triangle(tri: Triangle, ray: Ray, t_max: f32) -> f32 {
 // On a triangle: the point from its barycentric coordinates (relative to v0, not to the ray
 // origin), and the normal of its winding.
 // The barycentric coordinates (along e1, along e2) of p, taken relative to v0, by least
-// squares in the triangle's plane.
-fn triangle_barycentrics(tri: Triangle, p: vec3f) -> vec2f {
+// squares in the triangle's plane, and 1 where they are a point of the triangle's, 0 where a
+// sliver (corners all but in a line) cancelled its terms to NaN or to a point far outside
+// (src/cpu/intersect.rs: plane_barycentrics; a hit point is always within these bounds).
+fn plane_barycentrics(tri: Triangle, p: vec3f) -> vec3f {
     let d00 = dot(tri.e1, tri.e1);
     let d01 = dot(tri.e1, tri.e2);
     let d11 = dot(tri.e2, tri.e2);
     let d20 = dot(p, tri.e1);
     let d21 = dot(p, tri.e2);
     let denom = d00 * d11 - d01 * d01;
-    return vec2f((d11 * d20 - d01 * d21) / denom, (d00 * d21 - d01 * d20) / denom);
+    let b = vec2f((d11 * d20 - d01 * d21) / denom, (d00 * d21 - d01 * d20) / denom);
+    let found = b.x >= -0.5 && b.y >= -0.5 && b.x + b.y <= 1.5;
+    return vec3f(b, select(0.0, 1.0, found));
 }
 
+// plane_barycentrics, or a sliver's centroid: where the corners' attributes are read.
+fn triangle_barycentrics(tri: Triangle, p: vec3f) -> vec2f {
+    let b = plane_barycentrics(tri, p);
+    return select(vec2f(1.0 / 3.0), b.xy, b.z > 0.0);
+}
+
+// The point in the triangle's plane, or on a sliver the ray's own point.
 fn triangle_surface(tri: Triangle, ray: Ray, t: f32) -> SurfacePoint {
-    let b = triangle_barycentrics(tri, ray.origin + t * ray.dir - tri.v0);
-    return SurfacePoint(tri.v0 + b.x * tri.e1 + b.y * tri.e2, normalize(cross(tri.e1, tri.e2)));
+    let p = ray.origin + t * ray.dir;
+    let b = plane_barycentrics(tri, p - tri.v0);
+    let q = tri.v0 + b.x * tri.e1 + b.y * tri.e2;
+    return SurfacePoint(select(p, q, b.z > 0.0), normalize(cross(tri.e1, tri.e2)));
 }
 
 // An instance's maps (common/types.wgsl: Instance): a world ray into its mesh's coordinates,

@@ -268,9 +268,13 @@ pub fn hit_triangle(tri: &Triangle, ray: &Ray, t_max: f32) -> f32 {
 }
 
 /// The barycentric coordinates (along e1, along e2) of `p`, taken relative to v0, by least
-/// squares in the triangle's plane (intersect.wgsl: triangle_barycentrics).
+/// squares in the triangle's plane (intersect.wgsl: plane_barycentrics), or None where they
+/// are not a point of the triangle's: a sliver (three corners all but in a line, which a mesh
+/// may hold and a ray may still hit) cancels its terms to NaN or to a point far outside. A
+/// hit point's are within the hit test's slack of the triangle, so the loose bounds here
+/// never reject them.
 #[inline(always)]
-pub fn triangle_barycentrics(tri: &Triangle, p: Vec3A) -> (f32, f32) {
+pub fn plane_barycentrics(tri: &Triangle, p: Vec3A) -> Option<(f32, f32)> {
     let d00 = tri.e1.dot(tri.e1);
     let d01 = tri.e1.dot(tri.e2);
     let d11 = tri.e2.dot(tri.e2);
@@ -279,13 +283,27 @@ pub fn triangle_barycentrics(tri: &Triangle, p: Vec3A) -> (f32, f32) {
     let denom = d00 * d11 - d01 * d01;
     let v = (d11 * d20 - d01 * d21) / denom;
     let w = (d00 * d21 - d01 * d20) / denom;
-    (v, w)
+    // (NaN fails every comparison.)
+    (v >= -0.5 && w >= -0.5 && v + w <= 1.5).then_some((v, w))
 }
 
+/// [`plane_barycentrics`], or a sliver's centroid (intersect.wgsl: triangle_barycentrics):
+/// where the corners' attributes (texture coordinates, normals) are read.
+#[inline(always)]
+pub fn triangle_barycentrics(tri: &Triangle, p: Vec3A) -> (f32, f32) {
+    plane_barycentrics(tri, p).unwrap_or((1.0 / 3.0, 1.0 / 3.0))
+}
+
+/// The hit at distance `t` along `ray`: the point in the triangle's plane, or on a sliver
+/// the ray's own point (a NaN point there had made a NaN path: 1 sample in 2·10⁸ of
+/// `benches/peer/map-dog.toml`, whose dog has such triangles).
 pub fn triangle_surface(tri: &Triangle, ray: &Ray, t: f32) -> SurfacePoint {
-    let (v, w) = triangle_barycentrics(tri, ray.origin + t * ray.dir - tri.v0);
+    let p = ray.origin + t * ray.dir;
     SurfacePoint {
-        position: tri.v0 + v * tri.e1 + w * tri.e2,
+        position: match plane_barycentrics(tri, p - tri.v0) {
+            Some((v, w)) => tri.v0 + v * tri.e1 + w * tri.e2,
+            None => p,
+        },
         normal: tri.e1.cross(tri.e2).normalize(),
     }
 }
@@ -325,4 +343,52 @@ pub fn offset_ray(p: Vec3A, n: Vec3A) -> Vec3A {
         };
     }
     Vec3A::from_array(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sliver_that_a_ray_hits_gives_a_finite_point_and_a_sane_triangle_its_own() {
+        // Triangle 67 of the Cube Pets dog (benches/peer/map-dog.toml) as the tracer holds it,
+        // its corners all but in a line, and the ray of a path that met it: the least squares
+        // gave NaN, and the path a NaN sample.
+        let sliver = Triangle {
+            v0: Vec3A::new(0.4372699, 0.59595704, 0.5),
+            e1: Vec3A::new(-0.03726989, -0.139094, 0.0),
+            e2: Vec3A::new(0.03727001, 0.13909292, 0.0),
+            material: 1,
+        };
+        let ray = Ray {
+            origin: Vec3A::new(0.31351867, 0.3713119, 0.55765605),
+            dir: Vec3A::new(0.5996587, 0.7086864, -0.3717164),
+        };
+        let t = hit_triangle(&sliver, &ray, f32::INFINITY);
+        assert!(t > 0.0 && t.is_finite(), "the ray hits it: {t}");
+        let p = ray.origin + t * ray.dir;
+        assert_eq!(plane_barycentrics(&sliver, p - sliver.v0), None);
+        let s = triangle_surface(&sliver, &ray, t);
+        assert_eq!(s.position, p);
+        assert!(s.normal.is_finite());
+        assert_eq!(triangle_barycentrics(&sliver, p - sliver.v0), (1.0 / 3.0, 1.0 / 3.0));
+        // A triangle with area keeps the point in its plane, from its barycentrics.
+        let tri = Triangle {
+            v0: Vec3A::new(0.0, 0.0, -1.0),
+            e1: Vec3A::new(1.0, 0.0, 0.0),
+            e2: Vec3A::new(0.0, 1.0, 0.0),
+            material: 0,
+        };
+        let ray = Ray {
+            origin: Vec3A::new(0.25, 0.3, 1.0),
+            dir: Vec3A::new(0.0, 0.0, -1.0),
+        };
+        let t = hit_triangle(&tri, &ray, f32::INFINITY);
+        let (v, w) = plane_barycentrics(&tri, ray.origin + t * ray.dir - tri.v0).unwrap();
+        assert_eq!((v, w), (0.25, 0.3));
+        assert_eq!(
+            triangle_surface(&tri, &ray, t).position,
+            tri.v0 + v * tri.e1 + w * tri.e2
+        );
+    }
 }
