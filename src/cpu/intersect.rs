@@ -371,7 +371,10 @@ mod tests {
         let s = triangle_surface(&sliver, &ray, t);
         assert_eq!(s.position, p);
         assert!(s.normal.is_finite());
-        assert_eq!(triangle_barycentrics(&sliver, p - sliver.v0), (1.0 / 3.0, 1.0 / 3.0));
+        assert_eq!(
+            triangle_barycentrics(&sliver, p - sliver.v0),
+            (1.0 / 3.0, 1.0 / 3.0)
+        );
         // A triangle with area keeps the point in its plane, from its barycentrics.
         let tri = Triangle {
             v0: Vec3A::new(0.0, 0.0, -1.0),
