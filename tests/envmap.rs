@@ -71,8 +71,8 @@ fn sin_of_row(h: u32, y: u32) -> f64 {
 /// 400 000 directions sampled from `d` binned by the texel their direction falls in (found
 /// again from the direction, so that the mapping is tested too), against the expected count:
 /// N × the texel's `weight` over the sum of weights. Cells expected below 5 are pooled; a
-/// texel of weight 0 must never be sampled. Fails at p < 0.001. Returns the counts and the
-/// weights' total.
+/// texel of weight 0 must never be sampled. Fails at p < 0.001. Returns each texel's share of
+/// the samples, and the weights' total.
 fn chi_square(d: &Distribution, weight: &dyn Fn(u32, u32) -> f64) -> (Vec<f64>, f64) {
     let (w, h) = (d.width, d.height);
     let rotation = 0.7;
