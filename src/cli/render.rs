@@ -343,12 +343,9 @@ fn run_stage(
                 *reached = true;
             }
         }
+        // A rough figure as the summary says it; a sure one with two decimals.
         let noise_text = match *estimate {
-            Some(ErrorEstimate {
-                rel_rmse,
-                doubt: Some(d),
-                ..
-            }) => format!("  noise {}", d.text(rel_rmse)),
+            Some(e) if e.doubt.is_some() => format!("  noise {}", e.text()),
             Some(e) => format!("  noise {:.2}%", e.rel_rmse * 100.0),
             None => String::new(),
         };
