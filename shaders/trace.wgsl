@@ -6,6 +6,7 @@
 // #include "common/fixed.wgsl"
 // #include "common/texture.wgsl"
 // #include "common/envmap.wgsl"
+// #include "common/mirror.wgsl"
 // #include "common/pbr.wgsl"
 // Twin: src/cpu/trace.rs (tests/twins.rs keeps their functions paired).
 // The path tracer: one invocation traces its share of a round's `sample_count` paths through
@@ -29,6 +30,8 @@ override HAS_NORMAL_MAPS: bool = true;
 override HAS_SMOOTH_NORMALS: bool = true;
 // An HDR environment map (common/envmap.wgsl): looked up by escaping rays, sampled with HAS_NEE.
 override HAS_ENV_MAP: bool = true;
+// Perfect mirror spheres whose reflection of the map light sampling samples (sample_mirror).
+override HAS_MIRROR_NEE: bool = true;
 override HAS_PBR: bool = true;
 override HAS_LECTURE: bool = true;
 // Meshes drawn by instances: a two-level BVH (src/common/arrays.rs: gpu_bvh).
@@ -804,9 +807,89 @@ fn sample_env(p: vec3f, n: vec3f, n_geo: vec3f, pe: f32, pbr: bool, lobe: PbrLob
     return s.radiance * scene.env_intensity * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI));
 }
 
+// The density, in solid angle at the point that sees it, with which sample_mirror finds the
+// map's direction of density pdf in a mirror sphere of spread `spread`.
+fn mirror_pdf(pdf: f32, spread: f32) -> f32 {
+    return pdf / (f32(scene.n_mirrors) * spread);
+}
+
+// Where a ray from a lobe light sampling weighs (prev_pdf > 0, from prev_point) meets one of
+// the mirror spheres sample_mirror samples from outside: (that lobe's density, the sphere's
+// spread there), else zeros (src/cpu/trace.rs: mirror_hit).
+fn mirror_hit(hit: Hit, ray: Ray, position: vec3f, normal: vec3f, prev_pdf: f32, prev_point: vec3f) -> vec2f {
+    if !(HAS_MIRROR_NEE && prev_pdf > 0.0 && hit.kind == KIND_SPHERE) {
+        return vec2f(0.0);
+    }
+    var listed = false;
+    for (var k = 0u; k < scene.n_mirrors; k++) {
+        listed = listed || lights[scene.n_lights + k].prim == hit.index;
+    }
+    if !listed {
+        return vec2f(0.0);
+    }
+    let cos_i = -dot(ray.dir, normal);
+    let spread = mirror_spread(spheres[hit.index].radius, length(position - prev_point), cos_i);
+    if cos_i > 0.0 && spread > 0.0 {
+        return vec2f(prev_pdf, spread);
+    }
+    return vec2f(0.0);
+}
+
+// The environment map's light as a mirror sphere reflects it onto p (src/cpu/trace.rs:
+// sample_mirror, which says how): one of the mirror spheres chosen evenly, a direction from
+// the map's distribution, the point of the sphere that reflects it to p, both legs
+// unoccluded, MIS-weighted against the lobe.
+fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, state: ptr<function, Rng>) -> vec3f {
+    let count = scene.n_mirrors;
+    var pick = 0.0;
+    if count > 1u {
+        pick = rand(state);
+    }
+    let prim = lights[scene.n_lights + min(u32(pick * f32(count)), count - 1u)].prim;
+    let sphere = spheres[prim];
+    let c = sphere_center(sphere);
+    // A sphere wholly behind the surface reflects nothing onto it.
+    if dot(n, c - p) <= -sphere.radius {
+        return vec3f(0.0);
+    }
+    let s = env_sample(rand2(state), scene.env_rotation);
+    if s.pdf <= 0.0 {
+        return vec3f(0.0);
+    }
+    let x = mirror_point(p, c, sphere.radius, s.dir);
+    if !x.ok {
+        return vec3f(0.0);
+    }
+    let cos_s = dot(n, x.dir);
+    if cos_s <= 0.0 || ((HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && dot(n_geo, x.dir) <= 0.0) {
+        return vec3f(0.0);
+    }
+    let spread = mirror_spread(sphere.radius, x.dist, x.cos_i);
+    if !(spread > 0.0) {
+        return vec3f(0.0);
+    }
+    // To the sphere (the first thing the ray meets must be it), then from its point to the map.
+    let to_mirror = Ray(offset_ray(p, n_geo), x.dir);
+    let t_mirror = hit_primitive(prim, to_mirror, T_FAR);
+    if t_mirror <= 0.0 || occluded(to_mirror, t_mirror, prim) {
+        return vec3f(0.0);
+    }
+    if occluded(Ray(offset_ray(p + x.dir * x.dist, x.normal), s.dir), T_FAR, EMPTY_SLOT) {
+        return vec3f(0.0);
+    }
+    let radiance = s.radiance * scene.env_intensity * materials[sphere.material].specular_color;
+    let pl = mirror_pdf(s.pdf, spread);
+    if HAS_PBR && pbr {
+        let e = pbr_eval(lobe, x.dir);
+        return radiance * e.xyz * (power_heuristic(pl, e.w) / pl);
+    }
+    return radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI));
+}
+
 // What a ray that leaves the scene sees: the environment map (MIS-weighted where light
-// sampling could have found its direction), or the sky; a camera ray sees the sky behind a
-// map that is not visible.
+// sampling could have found its direction, or where it leaves a mirror sphere whose
+// reflection of the map sample_mirror samples), or the sky; a camera ray sees the sky behind
+// a map that is not visible.
 fn escaped(path: Path, dir: vec3f) -> vec3f {
     if HAS_ENV_MAP && scene.env_mode != ENV_NONE && (path.bounce > 0u || scene.env_mode == ENV_VISIBLE) {
         var w = 1.0;
@@ -815,6 +898,8 @@ fn escaped(path: Path, dir: vec3f) -> vec3f {
         let c = env_coordinates(dir, scene.env_rotation);
         if HAS_NEE && path.prev_pdf > 0.0 && pe > 0.0 {
             w = power_heuristic(path.prev_pdf, pe * env_pdf_at(c));
+        } else if HAS_MIRROR_NEE && path.mirror.x > 0.0 {
+            w = power_heuristic(path.mirror.x, mirror_pdf(env_pdf_at(c), path.mirror.y));
         }
         return env_lookup(c) * scene.env_intensity * w;
     }
@@ -833,10 +918,13 @@ struct Path {
     prev_pdf: f32,
     prev_point: vec3f,
     prev_normal: vec3f,
+    // Where the ray leaves a mirror sphere that sample_mirror samples, met right after a lobe
+    // light sampling weighs: (that lobe's density, the sphere's spread), else zeros.
+    mirror: vec2f,
 }
 
 fn path_start(primary: Ray) -> Path {
-    return Path(primary, vec3f(1.0), vec3f(0.0), 0u, 0.0, primary.origin, vec3f(0.0, 1.0, 0.0));
+    return Path(primary, vec3f(1.0), vec3f(0.0), 0u, 0.0, primary.origin, vec3f(0.0, 1.0, 0.0), vec2f(0.0));
 }
 
 // One segment of a path (MODEL.md "Scattering"): traces its ray and either ends the path
@@ -855,6 +943,11 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     let surf = surface_at(hit, ray);
     let sh = material_at(hit, surf);
     let m = sh.m;
+    // A mirror sphere met from a lobe light sampling weighs: what it reflects from the map
+    // next is weighed against sample_mirror.
+    if HAS_MIRROR_NEE {
+        (*path).mirror = mirror_hit(hit, ray, surf.point.position, surf.point.normal, (*path).prev_pdf, (*path).prev_point);
+    }
     // Inside a volume's boundary the medium attenuates, by Beer–Lambert's law over the
     // segment's length (KHR_materials_volume; a closed mesh, not nested).
     if HAS_PBR_TRANSMISSION && m.transmission > 0.0 && dot(ray.dir, surf.point.normal) > 0.0 {
@@ -902,6 +995,11 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         }
         if nee && light_lobe {
             (*path).radiance += (*path).throughput * tint * sample_light(surf.point.position, ns, n, pbr, lobe, state);
+            // The map in the mirror spheres: its paths scatter here and at the mirror, and
+            // leave it, within the bounces allowed.
+            if HAS_MIRROR_NEE && scene.n_mirrors > 0u && bounce + 2u <= scene.max_bounces {
+                (*path).radiance += (*path).throughput * tint * sample_mirror(surf.point.position, ns, n, pbr, lobe, state);
+            }
         }
         var pbr_pdf = 0.0;
         var through = false;

@@ -49,6 +49,13 @@ const TWINS: &[Twin] = &[
         ],
     },
     Twin {
+        wgsl: "shaders/common/mirror.wgsl",
+        rust: "src/cpu/mirror.rs",
+        prefix: "mirror_",
+        wgsl_only: &[],
+        rust_only: &[],
+    },
+    Twin {
         wgsl: "shaders/common/fixed.wgsl",
         rust: "src/cpu/fixed.rs",
         prefix: "fixed_",

@@ -10,7 +10,7 @@ struct SceneUniforms {
     cam_horizontal: vec3f,  //  32  full width of the focus plane
     n_instances: u32,       //  44  copies of instanced meshes (the BVH's top level names them)
     cam_vertical: vec3f,    //  48  full height of the focus plane, pointing up
-    _pad2: f32,             //  60
+    n_mirrors: u32,         //  60  mirror spheres light sampling reflects the map in (after the lights)
     cam_u: vec3f,           //  64  lens basis (right)
     _pad3: f32,             //  76
     cam_v: vec3f,           //  80  lens basis (up)

@@ -91,6 +91,7 @@ pub fn scene_uniforms(scene: &Scene, s: &FrameSettings, origin: DVec3) -> SceneU
         }
     }
     u.n_lights = lights(scene, s.nee).0.len() as u32;
+    u.n_mirrors = mirror_spheres(scene, s.nee).len() as u32;
     if let Some(e) = &scene.environment {
         u.env_rotation = e.rotation.to_radians();
         u.env_intensity = e.intensity;
@@ -242,6 +243,7 @@ impl Primitives {
         let mut p = Primitives::default();
         let (lights, slots) = lights(scene, nee);
         p.lights = lights;
+        p.lights.extend(mirror_spheres(scene, nee));
         // Positions are taken relative to the origin (in f64, before rounding); directions
         // and extents go through `dir` unchanged.
         let pos = |v: DVec3| f(v - origin);
@@ -476,6 +478,48 @@ pub fn lights(scene: &Scene, nee: bool) -> (Vec<GpuLight>, Vec<u32>) {
         })
         .collect();
     (table, slots)
+}
+
+/// The most mirror spheres light sampling reflects the map in (the first ones in the
+/// scene's order; the others' reflections are found by scattering alone).
+pub const MAX_MIRRORS: usize = 16;
+
+/// The spheres through which next-event estimation also samples the environment map
+/// (docs/MODEL-NOTES.md, "The map in a mirror ball"): perfect mirrors of the lecture's model
+/// (specular 1, smoothness 1, no fuzz, not emitting, untextured) with a positive radius,
+/// where a map lights the scene and `nee` is on; at most `MAX_MIRRORS`. As entries that
+/// follow the lights in the lights' buffer: `prim` the sphere's reference, the rest 0.
+pub fn mirror_spheres(scene: &Scene, nee: bool) -> Vec<GpuLight> {
+    if !nee || !scene.environment.as_ref().is_some_and(|e| e.lights()) {
+        return Vec::new();
+    }
+    scene
+        .objects
+        .iter()
+        .filter_map(|o| match &o.shape {
+            Shape::Sphere { radius, .. } => Some((o, *radius)),
+            _ => None,
+        })
+        .enumerate()
+        .filter(|(_, (o, radius))| {
+            let m = &o.material;
+            *radius > 0.0
+                && !m.is_pbr()
+                && !m.is_dielectric()
+                && !m.is_emitter()
+                && m.textured.is_none()
+                && m.specular >= 1.0
+                && m.smoothness >= 1.0
+                && m.absorption == 0.0
+        })
+        .take(MAX_MIRRORS)
+        .map(|(i, _)| GpuLight {
+            prim: encode_ref(Kind::Sphere, i),
+            cdf: 0.0,
+            pmf: 0.0,
+            area: 0.0,
+        })
+        .collect()
 }
 
 /// The BVH over `p`, as both tracers read it: four-wide nodes (`bvh::wide`), and the

@@ -42,6 +42,10 @@ pub struct Features {
     /// An HDR environment map: looked up where rays leave the scene, and sampled by
     /// next-event estimation (with `nee`).
     pub env_map: bool,
+    /// Perfect mirror spheres under an environment map that lights the scene: next-event
+    /// estimation also samples the map's light as a mirror ball reflects it (with `nee`;
+    /// `common::arrays::mirror_spheres`).
+    pub mirror_nee: bool,
     /// glTF's metallic-roughness BRDF (`model = "pbr"` materials).
     pub pbr: bool,
     /// A pbr material with `KHR_materials_specular` (a specular other than 1 or a coloured
@@ -83,6 +87,7 @@ impl Features {
             normal_maps: true,
             smooth_normals: true,
             env_map: true,
+            mirror_nee: true,
             pbr: true,
             pbr_specular: true,
             pbr_transmission: true,
@@ -111,6 +116,7 @@ impl Features {
             normal_maps: false,
             smooth_normals: false,
             env_map: false,
+            mirror_nee: false,
             pbr: false,
             pbr_specular: false,
             pbr_transmission: false,
@@ -142,6 +148,7 @@ impl Features {
                 "normal_maps" => &mut f.normal_maps,
                 "smooth_normals" => &mut f.smooth_normals,
                 "env_map" => &mut f.env_map,
+                "mirror_nee" => &mut f.mirror_nee,
                 "pbr" => &mut f.pbr,
                 "pbr_specular" => &mut f.pbr_specular,
                 "pbr_transmission" => &mut f.pbr_transmission,
@@ -209,6 +216,7 @@ impl Features {
             f.nee |= o.material.is_emitter()
                 && matches!(o.shape, Shape::Sphere { .. } | Shape::Quad { .. });
         }
+        f.mirror_nee = !crate::common::arrays::mirror_spheres(scene, true).is_empty();
         f
     }
 
@@ -229,6 +237,7 @@ impl Features {
             normal_maps: self.normal_maps | other.normal_maps,
             smooth_normals: self.smooth_normals | other.smooth_normals,
             env_map: self.env_map | other.env_map,
+            mirror_nee: self.mirror_nee | other.mirror_nee,
             pbr: self.pbr | other.pbr,
             pbr_specular: self.pbr_specular | other.pbr_specular,
             pbr_transmission: self.pbr_transmission | other.pbr_transmission,
@@ -263,6 +272,7 @@ impl Features {
             ("HAS_NORMAL_MAPS", b(self.normal_maps)),
             ("HAS_SMOOTH_NORMALS", b(self.smooth_normals)),
             ("HAS_ENV_MAP", b(self.env_map)),
+            ("HAS_MIRROR_NEE", b(self.mirror_nee)),
             ("HAS_PBR", b(self.pbr)),
             ("HAS_PBR_SPECULAR", b(self.pbr_specular)),
             ("HAS_PBR_TRANSMISSION", b(self.pbr_transmission)),
@@ -291,6 +301,7 @@ impl Features {
             (self.normal_maps, "normal_maps"),
             (self.smooth_normals, "smooth_normals"),
             (self.env_map, "env_map"),
+            (self.mirror_nee, "mirror_nee"),
             (self.pbr, "pbr"),
             (self.pbr_specular, "pbr_specular"),
             (self.pbr_transmission, "pbr_transmission"),

@@ -15,7 +15,9 @@ pub struct SceneUniforms {
     pub cam_horizontal: [f32; 3],
     pub n_instances: u32,
     pub cam_vertical: [f32; 3],
-    pub _pad2: f32,
+    /// Perfect mirror spheres whose reflection of the map light sampling samples
+    /// (`arrays::mirror_spheres`): they follow the lights in the lights' buffer.
+    pub n_mirrors: u32,
     pub cam_u: [f32; 3],
     pub _pad3: f32,
     pub cam_v: [f32; 3],
@@ -202,6 +204,7 @@ pub fn mirrors() -> Vec<MirrorLayout> {
                 cam_horizontal,
                 n_instances,
                 cam_vertical,
+                n_mirrors,
                 cam_u,
                 cam_v,
                 sky_bottom,

@@ -49,6 +49,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../../shaders/common/estimate.wgsl"),
     ),
     (
+        "common/mirror.wgsl",
+        include_str!("../../shaders/common/mirror.wgsl"),
+    ),
+    (
         "common/pbr.wgsl",
         include_str!("../../shaders/common/pbr.wgsl"),
     ),

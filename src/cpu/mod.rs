@@ -21,6 +21,7 @@ pub mod few;
 pub mod fixed;
 pub mod intersect;
 pub mod material;
+pub mod mirror;
 #[cfg(target_arch = "x86_64")]
 mod packet;
 pub mod pbr;

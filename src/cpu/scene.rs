@@ -8,7 +8,7 @@ use super::bvh::Bvh4;
 use super::bvh8::Bvh8;
 use super::intersect::{Cuboid, Instance, Quad, Sphere, Triangle};
 use crate::common::FrameSettings;
-use crate::common::arrays::{Primitives, geometry_hash, gpu_bvh, scene_uniforms};
+use crate::common::arrays::{Primitives, REF_INDEX, geometry_hash, gpu_bvh, scene_uniforms};
 use crate::common::layout::{GpuLight, GpuMaterial, MODEL_PBR, SceneUniforms};
 use crate::scene::Scene;
 use crate::scene::envmap::EnvMap;
@@ -64,6 +64,7 @@ pub struct Uniforms {
     pub max_bounces: u32,
     pub seed: u32,
     pub n_lights: u32,
+    pub n_mirrors: u32,
     pub primitives: u32,
     pub env_rotation: f32,
     pub env_intensity: f32,
@@ -93,6 +94,7 @@ impl Uniforms {
             max_bounces: u.max_bounces,
             seed: u.seed,
             n_lights: u.n_lights,
+            n_mirrors: u.n_mirrors,
             primitives: u.n_spheres + u.n_quads + u.n_boxes + u.n_triangles,
             env_rotation: u.env_rotation,
             env_intensity: u.env_intensity,
@@ -134,6 +136,9 @@ pub struct CpuScene {
     pub boxes: Vec<Cuboid>,
     pub triangles: Vec<Triangle>,
     pub lights: Vec<GpuLight>,
+    /// The mirror spheres light sampling reflects the map in: indices into `spheres`
+    /// (`common::arrays::mirror_spheres`, which follow the lights in `Primitives::lights`).
+    pub mirrors: Vec<u32>,
     /// Copies of instanced meshes, whose trees follow the top level in `bvh`.
     pub instances: Vec<Instance>,
     /// Triangles the top level names (an instanced mesh's follow them).
@@ -184,6 +189,7 @@ impl CpuScene {
             boxes: Vec::new(),
             triangles: Vec::new(),
             lights: Vec::new(),
+            mirrors: Vec::new(),
             instances: instances
                 .iter()
                 .map(|i| Instance {
@@ -313,6 +319,8 @@ impl CpuScene {
                 material: t.material,
             })
             .collect();
-        self.lights = p.lights.clone();
+        let n = self.u.n_lights as usize;
+        self.lights = p.lights[..n].to_vec();
+        self.mirrors = p.lights[n..].iter().map(|l| l.prim & REF_INDEX).collect();
     }
 }

@@ -15,6 +15,7 @@ use super::bvh::{Stack, Tally};
 use super::bvh8::Stack8;
 use super::intersect::*;
 use super::material::{Scatter, reflect, refract_dir, scatter_dielectric, scatter_surface};
+use super::mirror;
 #[cfg(target_arch = "x86_64")]
 use super::packet::Packets;
 use super::pbr;
@@ -161,6 +162,15 @@ fn hit_except<const P: u32>(
         return NO_HIT;
     }
     hit_primitive::<P>(s, r, ray, t_max)
+}
+
+/// A mirror sphere met right after a lobe light sampling weighs (`Tracer::mirror_hit`).
+#[derive(Clone, Copy)]
+struct MirrorHit {
+    /// The lobe's density of the ray that met it.
+    pdf: f32,
+    /// `mirror::spread` at the point met.
+    spread: f32,
 }
 
 fn power_heuristic(a: f32, b: f32) -> f32 {
@@ -469,7 +479,16 @@ impl<'a> Tracer<'a> {
 
     /// What a ray that leaves the scene sees (trace.wgsl: escaped): the environment map,
     /// MIS-weighted where light sampling could have found its direction, or the sky.
-    fn escaped(&self, dir: Vec3A, bounce: u32, prev_pdf: f32) -> Vec3A {
+    /// `mirrored`: where the ray left a mirror sphere of `mirrors` right after a lobe light
+    /// sampling weighs, that lobe's density and the sphere's spread there (`MirrorHit`), so
+    /// that the map seen in the mirror is weighed against `sample_mirror`.
+    fn escaped(
+        &self,
+        dir: Vec3A,
+        bounce: u32,
+        prev_pdf: f32,
+        mirrored: Option<MirrorHit>,
+    ) -> Vec3A {
         let u = &self.s.u;
         if let Some(map) = self.s.env.as_ref().filter(|_| self.f.env_map)
             && u.env_mode != ENV_NONE
@@ -483,6 +502,10 @@ impl<'a> Tracer<'a> {
             if self.f.nee && prev_pdf > 0.0 && pe > 0.0 {
                 let pl = pe * map.distribution.pdf_at(cu, cv);
                 return l * power_heuristic(prev_pdf, pl);
+            }
+            if let Some(h) = mirrored {
+                let pl = self.mirror_pdf(map.distribution.pdf_at(cu, cv), h.spread);
+                return l * power_heuristic(h.pdf, pl);
             }
             return l;
         }
@@ -524,6 +547,118 @@ impl<'a> Tracer<'a> {
         let pl = pe * s.pdf;
         if let Some(l) = lobe {
             let (f, pdf) = pbr::eval(l, dir);
+            return radiance * f * (power_heuristic(pl, pdf) / pl);
+        }
+        radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI))
+    }
+
+    /// The density, in solid angle at the point that sees it, with which `sample_mirror`
+    /// finds the map's direction of density `pdf` in a mirror sphere of spread `spread`.
+    #[inline(always)]
+    fn mirror_pdf(&self, pdf: f32, spread: f32) -> f32 {
+        pdf / (self.s.mirrors.len() as f32 * spread)
+    }
+
+    /// Where a ray from a lobe that light sampling weighs (`prev_pdf` > 0, from
+    /// `prev_point`) meets one of the mirror spheres `sample_mirror` samples from outside:
+    /// its lobe's density and the sphere's spread (`mirror::spread`) there, else None
+    /// (trace.wgsl: mirror_hit).
+    #[inline(always)]
+    fn mirror_hit(
+        &self,
+        hit: Hit,
+        ray: &Ray,
+        point: &SurfacePoint,
+        prev_pdf: f32,
+        prev_point: Vec3A,
+    ) -> Option<MirrorHit> {
+        if !(self.f.mirror_nee && prev_pdf > 0.0 && hit.r >> 30 == 0) {
+            return None;
+        }
+        let i = hit.r & INDEX;
+        if !self.s.mirrors.contains(&i) {
+            return None;
+        }
+        let s = &self.s.spheres[i as usize];
+        let cos_i = -ray.dir.dot(point.normal);
+        let spread = mirror::spread(s.radius, (point.position - prev_point).length(), cos_i);
+        (cos_i > 0.0 && spread > 0.0).then_some(MirrorHit {
+            pdf: prev_pdf,
+            spread,
+        })
+    }
+
+    /// The environment map's light as a mirror sphere reflects it onto p (facing shading
+    /// normal n), for the lobe light sampling weighs (its 1/π included and its tint not, as
+    /// `sample_light`): one of the scene's mirror spheres chosen evenly, a direction drawn
+    /// from the map's distribution, the point of the sphere that reflects it to p
+    /// (`mirror::point`), both legs unoccluded; in p's solid angle the density is the map's
+    /// over the sphere's spread (`mirror::spread`), MIS-weighted against the lobe, which finds
+    /// the same paths by scattering into the mirror (`escaped`). Docs: MODEL-NOTES.md, "The
+    /// map in a mirror ball" (trace.wgsl: sample_mirror).
+    #[allow(clippy::too_many_arguments)]
+    fn sample_mirror<const P: u32>(
+        &mut self,
+        p: Vec3A,
+        n: Vec3A,
+        n_geo: Vec3A,
+        from: u32,
+        lobe: Option<&pbr::Lobe>,
+        rng: &mut Rng,
+    ) -> Vec3A {
+        let Some(map) = self.s.env.as_ref() else {
+            return Vec3A::ZERO;
+        };
+        let count = self.s.mirrors.len();
+        let pick = if count > 1 { rng.rand() } else { 0.0 };
+        let i = self.s.mirrors[((pick * count as f32) as usize).min(count - 1)];
+        let sphere = self.s.spheres[i as usize];
+        let c = sphere_center(&sphere);
+        // A sphere wholly behind the surface reflects nothing onto it.
+        if n.dot(c - p) <= -sphere.radius {
+            return Vec3A::ZERO;
+        }
+        let u = &self.s.u;
+        let (u1, u2) = rng.rand2();
+        let smp = map.distribution.sample(u1, u2, u.env_rotation);
+        if smp.pdf <= 0.0 {
+            return Vec3A::ZERO;
+        }
+        let Some(x) = mirror::point(p, c, sphere.radius, Vec3A::from(smp.dir)) else {
+            return Vec3A::ZERO;
+        };
+        let cos_s = n.dot(x.dir);
+        if cos_s <= 0.0 || (self.s.shading_normals() && n_geo.dot(x.dir) <= 0.0) {
+            return Vec3A::ZERO;
+        }
+        let spread = mirror::spread(sphere.radius, x.dist, x.cos_i);
+        if spread.is_nan() || spread <= 0.0 {
+            return Vec3A::ZERO;
+        }
+        // To the sphere (the first thing the ray meets must be it), then from its point to
+        // the map.
+        let to_mirror = Ray {
+            origin: offset_ray(p, n_geo),
+            dir: x.dir,
+        };
+        let t_mirror = hit_primitive::<ANY>(self.s, i, &to_mirror, T_FAR);
+        if t_mirror <= 0.0 || self.occluded::<P>(&to_mirror, t_mirror, i, from) {
+            return Vec3A::ZERO;
+        }
+        let to_map = Ray {
+            origin: offset_ray(p + x.dir * x.dist, x.normal),
+            dir: Vec3A::from(smp.dir),
+        };
+        if self.occluded::<P>(&to_map, T_FAR, NONE, i) {
+            return Vec3A::ZERO;
+        }
+        let m = &self.s.materials[sphere.material as usize];
+        let radiance = Vec3A::from_array(map.radiance_at(smp.uv.0, smp.uv.1))
+            * u.env_intensity
+            * m.specular_color;
+        let pl = self.mirror_pdf(smp.pdf, spread);
+        if let Some(l) = lobe {
+            let (f, pdf) = pbr::eval(l, x.dir);
             return radiance * f * (power_heuristic(pl, pdf) / pl);
         }
         radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI))
@@ -770,6 +905,8 @@ impl<'a> Tracer<'a> {
         let mut bounce = 0;
         // The primitive the ray leaves, where it cannot meet it again.
         let mut skip = NONE;
+        // The ray leaves a mirror sphere that `sample_mirror` samples (`mirror_hit`).
+        let mut mirrored = None;
         while bounce <= u.max_bounces {
             segments += 1;
             #[cfg(test)]
@@ -783,10 +920,13 @@ impl<'a> Tracer<'a> {
                 None => self.intersect::<P>(&ray, skip),
             };
             let Some(hit) = found else {
-                radiance += throughput * self.escaped(ray.dir, bounce, prev_pdf);
+                radiance += throughput * self.escaped(ray.dir, bounce, prev_pdf, mirrored);
                 break;
             };
             let (point, material, local) = self.surface_at(hit, &ray);
+            // A mirror sphere met from a lobe light sampling weighs: what it reflects from
+            // the map next is weighed against `sample_mirror`.
+            mirrored = self.mirror_hit(hit, &ray, &point, prev_pdf, prev_point);
             let (textured, mapped) = self.material_at(hit, local, material);
             let m = textured
                 .as_ref()
@@ -844,6 +984,23 @@ impl<'a> Tracer<'a> {
                     radiance += throughput
                         * tint
                         * self.sample_light::<P>(point.position, ns, n, from, lobe.as_ref(), rng);
+                    // The map in the mirror spheres: its paths scatter here and at the
+                    // mirror, and leave it, within the bounces allowed.
+                    if self.f.mirror_nee
+                        && !self.s.mirrors.is_empty()
+                        && bounce + 2 <= u.max_bounces
+                    {
+                        radiance += throughput
+                            * tint
+                            * self.sample_mirror::<P>(
+                                point.position,
+                                ns,
+                                n,
+                                from,
+                                lobe.as_ref(),
+                                rng,
+                            );
+                    }
                 }
                 let mut pbr_pdf = 0.0;
                 let mut through = false;
