@@ -155,8 +155,8 @@ mod tests {
     }
 
     /// The solved point obeys the law of reflection (the normal bisects the light's direction
-    /// and the direction back to p, to 1e-5), lies on the sphere, and faces both; and a light
-    /// behind the sphere has none.
+    /// and the direction back to p: the cosine between them above 1 − 1e-5, within 0.26°),
+    /// lies on the sphere, and faces both; and a light behind the sphere has none.
     #[test]
     fn the_point_reflects_the_light_to_p() {
         let mut rng = Lcg(7);
