@@ -767,13 +767,19 @@ fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, stat
         return vec3f(0.0);
     }
     let m = materials[material];
-    let pl = (1.0 - pe) * choice.pmf * pdf;
+    return light_weighted(m.color * m.light, dir, cos_s, (1.0 - pe) * choice.pmf * pdf, pbr, lobe);
+}
+
+// A light sample's estimate for the lobe that light sampling weighs: radiance arriving from
+// dir (cos_s against the shading normal), drawn with density pl, times glTF's BRDF (pbr) or
+// the cosine lobe's cos_s / π (whose tint the caller applies), weighed by the power
+// heuristic against the lobe's density (src/cpu/trace.rs: light_weighted).
+fn light_weighted(radiance: vec3f, dir: vec3f, cos_s: f32, pl: f32, pbr: bool, lobe: PbrLobe) -> vec3f {
     if HAS_PBR && pbr {
         let e = pbr_eval(lobe, dir);
-        return m.color * m.light * e.xyz * (power_heuristic(pl, e.w) / pl);
+        return radiance * e.xyz * (power_heuristic(pl, e.w) / pl);
     }
-    let bsdf_pdf = cos_s / PI;
-    return m.color * m.light * (cos_s / PI / pl * power_heuristic(pl, bsdf_pdf));
+    return radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI));
 }
 
 // SceneUniforms.env_mode (src/common/arrays.rs).
@@ -799,12 +805,7 @@ fn sample_env(p: vec3f, n: vec3f, n_geo: vec3f, pe: f32, pbr: bool, lobe: PbrLob
     if occluded(Ray(offset_ray(p, n_geo), s.dir), T_FAR, EMPTY_SLOT) {
         return vec3f(0.0);
     }
-    let pl = pe * s.pdf;
-    if HAS_PBR && pbr {
-        let e = pbr_eval(lobe, s.dir);
-        return s.radiance * scene.env_intensity * e.xyz * (power_heuristic(pl, e.w) / pl);
-    }
-    return s.radiance * scene.env_intensity * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI));
+    return light_weighted(s.radiance * scene.env_intensity, s.dir, cos_s, pe * s.pdf, pbr, lobe);
 }
 
 // The density, in solid angle at the point that sees it, with which sample_mirror finds the
@@ -878,12 +879,7 @@ fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, sta
         return vec3f(0.0);
     }
     let radiance = s.radiance * scene.env_intensity * materials[sphere.material].specular_color;
-    let pl = mirror_pdf(s.pdf, spread);
-    if HAS_PBR && pbr {
-        let e = pbr_eval(lobe, x.dir);
-        return radiance * e.xyz * (power_heuristic(pl, e.w) / pl);
-    }
-    return radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI));
+    return light_weighted(radiance, x.dir, cos_s, mirror_pdf(s.pdf, spread), pbr, lobe);
 }
 
 // What a ray that leaves the scene sees: the environment map (MIS-weighted where light

@@ -178,6 +178,25 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     a2 / (a2 + b * b)
 }
 
+/// A light sample's estimate for the lobe that light sampling weighs: `radiance` arriving from
+/// `dir` (cos_s against the shading normal), drawn with density `pl`, times glTF's BRDF
+/// (`lobe`) or the cosine lobe's cos_s / π (whose tint the caller applies), weighed by the
+/// power heuristic against the lobe's density (trace.wgsl: light_weighted).
+#[inline(always)]
+fn light_weighted(
+    radiance: Vec3A,
+    dir: Vec3A,
+    cos_s: f32,
+    pl: f32,
+    lobe: Option<&pbr::Lobe>,
+) -> Vec3A {
+    if let Some(l) = lobe {
+        let (f, pdf) = pbr::eval(l, dir);
+        return radiance * f * (power_heuristic(pl, pdf) / pl);
+    }
+    radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI))
+}
+
 fn sphere_center(s: &Sphere) -> Vec3A {
     s.anchor - s.radius.abs() * s.anchor_normal
 }
@@ -544,12 +563,7 @@ impl<'a> Tracer<'a> {
         if self.occluded::<P>(&shadow, T_FAR, NONE, from) {
             return Vec3A::ZERO;
         }
-        let pl = pe * s.pdf;
-        if let Some(l) = lobe {
-            let (f, pdf) = pbr::eval(l, dir);
-            return radiance * f * (power_heuristic(pl, pdf) / pl);
-        }
-        radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI))
+        light_weighted(radiance, dir, cos_s, pe * s.pdf, lobe)
     }
 
     /// The density, in solid angle at the point that sees it, with which `sample_mirror`
@@ -656,12 +670,13 @@ impl<'a> Tracer<'a> {
         let radiance = Vec3A::from_array(map.radiance_at(smp.uv.0, smp.uv.1))
             * u.env_intensity
             * m.specular_color;
-        let pl = self.mirror_pdf(smp.pdf, spread);
-        if let Some(l) = lobe {
-            let (f, pdf) = pbr::eval(l, x.dir);
-            return radiance * f * (power_heuristic(pl, pdf) / pl);
-        }
-        radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI))
+        light_weighted(
+            radiance,
+            x.dir,
+            cos_s,
+            self.mirror_pdf(smp.pdf, spread),
+            lobe,
+        )
     }
 
     /// Primitive `r` where a ray leaving its surface on the side of its normal (`out`) or
@@ -872,13 +887,7 @@ impl<'a> Tracer<'a> {
             return Vec3A::ZERO;
         }
         let m = &self.s.materials[material as usize];
-        let pl = (1.0 - pe) * pmf * pdf;
-        let bsdf_pdf = cos_s / PI;
-        if let Some(l) = lobe {
-            let (f, pdf) = pbr::eval(l, dir);
-            return m.color * m.light * f * (power_heuristic(pl, pdf) / pl);
-        }
-        m.color * m.light * (cos_s / PI / pl * power_heuristic(pl, bsdf_pdf))
+        light_weighted(m.color * m.light, dir, cos_s, (1.0 - pe) * pmf * pdf, lobe)
     }
 
     /// One path: its radiance and the segments it traced. Inlined, as the tests of the
