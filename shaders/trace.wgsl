@@ -878,7 +878,14 @@ fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, sta
     if occluded(Ray(offset_ray(p + x.dir * x.dist, x.normal), s.dir), T_FAR, EMPTY_SLOT) {
         return vec3f(0.0);
     }
-    let radiance = s.radiance * scene.env_intensity * materials[sphere.material].specular_color;
+    // What the mirror reflects: the lecture's specular tint, or glTF's Fresnel at the angle
+    // of incidence.
+    let m = materials[sphere.material];
+    var reflectance = m.specular_color;
+    if HAS_PBR && (!HAS_LECTURE || m.model == MODEL_PBR) {
+        reflectance = pbr_mirror_reflectance(pbr_lobe(m, -x.dir, x.normal, true), x.cos_i);
+    }
+    let radiance = s.radiance * scene.env_intensity * reflectance;
     return light_weighted(radiance, x.dir, cos_s, mirror_pdf(s.pdf, spread), pbr, lobe);
 }
 

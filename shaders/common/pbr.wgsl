@@ -370,19 +370,25 @@ fn pbr_sample_coat(l: PbrLobe, nv: f32, u: vec2f) -> PbrSample {
 // The smooth lobes' deltas (α below PBR_ALPHA_MIN): the mirror, or straight through a thin
 // wall, or refracted by a volume's boundary; each its Fresnel weight over its probability.
 fn pbr_mirror(l: PbrLobe, nv: f32, through: bool) -> PbrSample {
-    let x5 = pbr_schlick_x5(nv);
-    let fd = pbr_fresnel(l.f0, pbr_dielectric_x5(nv, l.eta));
     if !through {
-        let fm = pbr_fresnel(l.base, x5);
-        let w = ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) / l.p_spec;
-        return PbrSample(reflect(-l.wo, l.n), w, 0.0, true, false);
+        return PbrSample(reflect(-l.wo, l.n), pbr_mirror_reflectance(l, nv) / l.p_spec, 0.0, true, false);
     }
+    let fd = pbr_fresnel(l.f0, pbr_dielectric_x5(nv, l.eta));
     var dir = vec4f(-l.wo, 1.0);
     if l.eta != 0.0 {
         dir = pbr_refract(-l.wo, l.n, nv, l.eta);
     }
     let w = (1.0 - l.metallic) * l.transmission * (1.0 - l.weight * pbr_max3(fd)) * l.base;
     return PbrSample(select(l.n, dir.xyz, dir.w != 0.0), w / l.p_trans, 0.0, dir.w != 0.0, true);
+}
+
+// What the mirror of a smooth lobe (alpha below PBR_ALPHA_MIN) reflects of the light that
+// meets it at nv: the mirror's weight times its probability (src/cpu/pbr.rs:
+// mirror_reflectance). Light sampling through a mirror sphere tints the map's light by it.
+fn pbr_mirror_reflectance(l: PbrLobe, nv: f32) -> vec3f {
+    let fd = pbr_fresnel(l.f0, pbr_dielectric_x5(nv, l.eta));
+    let fm = pbr_fresnel(l.base, pbr_schlick_x5(nv));
+    return (1.0 - l.metallic) * l.weight * fd + l.metallic * fm;
 }
 
 // `d` refracted through a surface of normal `n` (on the side d comes from, cos = −d·n) with

@@ -392,18 +392,16 @@ fn sample_coat(l: &Lobe, nv: f32, u: (f32, f32)) -> Sample {
 /// wall, or refracted by a volume's boundary; each its Fresnel weight over its probability
 /// (pbr.wgsl: pbr_mirror).
 fn mirror(l: &Lobe, nv: f32, through: bool) -> Sample {
-    let x5 = schlick_x5(nv);
-    let fd = fresnel(l.f0, dielectric_x5(nv, l.eta));
     if !through {
-        let fm = fresnel(l.base, x5);
         return Sample {
             dir: reflect(-l.wo, l.n),
-            weight: ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) / l.p_spec,
+            weight: mirror_reflectance(l, nv) / l.p_spec,
             pdf: 0.0,
             ok: true,
             through: false,
         };
     }
+    let fd = fresnel(l.f0, dielectric_x5(nv, l.eta));
     let dir = if l.eta == 0.0 {
         Some(-l.wo)
     } else {
@@ -417,6 +415,16 @@ fn mirror(l: &Lobe, nv: f32, through: bool) -> Sample {
         ok: dir.is_some(),
         through: true,
     }
+}
+
+/// What the mirror of a smooth lobe (α below [`ALPHA_MIN`]) reflects of the light that meets
+/// it at `nv` (the dielectric's Fresnel times its specular weight, and the metal's): the
+/// mirror's weight times its probability (pbr.wgsl: pbr_mirror_reflectance). Light sampling
+/// through a mirror sphere tints the map's light by it (`trace::sample_mirror`).
+pub fn mirror_reflectance(l: &Lobe, nv: f32) -> Vec3A {
+    let fd = fresnel(l.f0, dielectric_x5(nv, l.eta));
+    let fm = fresnel(l.base, schlick_x5(nv));
+    (1.0 - l.metallic) * l.weight * fd + l.metallic * fm
 }
 
 /// `d` refracted through a surface of normal `n` (on the side `d` comes from, `cos` = −d·n)

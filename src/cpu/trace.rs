@@ -666,10 +666,16 @@ impl<'a> Tracer<'a> {
         if self.occluded::<P>(&to_map, T_FAR, NONE, i) {
             return Vec3A::ZERO;
         }
+        // What the mirror reflects: the lecture's specular tint, or glTF's Fresnel at the
+        // angle of incidence.
         let m = &self.s.materials[sphere.material as usize];
-        let radiance = Vec3A::from_array(map.radiance_at(smp.uv.0, smp.uv.1))
-            * u.env_intensity
-            * m.specular_color;
+        let reflectance = if self.f.pbr && (!self.f.lecture || m.pbr) {
+            pbr::mirror_reflectance(&pbr::lobe(m, -x.dir, x.normal, true), x.cos_i)
+        } else {
+            m.specular_color
+        };
+        let radiance =
+            Vec3A::from_array(map.radiance_at(smp.uv.0, smp.uv.1)) * u.env_intensity * reflectance;
         light_weighted(
             radiance,
             x.dir,
