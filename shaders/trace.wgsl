@@ -32,6 +32,8 @@ override HAS_SMOOTH_NORMALS: bool = true;
 override HAS_ENV_MAP: bool = true;
 // Perfect mirror spheres whose reflection of the map light sampling samples (sample_mirror).
 override HAS_MIRROR_NEE: bool = true;
+// The lecture's glossy lobe takes light samples (gloss_pdf).
+override HAS_GLOSS_NEE: bool = true;
 override HAS_PBR: bool = true;
 override HAS_LECTURE: bool = true;
 // Meshes drawn by instances: a two-level BVH (src/common/arrays.rs: gpu_bvh).
@@ -699,7 +701,7 @@ fn light_choice_pmf(i: u32, p: vec3f, n: vec3f) -> f32 {
 // n_geo: the facing geometric normal; the shadow ray leaves on its side, never into it.
 // `pbr`: the surface is glTF's BRDF `lobe` (else the cosine lobe, whose tint the caller
 // applies).
-fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, state: ptr<function, Rng>) -> vec3f {
+fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss: Gloss, state: ptr<function, Rng>) -> vec3f {
     // The environment map, with probability env_pick (src/common/arrays.rs: env_pick), or
     // one of the scene's lights by choose_light; one light alone is chosen without a draw.
     let pe = env_pick();
@@ -708,7 +710,7 @@ fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, stat
         pick = rand(state);
     }
     if pe > 0.0 && pick < pe {
-        return sample_env(p, n, n_geo, pe, pbr, lobe, state);
+        return sample_env(p, n, n_geo, pe, pbr, lobe, gloss, state);
     }
     if pe > 0.0 {
         pick = (pick - pe) / (1.0 - pe);
@@ -767,19 +769,31 @@ fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, stat
         return vec3f(0.0);
     }
     let m = materials[material];
-    return light_weighted(m.color * m.light, dir, cos_s, (1.0 - pe) * choice.pmf * pdf, pbr, lobe);
+    return light_weighted(m.color * m.light, dir, cos_s, (1.0 - pe) * choice.pmf * pdf, pbr, lobe, gloss);
 }
 
 // A light sample's estimate for the lobe that light sampling weighs: radiance arriving from
 // dir (cos_s against the shading normal), drawn with density pl, times glTF's BRDF (pbr) or
 // the cosine lobe's cos_s / π (whose tint the caller applies), weighed by the power
 // heuristic against the lobe's density (src/cpu/trace.rs: light_weighted).
-fn light_weighted(radiance: vec3f, dir: vec3f, cos_s: f32, pl: f32, pbr: bool, lobe: PbrLobe) -> vec3f {
+fn light_weighted(radiance: vec3f, dir: vec3f, cos_s: f32, pl: f32, pbr: bool, lobe: PbrLobe, gloss: Gloss) -> vec3f {
     if HAS_PBR && pbr {
         let e = pbr_eval(lobe, dir);
         return radiance * e.xyz * (power_heuristic(pl, e.w) / pl);
     }
+    if HAS_GLOSS_NEE && gloss.s > 0.0 {
+        let pdf = gloss_pdf(dir, gloss.n, gloss.r, gloss.s);
+        return radiance * (pdf / pl * power_heuristic(pl, pdf));
+    }
     return radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI));
+}
+
+// The lecture's glossy lobe as light sampling weighs it (src/cpu/trace.rs: Weighed::Gloss):
+// the shading normal, the mirror direction and the smoothness; s = 0 for the cosine lobe.
+struct Gloss {
+    n: vec3f,
+    r: vec3f,
+    s: f32,
 }
 
 // SceneUniforms.env_mode (src/common/arrays.rs).
@@ -796,7 +810,7 @@ fn env_pick() -> f32 {
 
 // The environment map's share of sample_light, picked with probability pe: a direction from
 // the map's distribution, unoccluded, MIS-weighted against the cosine lobe.
-fn sample_env(p: vec3f, n: vec3f, n_geo: vec3f, pe: f32, pbr: bool, lobe: PbrLobe, state: ptr<function, Rng>) -> vec3f {
+fn sample_env(p: vec3f, n: vec3f, n_geo: vec3f, pe: f32, pbr: bool, lobe: PbrLobe, gloss: Gloss, state: ptr<function, Rng>) -> vec3f {
     let s = env_sample(rand2(state), scene.env_rotation);
     let cos_s = dot(n, s.dir);
     if s.pdf <= 0.0 || cos_s <= 0.0 || ((HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && dot(n_geo, s.dir) <= 0.0) {
@@ -805,7 +819,7 @@ fn sample_env(p: vec3f, n: vec3f, n_geo: vec3f, pe: f32, pbr: bool, lobe: PbrLob
     if occluded(Ray(offset_ray(p, n_geo), s.dir), T_FAR, EMPTY_SLOT) {
         return vec3f(0.0);
     }
-    return light_weighted(s.radiance * scene.env_intensity, s.dir, cos_s, pe * s.pdf, pbr, lobe);
+    return light_weighted(s.radiance * scene.env_intensity, s.dir, cos_s, pe * s.pdf, pbr, lobe, gloss);
 }
 
 // The density, in solid angle at the point that sees it, with which sample_mirror finds the
@@ -840,7 +854,7 @@ fn mirror_hit(hit: Hit, ray: Ray, position: vec3f, normal: vec3f, prev_pdf: f32,
 // sample_mirror, which says how): one of the mirror spheres chosen evenly, a direction from
 // the map's distribution, the point of the sphere that reflects it to p, both legs
 // unoccluded, MIS-weighted against the lobe.
-fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, state: ptr<function, Rng>) -> vec3f {
+fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss: Gloss, state: ptr<function, Rng>) -> vec3f {
     let count = scene.n_mirrors;
     var pick = 0.0;
     if count > 1u {
@@ -886,7 +900,7 @@ fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, sta
         reflectance = pbr_mirror_reflectance(pbr_lobe(m, -x.dir, x.normal, true), x.cos_i);
     }
     let radiance = s.radiance * scene.env_intensity * reflectance;
-    return light_weighted(radiance, x.dir, cos_s, mirror_pdf(s.pdf, spread), pbr, lobe);
+    return light_weighted(radiance, x.dir, cos_s, mirror_pdf(s.pdf, spread), pbr, lobe, gloss);
 }
 
 // What a ray that leaves the scene sees: the environment map (MIS-weighted where light
@@ -986,10 +1000,16 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);
         let ns = shading_normal_at(sh, hit, surf.local, n_out, n);
         var lobe = PbrLobe();
+        // The lecture's glossy lobe: the specular one blended with the diffuse direction,
+        // without fuzz (src/scene/model.rs: Material::is_glossy).
+        var gloss = Gloss(ns, vec3f(0.0), 0.0);
+        if HAS_GLOSS_NEE && is_spec && m.smoothness > 0.0 && m.smoothness < 1.0 && m.absorption == 0.0 {
+            gloss = Gloss(ns, reflect(ray.dir, ns), m.smoothness);
+        }
         // A lobe with a density light sampling can weigh: the Lambertian one, the lecture's
-        // specular one at smoothness 0 (the same distribution, its own tint), or glTF's but
-        // for its mirror.
-        var light_lobe = !is_spec || m.smoothness == 0.0;
+        // specular one at smoothness 0 (the same distribution, its own tint) or glossy, or
+        // glTF's but for its mirror.
+        var light_lobe = !is_spec || m.smoothness == 0.0 || gloss.s > 0.0;
         var tint = select(m.color, m.specular_color, is_spec);
         if pbr {
             lobe = pbr_lobe(m, -ray.dir, ns, dot(ray.dir, n_out) < 0.0);
@@ -997,11 +1017,11 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
             tint = vec3f(1.0);
         }
         if nee && light_lobe {
-            (*path).radiance += (*path).throughput * tint * sample_light(surf.point.position, ns, n, pbr, lobe, state);
+            (*path).radiance += (*path).throughput * tint * sample_light(surf.point.position, ns, n, pbr, lobe, gloss, state);
             // The map in the mirror spheres: its paths scatter here and at the mirror, and
             // leave it, within the bounces allowed.
             if HAS_MIRROR_NEE && scene.n_mirrors > 0u && bounce + 2u <= scene.max_bounces {
-                (*path).radiance += (*path).throughput * tint * sample_mirror(surf.point.position, ns, n, pbr, lobe, state);
+                (*path).radiance += (*path).throughput * tint * sample_mirror(surf.point.position, ns, n, pbr, lobe, gloss, state);
             }
         }
         var pbr_pdf = 0.0;
@@ -1027,7 +1047,11 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
             (*path).prev_pdf = pbr_pdf;
             (*path).prev_normal = ns;
         } else if light_lobe {
-            (*path).prev_pdf = max(dot(sc.dir, ns), 0.0) / PI;
+            if HAS_GLOSS_NEE && gloss.s > 0.0 {
+                (*path).prev_pdf = gloss_pdf(sc.dir, gloss.n, gloss.r, gloss.s);
+            } else {
+                (*path).prev_pdf = max(dot(sc.dir, ns), 0.0) / PI;
+            }
             (*path).prev_normal = ns;
         }
     }

@@ -69,3 +69,37 @@ fn scatter_surface(m: Material, d: vec3f, n: vec3f, is_spec: bool, state: ptr<fu
     }
     return Scatter(dir, tint, dot(dir, n) <= 0.0);
 }
+
+// How far below 0 gloss_pdf's discriminant may round for a direction the lobe draws.
+const DISC_ROUNDING: f32 = 1e-6;
+
+// The density, in solid angle, with which the lecture's glossy lobe (scatter_surface's
+// specular lobe at smoothness s in (0, 1), without fuzz) draws w, about the shading normal n
+// with the mirror direction r: the sum over the points of the sphere of radius 1 − s about
+// s·r on w's ray (the roots λ of λ² − 2λ s (w·r) + s² − (1 − s)² = 0) whose normal d lies
+// above the surface, of (d·n) λ² / (π (1 − s) √disc) (src/cpu/material.rs: gloss_pdf, which
+// derives it).
+fn gloss_pdf(w: vec3f, n: vec3f, r: vec3f, s: f32) -> f32 {
+    let t = 1.0 - s;
+    let c = dot(w, r);
+    // 1 − c² as |w × r|², which keeps its digits where w is near r.
+    let wr = cross(w, r);
+    let disc = t * t - s * s * dot(wr, wr);
+    // At the cone's edge a drawn direction's disc may round to just below 0: it keeps a
+    // large density.
+    if !(disc > -DISC_ROUNDING) {
+        return 0.0;
+    }
+    let q = sqrt(max(disc, DISC_ROUNDING * DISC_ROUNDING));
+    var sum = 0.0;
+    for (var k = 0; k < 2; k++) {
+        let lambda = s * c + select(-q, q, k == 0);
+        if lambda > 0.0 {
+            let cos_d = dot(lambda * w - s * r, n) / t;
+            if cos_d > 0.0 {
+                sum += cos_d * lambda * lambda;
+            }
+        }
+    }
+    return sum / (PI * t * q);
+}

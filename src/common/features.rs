@@ -11,8 +11,8 @@ use crate::scene::{Scene, Shape, Sky};
 #[derive(Debug, thiserror::Error)]
 #[error(
     "unknown feature `{0}` (expected spheres, quads, boxes, triangles, dielectrics, emitters, \
-     nee, dof, sun, textures, cutouts, normal_maps, smooth_normals, env_map, pbr, \
-     pbr_specular, pbr_transmission, pbr_clearcoat, instances or lecture)"
+     nee, dof, sun, textures, cutouts, normal_maps, smooth_normals, env_map, mirror_nee, \
+     gloss_nee, pbr, pbr_specular, pbr_transmission, pbr_clearcoat, instances or lecture)"
 )]
 pub struct UnknownFeature(pub String);
 
@@ -46,6 +46,10 @@ pub struct Features {
     /// estimation also samples the map's light as a mirror ball reflects it (with `nee`;
     /// `common::arrays::mirror_spheres`).
     pub mirror_nee: bool,
+    /// The lecture's glossy lobe (its specular lobe at a smoothness between 0 and 1, without
+    /// fuzz) takes light samples, weighed against its density (`cpu::material::gloss_pdf`;
+    /// with `nee`).
+    pub gloss_nee: bool,
     /// glTF's metallic-roughness BRDF (`model = "pbr"` materials).
     pub pbr: bool,
     /// A pbr material with `KHR_materials_specular` (a specular other than 1 or a coloured
@@ -88,6 +92,7 @@ impl Features {
             smooth_normals: true,
             env_map: true,
             mirror_nee: true,
+            gloss_nee: true,
             pbr: true,
             pbr_specular: true,
             pbr_transmission: true,
@@ -117,6 +122,7 @@ impl Features {
             smooth_normals: false,
             env_map: false,
             mirror_nee: false,
+            gloss_nee: false,
             pbr: false,
             pbr_specular: false,
             pbr_transmission: false,
@@ -149,6 +155,7 @@ impl Features {
                 "smooth_normals" => &mut f.smooth_normals,
                 "env_map" => &mut f.env_map,
                 "mirror_nee" => &mut f.mirror_nee,
+                "gloss_nee" => &mut f.gloss_nee,
                 "pbr" => &mut f.pbr,
                 "pbr_specular" => &mut f.pbr_specular,
                 "pbr_transmission" => &mut f.pbr_transmission,
@@ -215,7 +222,9 @@ impl Features {
             }
             f.nee |= o.material.is_emitter()
                 && matches!(o.shape, Shape::Sphere { .. } | Shape::Quad { .. });
+            f.gloss_nee |= o.material.is_glossy();
         }
+        f.gloss_nee &= f.nee;
         f.mirror_nee = !crate::common::arrays::mirror_spheres(scene, true).is_empty();
         f
     }
@@ -238,6 +247,7 @@ impl Features {
             smooth_normals: self.smooth_normals | other.smooth_normals,
             env_map: self.env_map | other.env_map,
             mirror_nee: self.mirror_nee | other.mirror_nee,
+            gloss_nee: self.gloss_nee | other.gloss_nee,
             pbr: self.pbr | other.pbr,
             pbr_specular: self.pbr_specular | other.pbr_specular,
             pbr_transmission: self.pbr_transmission | other.pbr_transmission,
@@ -273,6 +283,7 @@ impl Features {
             ("HAS_SMOOTH_NORMALS", b(self.smooth_normals)),
             ("HAS_ENV_MAP", b(self.env_map)),
             ("HAS_MIRROR_NEE", b(self.mirror_nee)),
+            ("HAS_GLOSS_NEE", b(self.gloss_nee)),
             ("HAS_PBR", b(self.pbr)),
             ("HAS_PBR_SPECULAR", b(self.pbr_specular)),
             ("HAS_PBR_TRANSMISSION", b(self.pbr_transmission)),
@@ -302,6 +313,7 @@ impl Features {
             (self.smooth_normals, "smooth_normals"),
             (self.env_map, "env_map"),
             (self.mirror_nee, "mirror_nee"),
+            (self.gloss_nee, "gloss_nee"),
             (self.pbr, "pbr"),
             (self.pbr_specular, "pbr_specular"),
             (self.pbr_transmission, "pbr_transmission"),

@@ -14,7 +14,9 @@ use super::bvh::{Stack, Tally};
 #[cfg(target_arch = "x86_64")]
 use super::bvh8::Stack8;
 use super::intersect::*;
-use super::material::{Scatter, reflect, refract_dir, scatter_dielectric, scatter_surface};
+use super::material::{
+    Scatter, gloss_pdf, reflect, refract_dir, scatter_dielectric, scatter_surface,
+};
 use super::mirror;
 #[cfg(target_arch = "x86_64")]
 use super::packet::Packets;
@@ -178,23 +180,37 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     a2 / (a2 + b * b)
 }
 
+/// The lobe whose light samples light sampling weighs (trace.wgsl: light_weighted's `pbr`,
+/// `lobe` and `gloss`).
+#[derive(Clone, Copy)]
+enum Weighed<'a> {
+    /// The cosine lobe: the Lambertian one, or the lecture's specular one at smoothness 0.
+    Cosine,
+    /// The lecture's glossy lobe (`material::gloss_pdf`): the shading normal, the mirror
+    /// direction and the smoothness.
+    Gloss { n: Vec3A, r: Vec3A, s: f32 },
+    /// glTF's BRDF.
+    Pbr(&'a pbr::Lobe),
+}
+
 /// A light sample's estimate for the lobe that light sampling weighs: `radiance` arriving from
-/// `dir` (cos_s against the shading normal), drawn with density `pl`, times glTF's BRDF
-/// (`lobe`) or the cosine lobe's cos_s / π (whose tint the caller applies), weighed by the
-/// power heuristic against the lobe's density (trace.wgsl: light_weighted).
+/// `dir` (cos_s against the shading normal), drawn with density `pl`, times glTF's BRDF, or
+/// the lecture's lobe's f·cos, which is its density (the cosine lobe's cos_s / π; its tint the
+/// caller applies), weighed by the power heuristic against the lobe's density (trace.wgsl:
+/// light_weighted).
 #[inline(always)]
-fn light_weighted(
-    radiance: Vec3A,
-    dir: Vec3A,
-    cos_s: f32,
-    pl: f32,
-    lobe: Option<&pbr::Lobe>,
-) -> Vec3A {
-    if let Some(l) = lobe {
-        let (f, pdf) = pbr::eval(l, dir);
-        return radiance * f * (power_heuristic(pl, pdf) / pl);
+fn light_weighted(radiance: Vec3A, dir: Vec3A, cos_s: f32, pl: f32, lobe: Weighed) -> Vec3A {
+    match lobe {
+        Weighed::Pbr(l) => {
+            let (f, pdf) = pbr::eval(l, dir);
+            radiance * f * (power_heuristic(pl, pdf) / pl)
+        }
+        Weighed::Cosine => radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI)),
+        Weighed::Gloss { n, r, s } => {
+            let pdf = gloss_pdf(dir, n, r, s);
+            radiance * (pdf / pl * power_heuristic(pl, pdf))
+        }
     }
-    radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI))
 }
 
 fn sphere_center(s: &Sphere) -> Vec3A {
@@ -541,7 +557,7 @@ impl<'a> Tracer<'a> {
         n_geo: Vec3A,
         from: u32,
         pe: f32,
-        lobe: Option<&pbr::Lobe>,
+        lobe: Weighed,
         rng: &mut Rng,
     ) -> Vec3A {
         let Some(map) = self.s.env.as_ref() else {
@@ -617,7 +633,7 @@ impl<'a> Tracer<'a> {
         n: Vec3A,
         n_geo: Vec3A,
         from: u32,
-        lobe: Option<&pbr::Lobe>,
+        lobe: Weighed,
         rng: &mut Rng,
     ) -> Vec3A {
         let Some(map) = self.s.env.as_ref() else {
@@ -825,7 +841,7 @@ impl<'a> Tracer<'a> {
         n: Vec3A,
         n_geo: Vec3A,
         from: u32,
-        lobe: Option<&pbr::Lobe>,
+        lobe: Weighed,
         rng: &mut Rng,
     ) -> Vec3A {
         // The environment map with probability env_pick, else one of the scene's lights;
@@ -982,11 +998,28 @@ impl<'a> Tracer<'a> {
                 // The shading normal, on the side of n.
                 let ns = self.shading_normal_at(hit, mapped, local, n_out, n);
                 let lobe = pbr.then(|| pbr::lobe(m, -ray.dir, ns, front));
+                // The lecture's glossy lobe: the specular one blended with the diffuse
+                // direction, without fuzz (`Material::is_glossy`).
+                let gloss = self.f.gloss_nee
+                    && is_spec
+                    && m.smoothness > 0.0
+                    && m.smoothness < 1.0
+                    && m.absorption == 0.0;
                 // A lobe with a density light sampling can weigh: the Lambertian one, the
-                // lecture's specular one at smoothness 0, or glTF's but for its mirror.
+                // lecture's specular one at smoothness 0 or glossy, or glTF's but for its
+                // mirror.
                 let light_lobe = match &lobe {
                     Some(l) => l.alpha >= pbr::ALPHA_MIN || l.p_spec < 1.0,
-                    None => !is_spec || m.smoothness == 0.0,
+                    None => !is_spec || m.smoothness == 0.0 || gloss,
+                };
+                let weighed = match &lobe {
+                    Some(l) => Weighed::Pbr(l),
+                    None if gloss => Weighed::Gloss {
+                        n: ns,
+                        r: reflect(ray.dir, ns),
+                        s: m.smoothness,
+                    },
+                    None => Weighed::Cosine,
                 };
                 if nee && light_lobe {
                     let tint = match (&lobe, is_spec) {
@@ -998,7 +1031,7 @@ impl<'a> Tracer<'a> {
                     let from = self.leaving(hit.r, front);
                     radiance += throughput
                         * tint
-                        * self.sample_light::<P>(point.position, ns, n, from, lobe.as_ref(), rng);
+                        * self.sample_light::<P>(point.position, ns, n, from, weighed, rng);
                     // The map in the mirror spheres: its paths scatter here and at the
                     // mirror, and leave it, within the bounces allowed.
                     if self.f.mirror_nee
@@ -1007,14 +1040,7 @@ impl<'a> Tracer<'a> {
                     {
                         radiance += throughput
                             * tint
-                            * self.sample_mirror::<P>(
-                                point.position,
-                                ns,
-                                n,
-                                from,
-                                lobe.as_ref(),
-                                rng,
-                            );
+                            * self.sample_mirror::<P>(point.position, ns, n, from, weighed, rng);
                     }
                 }
                 let mut pbr_pdf = 0.0;
@@ -1044,7 +1070,10 @@ impl<'a> Tracer<'a> {
                     prev_pdf = pbr_pdf;
                     prev_normal = ns;
                 } else if light_lobe {
-                    prev_pdf = sc.dir.dot(ns).max(0.0) / PI;
+                    prev_pdf = match weighed {
+                        Weighed::Gloss { n, r, s } => gloss_pdf(sc.dir, n, r, s),
+                        _ => sc.dir.dot(ns).max(0.0) / PI,
+                    };
                     prev_normal = ns;
                 }
             }

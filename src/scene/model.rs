@@ -290,6 +290,17 @@ impl Material {
     pub fn is_emitter(&self) -> bool {
         self.light > 0.0
     }
+    /// The lecture's glossy lobe: a specular lobe (specular > 0) blended with the diffuse
+    /// direction (smoothness strictly between 0 and 1) and without fuzz, which light sampling
+    /// weighs by its density (`cpu::material::gloss_pdf`).
+    pub fn is_glossy(&self) -> bool {
+        self.model == MaterialModel::Lecture
+            && !self.is_emitter()
+            && self.specular > 0.0
+            && self.smoothness > 0.0
+            && self.smoothness < 1.0
+            && self.absorption == 0.0
+    }
     /// The specular tint actually used.
     pub fn specular_tint(&self) -> Vec3 {
         self.specular_color.unwrap_or(self.color)
