@@ -486,11 +486,9 @@ pub const MAX_MIRRORS: usize = 16;
 
 /// The spheres through which next-event estimation also samples the environment map
 /// (docs/MODEL-NOTES.md, "The map in a mirror ball"), where a map lights the scene and `nee`
-/// is on: spheres of positive radius, not emitting, untextured, whose surface is a perfect
-/// mirror: the lecture's (specular 1, smoothness 1, no fuzz), or glTF's smooth lobe
-/// (roughness² below `cpu::pbr::ALPHA_MIN`, that reflects: metallic or a specular weight;
-/// neither transmitting nor clear-coated); at most `MAX_MIRRORS`. As entries that follow the
-/// lights in the lights' buffer: `prim` the sphere's reference, the rest 0.
+/// is on: spheres of positive radius whose surface is a perfect mirror (`Material::is_mirror`:
+/// the lecture's or glTF's); at most `MAX_MIRRORS`. As entries that follow the lights in the
+/// lights' buffer: `prim` the sphere's reference, the rest 0.
 pub fn mirror_spheres(scene: &Scene, nee: bool) -> Vec<GpuLight> {
     if !nee || !scene.environment.as_ref().is_some_and(|e| e.lights()) {
         return Vec::new();
@@ -503,21 +501,7 @@ pub fn mirror_spheres(scene: &Scene, nee: bool) -> Vec<GpuLight> {
             _ => None,
         })
         .enumerate()
-        .filter(|(_, (o, radius))| {
-            let m = &o.material;
-            let mirror = if m.is_pbr() {
-                m.roughness * m.roughness < crate::cpu::pbr::ALPHA_MIN
-                    && (m.metallic > 0.0 || m.specular > 0.0)
-                    && m.transmission == 0.0
-                    && m.clearcoat == 0.0
-            } else {
-                !m.is_dielectric()
-                    && m.specular >= 1.0
-                    && m.smoothness >= 1.0
-                    && m.absorption == 0.0
-            };
-            *radius > 0.0 && mirror && !m.is_emitter() && m.textured.is_none()
-        })
+        .filter(|(_, (o, radius))| *radius > 0.0 && o.material.is_mirror())
         .take(MAX_MIRRORS)
         .map(|(i, _)| GpuLight {
             prim: encode_ref(Kind::Sphere, i),

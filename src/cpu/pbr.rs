@@ -10,8 +10,9 @@ use super::sampling::{PI, basis, normalize_or, sin_cos_turns};
 use super::scene::Material;
 use glam::Vec3A;
 
-/// Below this α the specular lobe is a perfect mirror.
-pub const ALPHA_MIN: f32 = 1e-4;
+/// Below this α the specular lobe is a perfect mirror (the scene's `Material::is_mirror`
+/// reads the same bound).
+pub const ALPHA_MIN: f32 = crate::scene::PBR_MIRROR_ALPHA;
 /// The least share of the base a rough transmission lobe is drawn by, however much the
 /// macroscopic Fresnel reflects.
 const TRANSMISSION_FLOOR: f32 = 0.25;

@@ -172,6 +172,10 @@ impl Environment {
     }
 }
 
+/// glTF's GGX α (roughness²) below which a pbr lobe is a perfect mirror, on both tracers
+/// (`cpu::pbr::ALPHA_MIN`, `PBR_ALPHA_MIN` in shaders/common/pbr.wgsl).
+pub const PBR_MIRROR_ALPHA: f32 = 1e-4;
+
 /// The lecture's four material parameters plus `ior` and `specular_color` (MODEL.md table);
 /// each number's range, steps and default are declared once in `params`.
 #[derive(Clone, Debug, PartialEq)]
@@ -289,6 +293,25 @@ impl Material {
     }
     pub fn is_emitter(&self) -> bool {
         self.light > 0.0
+    }
+    /// A perfect mirror, which light sampling looks through at the map where it is a sphere
+    /// (`common::arrays::mirror_spheres`): the lecture's (specular 1, smoothness 1, no fuzz),
+    /// or glTF's smooth lobe (roughness² below [`PBR_MIRROR_ALPHA`]) where it reflects
+    /// (metallic, or a specular weight) and neither transmits nor has a clear coat; not
+    /// emitting, untextured.
+    pub fn is_mirror(&self) -> bool {
+        let mirror = if self.is_pbr() {
+            self.roughness * self.roughness < PBR_MIRROR_ALPHA
+                && (self.metallic > 0.0 || self.specular > 0.0)
+                && self.transmission == 0.0
+                && self.clearcoat == 0.0
+        } else {
+            !self.is_dielectric()
+                && self.specular >= 1.0
+                && self.smoothness >= 1.0
+                && self.absorption == 0.0
+        };
+        mirror && !self.is_emitter() && self.textured.is_none()
     }
     /// The lecture's glossy lobe: a specular lobe (specular > 0) blended with the diffuse
     /// direction (smoothness strictly between 0 and 1) and without fuzz, which light sampling
