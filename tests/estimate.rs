@@ -174,7 +174,13 @@ fn ratios(b: &Backend, name: &str, runs: u32) -> Vec<Vec<Ratios>> {
     }
     // A stale reference (the images changed since it was written) fails by name: the runs'
     // mean must be within 5 standard errors of its mean (their spread: 8 or 4 runs), or
-    // 0.2 % of it.
+    // 0.2 % of it. Not from the GPU tracer's 4 runs of a firefly scene: their spread says
+    // nothing of the bright paths none of them found (4 runs of `outdoor-caustics` read its
+    // mean 2.1 % low, "29.6 standard errors"); the CPU tracer's 96 runs check those references,
+    // and the two tracers converge to the same image (tests/cpu.rs).
+    if FIREFLY.contains(&name) && runs < 8 {
+        return out;
+    }
     let m = mean(run_means.iter().copied());
     let n = run_means.len() as f64;
     let se = (run_means.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
