@@ -67,7 +67,21 @@ pub fn snapshot_on(
     let mut r = Renderer::new(b, scene, s, options);
     r.render_spp(spp);
     let snap = r.snapshot();
-    assert_eq!(snap.min_samples(), spp as u64);
+    if snap.min_samples() != spp as u64 {
+        // Say enough to tell a discarded sample (NaN) from a lost dispatch: how many pixels
+        // fall short, and the pipeline of the last submission (the renderer times the
+        // specialized and the generic one against each other).
+        let short = (snap.data.even.iter().zip(&snap.data.odd))
+            .filter(|(e, o)| ((e[3] + o[3]) as u64) < spp as u64)
+            .count();
+        panic!(
+            "{} of {spp} samples in the poorest pixel; {short} pixels short, {} invalid \
+             samples, last pipeline {:?}",
+            snap.min_samples(),
+            snap.invalid_samples(),
+            r.last_pipeline().map(|f| f.summary())
+        );
+    }
     snap
 }
 
