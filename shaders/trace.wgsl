@@ -696,11 +696,11 @@ fn light_choice_pmf(i: u32, p: vec3f, n: vec3f) -> f32 {
     return light_weight(lights[i], p, n) / total;
 }
 
-// The light-sampled estimate at point p with facing (shading) normal n, for the Lambertian
-// lobe (its 1/π included, its tint not): emitted radiance × cos / π / pdf, MIS-weighted.
-// n_geo: the facing geometric normal; the shadow ray leaves on its side, never into it.
-// `pbr`: the surface is glTF's BRDF `lobe` (else the cosine lobe, whose tint the caller
-// applies).
+// The light-sampled estimate at point p with facing (shading) normal n, for the lobe light
+// sampling weighs (light_weighted: the lecture's lobes with their f·cos included, their tint
+// not), MIS-weighted. n_geo: the facing geometric normal; the shadow ray leaves on its side,
+// never into it. `pbr`: the surface is glTF's BRDF `lobe`; else `gloss` is the lecture's
+// glossy lobe where its smoothness is above 0, or the cosine lobe.
 fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss: Gloss, state: ptr<function, Rng>) -> vec3f {
     // The environment map, with probability env_pick (src/common/arrays.rs: env_pick), or
     // one of the scene's lights by choose_light; one light alone is chosen without a draw.
@@ -774,8 +774,9 @@ fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, glos
 
 // A light sample's estimate for the lobe that light sampling weighs: radiance arriving from
 // dir (cos_s against the shading normal), drawn with density pl, times glTF's BRDF (pbr) or
-// the cosine lobe's cos_s / π (whose tint the caller applies), weighed by the power
-// heuristic against the lobe's density (src/cpu/trace.rs: light_weighted).
+// the lecture's lobe's f·cos, which is its density (the glossy lobe's gloss_pdf, the cosine
+// lobe's cos_s / π; its tint the caller applies), weighed by the power heuristic against the
+// lobe's density (src/cpu/trace.rs: light_weighted).
 fn light_weighted(radiance: vec3f, dir: vec3f, cos_s: f32, pl: f32, pbr: bool, lobe: PbrLobe, gloss: Gloss) -> vec3f {
     if HAS_PBR && pbr {
         let e = pbr_eval(lobe, dir);

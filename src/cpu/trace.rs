@@ -829,12 +829,12 @@ impl<'a> Tracer<'a> {
         self.light_weight(&lights[i], p, n) / total
     }
 
-    /// The light-sampled estimate at p (facing shading normal n) for the Lambertian lobe, its
-    /// 1/π included and its tint not, MIS-weighted. `n_geo`: the facing geometric normal; the
-    /// shadow ray leaves on its side, never into it.
+    /// The light-sampled estimate at p (facing shading normal n) for the lobe light sampling
+    /// weighs, MIS-weighted (`light_weighted`: the lecture's lobes with their f·cos included
+    /// and their tint not). `n_geo`: the facing geometric normal; the shadow ray leaves on its
+    /// side, never into it.
     /// `from`: the primitive p lies on, where the shadow ray cannot meet it (`leaving`).
-    /// `lobe`: the surface is glTF's BRDF (else the cosine lobe, whose tint the caller
-    /// applies).
+    /// `lobe`: glTF's BRDF, the lecture's glossy lobe, or the cosine lobe.
     fn sample_light<const P: u32>(
         &mut self,
         p: Vec3A,
