@@ -823,6 +823,13 @@ fn sample_env(p: vec3f, n: vec3f, n_geo: vec3f, pe: f32, pbr: bool, lobe: PbrLob
     return light_weighted(s.radiance * scene.env_intensity, s.dir, cos_s, pe * s.pdf, pbr, lobe, gloss);
 }
 
+// Whether material m's surface follows glTF's BRDF (common/pbr.wgsl) rather than the
+// lecture's lobes: a scene of glTF materials alone (no HAS_LECTURE) has no lecture
+// (src/cpu/trace.rs: follows_pbr).
+fn follows_pbr(m: Material) -> bool {
+    return HAS_PBR && (!HAS_LECTURE || m.model == MODEL_PBR);
+}
+
 // The density, in solid angle at the point that sees it, with which sample_mirror finds the
 // map's direction of density pdf in a mirror sphere of spread `spread`.
 fn mirror_pdf(pdf: f32, spread: f32) -> f32 {
@@ -897,7 +904,7 @@ fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, glo
     // of incidence.
     let m = materials[sphere.material];
     var reflectance = m.specular_color;
-    if HAS_PBR && (!HAS_LECTURE || m.model == MODEL_PBR) {
+    if follows_pbr(m) {
         reflectance = pbr_mirror_reflectance(pbr_lobe(m, -x.dir, x.normal, true), x.cos_i);
     }
     let radiance = s.radiance * scene.env_intensity * reflectance;
@@ -995,7 +1002,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         // both (inlined once: a second call site cost the H200 half its speed on pbr scenes).
         // A scene of glTF materials alone (no HAS_LECTURE) compiles none of the lecture's
         // lobes.
-        let pbr = HAS_PBR && (!HAS_LECTURE || m.model == MODEL_PBR);
+        let pbr = follows_pbr(m);
         // A certain lobe takes no draw.
         let is_spec = !pbr && (m.specular >= 1.0 || (m.specular > 0.0 && rand(state) < m.specular));
         let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);

@@ -566,36 +566,56 @@ fn ball_scene(material: &str) -> Scene {
     )
 }
 
+/// Asserts that `s` (a `ball_scene`), light-sampled, is its brute-force image in expectation
+/// on both tracers: no tile of the bias check (Welch, Bonferroni at α = 0.01) differs, in 4 × 4
+/// tiles so that the ball's caustic fills tiles, against a brute-force CPU reference of 32 768
+/// spp; `what` names the case.
+fn converges_to_brute_force(s: &Scene, what: &str) {
+    let reference = cpu_snapshot(s, one_texel(false, 101), 32768);
+    on_both(|| {
+        let sampled = snapshot(s, one_texel(true, 7), 2048);
+        assert_eq!(sampled.invalid_samples(), 0, "{what}");
+        let r = metrics::bias_check(&sampled, &reference, false, 4, 0.01);
+        eprintln!("{what}: {} tiles, smallest p {:.3}", r.tiles, r.min_p);
+        assert!(r.tiles >= 36, "{what}");
+        assert!(
+            r.significant.is_empty(),
+            "{what}: biased in {:?}",
+            r.significant
+        );
+    });
+}
+
+/// The relative RMSE at 64 spp of `s` and of `other` (the same image, its light found
+/// otherwise), on the CPU tracer, against a long light-sampled reference of `s`.
+fn errors_at_64_spp(s: &Scene, other: &Scene) -> (f64, f64) {
+    let long = cpu_snapshot(s, one_texel(true, 102), 8192).image();
+    let rmse = |img: &termtrace::output::LinearImage| metrics::errors(img, &long).rel_rmse();
+    (
+        rmse(&cpu_snapshot(s, one_texel(true, 8), 64).image()),
+        rmse(&cpu_snapshot(other, one_texel(true, 8), 64).image()),
+    )
+}
+
 #[test]
 fn the_map_in_a_mirror_ball_converges_to_the_brute_force_image() {
     // Light sampling through the mirror ball (`cpu::mirror`, `sample_mirror`) samples the
     // map's light as the ball reflects it onto the plane and the diffuse ball, MIS-weighted
     // against the paths that scatter into the ball: the image must be brute force's in
-    // expectation. Bias check as above (Welch, Bonferroni at α = 0.01), on both tracers, in
-    // 4 × 4 tiles, so that the caustic fills tiles. It sees the caustic counted twice (the
+    // expectation (`converges_to_brute_force`). It sees the caustic counted twice (the
     // paths that scatter into the ball left unweighted: 8 tiles, p < 10⁻⁴); a spread 10 %
     // off passes it (p 0.015 at 2048 spp) and fails `cpu::mirror`'s test of the spread
     // against the Jacobian of the reflection (to 1 %).
     let s = mirror_ball_scene(0.0);
     assert!(termtrace::common::Features::of(&s).mirror_nee);
-    let reference = cpu_snapshot(&s, one_texel(false, 101), 32768);
-    on_both(|| {
-        let sampled = snapshot(&s, one_texel(true, 7), 2048);
-        assert_eq!(sampled.invalid_samples(), 0);
-        let r = metrics::bias_check(&sampled, &reference, false, 4, 0.01);
-        eprintln!("{} tiles, smallest p {:.3}", r.tiles, r.min_p);
-        assert!(r.tiles >= 36);
-        assert!(r.significant.is_empty(), "biased in {:?}", r.significant);
-    });
+    converges_to_brute_force(&s, "mirror");
     // And it makes the caustic cheaper: at equal samples, against a long reference, the error
     // is well below that of the same ball with a fuzz of 10⁻⁶ (measured 0.138 against 0.219;
     // the bar is 1.4×): the same image within the noise, but no perfect mirror, so its
     // caustic is found by scattering alone.
-    assert!(!termtrace::common::Features::of(&mirror_ball_scene(1e-6)).mirror_nee);
-    let long = cpu_snapshot(&s, one_texel(true, 102), 8192).image();
-    let rmse = |img: &termtrace::output::LinearImage| metrics::errors(img, &long).rel_rmse();
-    let mirrored = rmse(&cpu_snapshot(&s, one_texel(true, 8), 64).image());
-    let scattered = rmse(&cpu_snapshot(&mirror_ball_scene(1e-6), one_texel(true, 8), 64).image());
+    let fuzzed = mirror_ball_scene(1e-6);
+    assert!(!termtrace::common::Features::of(&fuzzed).mirror_nee);
+    let (mirrored, scattered) = errors_at_64_spp(&s, &fuzzed);
     eprintln!(
         "relative RMSE at 64 spp: through the mirror {mirrored:.4}, scattered {scattered:.4}"
     );
@@ -627,19 +647,7 @@ fn the_map_in_a_gltf_mirror_ball_converges_to_the_brute_force_image() {
     for (name, material) in GLTF_MIRRORS {
         let s = ball_scene(material);
         assert!(termtrace::common::Features::of(&s).mirror_nee, "{name}");
-        let reference = cpu_snapshot(&s, one_texel(false, 101), 32768);
-        on_both(|| {
-            let sampled = snapshot(&s, one_texel(true, 7), 2048);
-            assert_eq!(sampled.invalid_samples(), 0);
-            let r = metrics::bias_check(&sampled, &reference, false, 4, 0.01);
-            eprintln!("{name}: {} tiles, smallest p {:.3}", r.tiles, r.min_p);
-            assert!(r.tiles >= 36);
-            assert!(
-                r.significant.is_empty(),
-                "{name}: biased in {:?}",
-                r.significant
-            );
-        });
+        converges_to_brute_force(&s, name);
     }
     // The metal's caustic costs fewer samples than with a roughness of 0.011 (α 1.2·10⁻⁴,
     // just above the mirror's bound), which light sampling does not look through: measured
@@ -650,11 +658,7 @@ fn the_map_in_a_gltf_mirror_ball_converges_to_the_brute_force_image() {
             .replace("roughness = 0", "roughness = 0.011"),
     );
     assert!(!termtrace::common::Features::of(&rough).mirror_nee);
-    let s = ball_scene(GLTF_MIRRORS[0].1);
-    let long = cpu_snapshot(&s, one_texel(true, 102), 8192).image();
-    let rmse = |img: &termtrace::output::LinearImage| metrics::errors(img, &long).rel_rmse();
-    let mirrored = rmse(&cpu_snapshot(&s, one_texel(true, 8), 64).image());
-    let scattered = rmse(&cpu_snapshot(&rough, one_texel(true, 8), 64).image());
+    let (mirrored, scattered) = errors_at_64_spp(&ball_scene(GLTF_MIRRORS[0].1), &rough);
     eprintln!("relative RMSE at 64 spp: through the mirror {mirrored:.4}, rough {scattered:.4}");
     assert!(scattered > 1.4 * mirrored, "{scattered} against {mirrored}");
 }
@@ -676,20 +680,7 @@ fn the_map_seen_by_a_glossy_lobe_converges_to_the_brute_force_image() {
     ] {
         let s = ball_scene(material);
         assert!(termtrace::common::Features::of(&s).gloss_nee);
-        let reference = cpu_snapshot(&s, one_texel(false, 101), 32768);
-        on_both(|| {
-            let sampled = snapshot(&s, one_texel(true, 7), 2048);
-            assert_eq!(sampled.invalid_samples(), 0);
-            let r = metrics::bias_check(&sampled, &reference, false, 4, 0.01);
-            eprintln!(
-                "{}: {} tiles, smallest p {:.3}",
-                material.trim(),
-                r.tiles,
-                r.min_p
-            );
-            assert!(r.tiles >= 36);
-            assert!(r.significant.is_empty(), "biased in {:?}", r.significant);
-        });
+        converges_to_brute_force(&s, material.trim());
     }
 }
 

@@ -589,6 +589,14 @@ impl<'a> Tracer<'a> {
         pdf / (self.s.mirrors.len() as f32 * spread)
     }
 
+    /// Whether material `m`'s surface follows glTF's BRDF (`cpu::pbr`) rather than the
+    /// lecture's lobes: a scene of glTF materials alone has no lecture (trace.wgsl:
+    /// follows_pbr).
+    #[inline(always)]
+    fn follows_pbr(&self, m: &Material) -> bool {
+        self.f.pbr && (!self.f.lecture || m.pbr)
+    }
+
     /// Where a ray from a lobe that light sampling weighs (`prev_pdf` > 0, from
     /// `prev_point`) meets one of the mirror spheres `sample_mirror` samples from outside:
     /// its lobe's density and the sphere's spread (`mirror::spread`) there, else None
@@ -685,7 +693,7 @@ impl<'a> Tracer<'a> {
         // What the mirror reflects: the lecture's specular tint, or glTF's Fresnel at the
         // angle of incidence.
         let m = &self.s.materials[sphere.material as usize];
-        let reflectance = if self.f.pbr && (!self.f.lecture || m.pbr) {
+        let reflectance = if self.follows_pbr(m) {
             pbr::mirror_reflectance(&pbr::lobe(m, -x.dir, x.normal, true), x.cos_i)
         } else {
             m.specular_color
@@ -989,7 +997,7 @@ impl<'a> Tracer<'a> {
             } else {
                 // The lecture's lobes, or glTF's BRDF (cpu::pbr), with one light-sampling
                 // call for both (trace.wgsl: path_step).
-                let pbr = self.f.pbr && (!self.f.lecture || m.pbr);
+                let pbr = self.follows_pbr(m);
                 // A certain lobe takes no draw.
                 let is_spec =
                     !pbr && (m.specular >= 1.0 || (m.specular > 0.0 && rng.rand() < m.specular));
