@@ -7,6 +7,7 @@
 // #include "common/texture.wgsl"
 // #include "common/envmap.wgsl"
 // #include "common/mirror.wgsl"
+// #include "common/lens.wgsl"
 // #include "common/pbr.wgsl"
 // Twin: src/cpu/trace.rs (tests/twins.rs keeps their functions paired).
 // The path tracer: one invocation traces its share of a round's `sample_count` paths through
@@ -32,6 +33,8 @@ override HAS_SMOOTH_NORMALS: bool = true;
 override HAS_ENV_MAP: bool = true;
 // Perfect mirror spheres whose reflection of the map light sampling samples (sample_mirror).
 override HAS_MIRROR_NEE: bool = true;
+// Clear glass spheres through which light sampling refracts the map (sample_lens).
+override HAS_LENS_NEE: bool = true;
 // The lecture's glossy lobe takes light samples (gloss_pdf).
 override HAS_GLOSS_NEE: bool = true;
 override HAS_PBR: bool = true;
@@ -911,10 +914,127 @@ fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, glo
     return light_weighted(radiance, x.dir, cos_s, mirror_pdf(s.pdf, spread), pbr, lobe, gloss);
 }
 
+// The density, in solid angle at the point that sees it, with which sample_lens finds the
+// map's direction of density pdf through a glass sphere of spread `spread`.
+fn lens_pdf(pdf: f32, spread: f32) -> f32 {
+    return pdf / (f32(scene.n_lenses) * spread);
+}
+
+// The spread of the path's glass-sphere path, which left its sphere toward dir, where
+// sample_lens finds it (lens_spread_of), else 0 (src/cpu/trace.rs: lens_spread).
+fn lens_spread(path: Path, dir: vec3f) -> f32 {
+    let sphere = spheres[path.lens_sphere];
+    let c = sphere_center(sphere);
+    let f = lens_frame(path.lens_from, c, sphere.radius, materials[sphere.material].ior, dir);
+    if !f.ok {
+        return 0.0;
+    }
+    return lens_spread_of(f, path.lens_from, c, sphere.radius, path.lens_dir);
+}
+
+// The path's glass-sphere path after the ray met `hit` (scattered false) or after the
+// surface there scattered it toward `dir` (scattered true): a ray of a lobe light sampling
+// weighs that meets one of the glass spheres from outside starts one (stage 1); it goes on
+// while the ray refracts in (2), meets the sphere from inside (3) and refracts out (4), and
+// ends (0) at anything else (src/cpu/trace.rs: lens_step).
+fn lens_step(path: ptr<function, Path>, hit: Hit, ray: Ray, n_out: vec3f, scattered: bool, dir: vec3f) {
+    let stage = (*path).lens_stage;
+    if scattered {
+        let inward = dot(dir, n_out) < 0.0;
+        if stage == 1u && inward {
+            (*path).lens_stage = 2u;
+        } else if stage == 3u && !inward {
+            (*path).lens_stage = 4u;
+        } else {
+            (*path).lens_stage = 0u;
+        }
+        return;
+    }
+    let same = hit.kind == KIND_SPHERE && hit.index == (*path).lens_sphere;
+    if stage == 2u && same && dot(ray.dir, n_out) >= 0.0 {
+        (*path).lens_stage = 3u;
+        return;
+    }
+    (*path).lens_stage = 0u;
+    if (*path).prev_pdf > 0.0 && hit.kind == KIND_SPHERE && dot(ray.dir, n_out) < 0.0 {
+        var listed = false;
+        let first = scene.n_lights + scene.n_mirrors;
+        for (var k = 0u; k < scene.n_lenses; k++) {
+            listed = listed || lights[first + k].prim == hit.index;
+        }
+        if listed {
+            (*path).lens_stage = 1u;
+            (*path).lens_sphere = hit.index;
+            (*path).lens_from = (*path).prev_point;
+            (*path).lens_dir = ray.dir;
+            (*path).lens_pdf = (*path).prev_pdf;
+        }
+    }
+}
+
+// The environment map's light as a clear glass sphere refracts it onto p (src/cpu/trace.rs:
+// sample_lens, which says how): one of the glass spheres chosen evenly, a direction from the
+// map's distribution, and every path from p through the sphere toward it, each with its three
+// legs unoccluded, tinted by the glass twice and by the chance of refracting at both
+// interfaces, MIS-weighted against the lobe.
+fn sample_lens(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss: Gloss, state: ptr<function, Rng>) -> vec3f {
+    let count = scene.n_lenses;
+    var pick = 0.0;
+    if count > 1u {
+        pick = rand(state);
+    }
+    let prim = lights[scene.n_lights + scene.n_mirrors + min(u32(pick * f32(count)), count - 1u)].prim;
+    let sphere = spheres[prim];
+    let c = sphere_center(sphere);
+    let r = sphere.radius;
+    if dot(n, c - p) <= -r {
+        return vec3f(0.0);
+    }
+    let s = env_sample(rand2(state), scene.env_rotation);
+    let m = materials[sphere.material];
+    if s.pdf <= 0.0 {
+        return vec3f(0.0);
+    }
+    let f = lens_frame(p, c, r, m.ior, s.dir);
+    if !f.ok {
+        return vec3f(0.0);
+    }
+    let found = lens_roots(f);
+    let radiance = s.radiance * scene.env_intensity * m.color * m.color;
+    var sum = vec3f(0.0);
+    for (var k = 0u; k < found.count; k++) {
+        let x = lens_path(f, p, c, r, found.s[k]);
+        if !x.ok {
+            continue;
+        }
+        let cos_s = dot(n, x.dir);
+        if cos_s <= 0.0 || ((HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && dot(n_geo, x.dir) <= 0.0) {
+            continue;
+        }
+        // To the sphere (the first thing the ray meets must be it), across it, and from where
+        // it leaves to the map.
+        let to_lens = Ray(offset_ray(p, n_geo), x.dir);
+        let t_lens = hit_primitive(prim, to_lens, T_FAR);
+        if t_lens <= 0.0 || occluded(to_lens, t_lens, prim) {
+            continue;
+        }
+        let entry = p + x.dir * x.dist;
+        let chord = x.exit - entry;
+        if occluded(Ray(entry, normalize(chord)), length(chord), prim) {
+            continue;
+        }
+        if occluded(Ray(offset_ray(x.exit, x.exit_normal), s.dir), T_FAR, prim) {
+            continue;
+        }
+        sum += light_weighted(radiance * lens_transmittance(m.ior, x.cos_i, x.cos_r), x.dir, cos_s, lens_pdf(s.pdf, x.spread), pbr, lobe, gloss);
+    }
+    return sum;
+}
+
 // What a ray that leaves the scene sees: the environment map (MIS-weighted where light
-// sampling could have found its direction, or where it leaves a mirror sphere whose
-// reflection of the map sample_mirror samples), or the sky; a camera ray sees the sky behind
-// a map that is not visible.
+// sampling could have found its direction, or where it leaves a mirror sphere or a glass
+// sphere through which sample_mirror or sample_lens samples the map), or the sky; a camera
+// ray sees the sky behind a map that is not visible.
 fn escaped(path: Path, dir: vec3f) -> vec3f {
     if HAS_ENV_MAP && scene.env_mode != ENV_NONE && (path.bounce > 0u || scene.env_mode == ENV_VISIBLE) {
         var w = 1.0;
@@ -925,6 +1045,11 @@ fn escaped(path: Path, dir: vec3f) -> vec3f {
             w = power_heuristic(path.prev_pdf, pe * env_pdf_at(c));
         } else if HAS_MIRROR_NEE && path.mirror.x > 0.0 {
             w = power_heuristic(path.mirror.x, mirror_pdf(env_pdf_at(c), path.mirror.y));
+        } else if HAS_LENS_NEE && path.lens_stage == 4u {
+            let spread = lens_spread(path, dir);
+            if spread > 0.0 {
+                w = power_heuristic(path.lens_pdf, lens_pdf(env_pdf_at(c), spread));
+            }
         }
         return env_lookup(c) * scene.env_intensity * w;
     }
@@ -946,10 +1071,18 @@ struct Path {
     // Where the ray leaves a mirror sphere that sample_mirror samples, met right after a lobe
     // light sampling weighs: (that lobe's density, the sphere's spread), else zeros.
     mirror: vec2f,
+    // A path through a glass sphere that sample_lens samples, begun right after a lobe light
+    // sampling weighs (lens_step): its stage (0: none), the sphere, the point the lobe drew
+    // from, the ray's direction and the lobe's density.
+    lens_stage: u32,
+    lens_sphere: u32,
+    lens_from: vec3f,
+    lens_pdf: f32,
+    lens_dir: vec3f,
 }
 
 fn path_start(primary: Ray) -> Path {
-    return Path(primary, vec3f(1.0), vec3f(0.0), 0u, 0.0, primary.origin, vec3f(0.0, 1.0, 0.0), vec2f(0.0));
+    return Path(primary, vec3f(1.0), vec3f(0.0), 0u, 0.0, primary.origin, vec3f(0.0, 1.0, 0.0), vec2f(0.0), 0u, 0u, vec3f(0.0), 0.0, vec3f(0.0));
 }
 
 // One segment of a path (MODEL.md "Scattering"): traces its ray and either ends the path
@@ -972,6 +1105,9 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     // next is weighed against sample_mirror.
     if HAS_MIRROR_NEE {
         (*path).mirror = mirror_hit(hit, ray, surf.point.position, surf.point.normal, (*path).prev_pdf, (*path).prev_point);
+    }
+    if HAS_LENS_NEE {
+        lens_step(path, hit, ray, surf.point.normal, false, vec3f(0.0));
     }
     // Inside a volume's boundary the medium attenuates, by Beer–Lambert's law over the
     // segment's length (KHR_materials_volume; a closed mesh, not nested).
@@ -997,6 +1133,9 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     (*path).prev_pdf = 0.0;
     if HAS_DIELECTRICS && m.smoothness < 0.0 {
         sc = scatter_dielectric(m, ray.dir, n_out, state);
+        if HAS_LENS_NEE {
+            lens_step(path, hit, ray, n_out, true, sc.dir);
+        }
     } else {
         // The lecture's lobes, or glTF's BRDF (common/pbr.wgsl); one light-sampling call for
         // both (inlined once: a second call site cost the H200 half its speed on pbr scenes).
@@ -1030,6 +1169,11 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
             // leave it, within the bounces allowed.
             if HAS_MIRROR_NEE && scene.n_mirrors > 0u && bounce + 2u <= scene.max_bounces {
                 (*path).radiance += (*path).throughput * tint * sample_mirror(surf.point.position, ns, n, pbr, lobe, gloss, state);
+            }
+            // The map through the glass spheres: its paths scatter here, refract in and out,
+            // and leave, within the bounces allowed.
+            if HAS_LENS_NEE && scene.n_lenses > 0u && bounce + 3u <= scene.max_bounces {
+                (*path).radiance += (*path).throughput * tint * sample_lens(surf.point.position, ns, n, pbr, lobe, gloss, state);
             }
         }
         var pbr_pdf = 0.0;

@@ -56,6 +56,13 @@ const TWINS: &[Twin] = &[
         rust_only: &[],
     },
     Twin {
+        wgsl: "shaders/common/lens.wgsl",
+        rust: "src/cpu/lens.rs",
+        prefix: "lens_",
+        wgsl_only: &[],
+        rust_only: &[],
+    },
+    Twin {
         wgsl: "shaders/common/fixed.wgsl",
         rust: "src/cpu/fixed.rs",
         prefix: "fixed_",

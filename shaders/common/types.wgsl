@@ -12,7 +12,7 @@ struct SceneUniforms {
     cam_vertical: vec3f,    //  48  full height of the focus plane, pointing up
     n_mirrors: u32,         //  60  mirror spheres light sampling reflects the map in (after the lights)
     cam_u: vec3f,           //  64  lens basis (right)
-    _pad3: f32,             //  76
+    n_lenses: u32,          //  76  glass spheres light sampling refracts the map through (after the mirrors)
     cam_v: vec3f,           //  80  lens basis (up)
     _pad4: f32,             //  92
     sky_bottom: vec3f,      //  96  radiance of a uniform sky, or the gradient's bottom

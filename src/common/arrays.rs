@@ -5,7 +5,7 @@
 use super::layout::*;
 use crate::bvh::wide::GpuBvhNode4;
 use crate::bvh::{Aabb, Bvh};
-use crate::scene::{Camera, MaterialModel, Object, Scene, Shape, Sky, euler_xyz};
+use crate::scene::{Camera, Material, MaterialModel, Object, Scene, Shape, Sky, euler_xyz};
 use glam::{DMat4, DVec3};
 use std::hash::{Hash, Hasher};
 
@@ -92,6 +92,7 @@ pub fn scene_uniforms(scene: &Scene, s: &FrameSettings, origin: DVec3) -> SceneU
     }
     u.n_lights = lights(scene, s.nee).0.len() as u32;
     u.n_mirrors = mirror_spheres(scene, s.nee).len() as u32;
+    u.n_lenses = lens_spheres(scene, s.nee).len() as u32;
     if let Some(e) = &scene.environment {
         u.env_rotation = e.rotation.to_radians();
         u.env_intensity = e.intensity;
@@ -244,6 +245,7 @@ impl Primitives {
         let (lights, slots) = lights(scene, nee);
         p.lights = lights;
         p.lights.extend(mirror_spheres(scene, nee));
+        p.lights.extend(lens_spheres(scene, nee));
         // Positions are taken relative to the origin (in f64, before rounding); directions
         // and extents go through `dir` unchanged.
         let pos = |v: DVec3| f(v - origin);
@@ -490,6 +492,19 @@ pub const MAX_MIRRORS: usize = 16;
 /// the lecture's or glTF's); at most `MAX_MIRRORS`. As entries that follow the lights in the
 /// lights' buffer: `prim` the sphere's reference, the rest 0.
 pub fn mirror_spheres(scene: &Scene, nee: bool) -> Vec<GpuLight> {
+    map_spheres(scene, nee, Material::is_mirror)
+}
+
+/// The clear glass balls through which next-event estimation also samples the environment
+/// map (docs/MODEL-NOTES.md, "The map through a glass ball"), as `mirror_spheres` but for
+/// `Material::is_lens`: entries that follow the mirror spheres in the lights' buffer.
+pub fn lens_spheres(scene: &Scene, nee: bool) -> Vec<GpuLight> {
+    map_spheres(scene, nee, Material::is_lens)
+}
+
+/// The first `MAX_MIRRORS` spheres of positive radius whose material is `kind`, where a map
+/// lights the scene and `nee` is on, as entries of the lights' buffer.
+fn map_spheres(scene: &Scene, nee: bool, kind: fn(&Material) -> bool) -> Vec<GpuLight> {
     if !nee || !scene.environment.as_ref().is_some_and(|e| e.lights()) {
         return Vec::new();
     }
@@ -501,7 +516,7 @@ pub fn mirror_spheres(scene: &Scene, nee: bool) -> Vec<GpuLight> {
             _ => None,
         })
         .enumerate()
-        .filter(|(_, (o, radius))| *radius > 0.0 && o.material.is_mirror())
+        .filter(|(_, (o, radius))| *radius > 0.0 && kind(&o.material))
         .take(MAX_MIRRORS)
         .map(|(i, _)| GpuLight {
             prim: encode_ref(Kind::Sphere, i),

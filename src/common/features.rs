@@ -12,7 +12,7 @@ use crate::scene::{Scene, Shape, Sky};
 #[error(
     "unknown feature `{0}` (expected spheres, quads, boxes, triangles, dielectrics, emitters, \
      nee, dof, sun, textures, cutouts, normal_maps, smooth_normals, env_map, mirror_nee, \
-     gloss_nee, pbr, pbr_specular, pbr_transmission, pbr_clearcoat, instances or lecture)"
+     lens_nee, gloss_nee, pbr, pbr_specular, pbr_transmission, pbr_clearcoat, instances or lecture)"
 )]
 pub struct UnknownFeature(pub String);
 
@@ -46,6 +46,10 @@ pub struct Features {
     /// estimation also samples the map's light as a mirror ball reflects it (with `nee`;
     /// `common::arrays::mirror_spheres`).
     pub mirror_nee: bool,
+    /// Clear glass balls under an environment map that lights the scene: next-event
+    /// estimation also samples the map's light as the ball refracts it (the sun's caustic;
+    /// with `nee`; `common::arrays::lens_spheres`).
+    pub lens_nee: bool,
     /// The lecture's glossy lobe (its specular lobe at a smoothness between 0 and 1, without
     /// fuzz) takes light samples, weighed against its density (`cpu::material::gloss_pdf`;
     /// with `nee`).
@@ -92,6 +96,7 @@ impl Features {
             smooth_normals: true,
             env_map: true,
             mirror_nee: true,
+            lens_nee: true,
             gloss_nee: true,
             pbr: true,
             pbr_specular: true,
@@ -122,6 +127,7 @@ impl Features {
             smooth_normals: false,
             env_map: false,
             mirror_nee: false,
+            lens_nee: false,
             gloss_nee: false,
             pbr: false,
             pbr_specular: false,
@@ -155,6 +161,7 @@ impl Features {
                 "smooth_normals" => &mut f.smooth_normals,
                 "env_map" => &mut f.env_map,
                 "mirror_nee" => &mut f.mirror_nee,
+                "lens_nee" => &mut f.lens_nee,
                 "gloss_nee" => &mut f.gloss_nee,
                 "pbr" => &mut f.pbr,
                 "pbr_specular" => &mut f.pbr_specular,
@@ -226,6 +233,7 @@ impl Features {
         }
         f.gloss_nee &= f.nee;
         f.mirror_nee = !crate::common::arrays::mirror_spheres(scene, true).is_empty();
+        f.lens_nee = !crate::common::arrays::lens_spheres(scene, true).is_empty();
         f
     }
 
@@ -247,6 +255,7 @@ impl Features {
             smooth_normals: self.smooth_normals | other.smooth_normals,
             env_map: self.env_map | other.env_map,
             mirror_nee: self.mirror_nee | other.mirror_nee,
+            lens_nee: self.lens_nee | other.lens_nee,
             gloss_nee: self.gloss_nee | other.gloss_nee,
             pbr: self.pbr | other.pbr,
             pbr_specular: self.pbr_specular | other.pbr_specular,
@@ -283,6 +292,7 @@ impl Features {
             ("HAS_SMOOTH_NORMALS", b(self.smooth_normals)),
             ("HAS_ENV_MAP", b(self.env_map)),
             ("HAS_MIRROR_NEE", b(self.mirror_nee)),
+            ("HAS_LENS_NEE", b(self.lens_nee)),
             ("HAS_GLOSS_NEE", b(self.gloss_nee)),
             ("HAS_PBR", b(self.pbr)),
             ("HAS_PBR_SPECULAR", b(self.pbr_specular)),
@@ -313,6 +323,7 @@ impl Features {
             (self.smooth_normals, "smooth_normals"),
             (self.env_map, "env_map"),
             (self.mirror_nee, "mirror_nee"),
+            (self.lens_nee, "lens_nee"),
             (self.gloss_nee, "gloss_nee"),
             (self.pbr, "pbr"),
             (self.pbr_specular, "pbr_specular"),

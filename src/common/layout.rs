@@ -19,7 +19,9 @@ pub struct SceneUniforms {
     /// (`arrays::mirror_spheres`): they follow the lights in the lights' buffer.
     pub n_mirrors: u32,
     pub cam_u: [f32; 3],
-    pub _pad3: f32,
+    /// Clear glass spheres through which light sampling refracts the map
+    /// (`arrays::lens_spheres`): they follow the mirror spheres in the lights' buffer.
+    pub n_lenses: u32,
     pub cam_v: [f32; 3],
     pub _pad4: f32,
     pub sky_bottom: [f32; 3],
@@ -206,6 +208,7 @@ pub fn mirrors() -> Vec<MirrorLayout> {
                 cam_vertical,
                 n_mirrors,
                 cam_u,
+                n_lenses,
                 cam_v,
                 sky_bottom,
                 sky_uniform,

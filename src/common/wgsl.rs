@@ -53,6 +53,10 @@ pub const SOURCES: &[(&str, &str)] = &[
         include_str!("../../shaders/common/mirror.wgsl"),
     ),
     (
+        "common/lens.wgsl",
+        include_str!("../../shaders/common/lens.wgsl"),
+    ),
+    (
         "common/pbr.wgsl",
         include_str!("../../shaders/common/pbr.wgsl"),
     ),

@@ -14,7 +14,7 @@ pub struct Scatter {
 }
 
 /// Schlick, "An Inexpensive BRDF Model for Physically-based Rendering", 1994.
-fn schlick(cosine: f32, ratio: f32) -> f32 {
+pub(super) fn schlick(cosine: f32, ratio: f32) -> f32 {
     let r0 = (1.0 - ratio) / (1.0 + ratio);
     let r0 = r0 * r0;
     let x = 1.0 - cosine;

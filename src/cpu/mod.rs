@@ -20,6 +20,7 @@ pub mod bvh8;
 pub mod few;
 pub mod fixed;
 pub mod intersect;
+pub mod lens;
 pub mod material;
 pub mod mirror;
 #[cfg(target_arch = "x86_64")]

@@ -64,6 +64,7 @@ pub struct Uniforms {
     pub max_bounces: u32,
     pub seed: u32,
     pub n_lights: u32,
+    pub n_mirrors: u32,
     pub primitives: u32,
     pub env_rotation: f32,
     pub env_intensity: f32,
@@ -93,6 +94,7 @@ impl Uniforms {
             max_bounces: u.max_bounces,
             seed: u.seed,
             n_lights: u.n_lights,
+            n_mirrors: u.n_mirrors,
             primitives: u.n_spheres + u.n_quads + u.n_boxes + u.n_triangles,
             env_rotation: u.env_rotation,
             env_intensity: u.env_intensity,
@@ -137,6 +139,9 @@ pub struct CpuScene {
     /// The mirror spheres light sampling reflects the map in: indices into `spheres`
     /// (`common::arrays::mirror_spheres`, which follow the lights in `Primitives::lights`).
     pub mirrors: Vec<u32>,
+    /// The glass spheres light sampling refracts the map through, likewise
+    /// (`common::arrays::lens_spheres`, which follow the mirror spheres).
+    pub lenses: Vec<u32>,
     /// Copies of instanced meshes, whose trees follow the top level in `bvh`.
     pub instances: Vec<Instance>,
     /// Triangles the top level names (an instanced mesh's follow them).
@@ -188,6 +193,7 @@ impl CpuScene {
             triangles: Vec::new(),
             lights: Vec::new(),
             mirrors: Vec::new(),
+            lenses: Vec::new(),
             instances: instances
                 .iter()
                 .map(|i| Instance {
@@ -319,6 +325,8 @@ impl CpuScene {
             .collect();
         let n = self.u.n_lights as usize;
         self.lights = p.lights[..n].to_vec();
-        self.mirrors = p.lights[n..].iter().map(|l| l.prim & REF_INDEX).collect();
+        let m = n + self.u.n_mirrors as usize;
+        self.mirrors = p.lights[n..m].iter().map(|l| l.prim & REF_INDEX).collect();
+        self.lenses = p.lights[m..].iter().map(|l| l.prim & REF_INDEX).collect();
     }
 }

@@ -14,6 +14,7 @@ use super::bvh::{Stack, Tally};
 #[cfg(target_arch = "x86_64")]
 use super::bvh8::Stack8;
 use super::intersect::*;
+use super::lens;
 use super::material::{
     Scatter, gloss_pdf, reflect, refract_dir, scatter_dielectric, scatter_surface,
 };
@@ -173,6 +174,21 @@ struct MirrorHit {
     pdf: f32,
     /// `mirror::spread` at the point met.
     spread: f32,
+}
+
+/// A path through a glass sphere of `lenses` right after a lobe light sampling weighs: where
+/// it is on its way (`Tracer::lens_step`), so that the map it reaches on leaving is weighed
+/// against `sample_lens`.
+#[derive(Clone, Copy)]
+struct LensPath {
+    /// The sphere (its index in `spheres`).
+    sphere: u32,
+    /// The point whose lobe drew the ray into it, the ray's direction and the lobe's density.
+    from: Vec3A,
+    dir: Vec3A,
+    pdf: f32,
+    /// 1: met from outside; 2: refracted in; 3: met from inside; 4: refracted out.
+    stage: u8,
 }
 
 fn power_heuristic(a: f32, b: f32) -> f32 {
@@ -523,6 +539,7 @@ impl<'a> Tracer<'a> {
         bounce: u32,
         prev_pdf: f32,
         mirrored: Option<MirrorHit>,
+        lensed: Option<LensPath>,
     ) -> Vec3A {
         let u = &self.s.u;
         if let Some(map) = self.s.env.as_ref().filter(|_| self.f.env_map)
@@ -540,6 +557,12 @@ impl<'a> Tracer<'a> {
             }
             if let Some(h) = mirrored {
                 let pl = self.mirror_pdf(map.distribution.pdf_at(cu, cv), h.spread);
+                return l * power_heuristic(h.pdf, pl);
+            }
+            if let Some(h) = lensed.filter(|h| h.stage == 4)
+                && let Some(spread) = self.lens_spread(&h, dir)
+            {
+                let pl = self.lens_pdf(map.distribution.pdf_at(cu, cv), spread);
                 return l * power_heuristic(h.pdf, pl);
             }
             return l;
@@ -587,6 +610,162 @@ impl<'a> Tracer<'a> {
     #[inline(always)]
     fn mirror_pdf(&self, pdf: f32, spread: f32) -> f32 {
         pdf / (self.s.mirrors.len() as f32 * spread)
+    }
+
+    /// The density, in solid angle at the point that sees it, with which `sample_lens` finds
+    /// the map's direction of density `pdf` through a glass sphere of spread `spread`.
+    #[inline(always)]
+    fn lens_pdf(&self, pdf: f32, spread: f32) -> f32 {
+        pdf / (self.s.lenses.len() as f32 * spread)
+    }
+
+    /// The spread of path `h`, which left its sphere toward `dir`, where `sample_lens` finds
+    /// it (`lens::spread_of`), else None.
+    fn lens_spread(&self, h: &LensPath, dir: Vec3A) -> Option<f32> {
+        let s = &self.s.spheres[h.sphere as usize];
+        let c = sphere_center(s);
+        let ior = self.s.materials[s.material as usize].ior;
+        let f = lens::frame(h.from, c, s.radius, ior, dir)?;
+        lens::spread_of(&f, h.from, c, s.radius, h.dir)
+    }
+
+    /// The glass-sphere path `lensed` after the ray met `hit` (`scattered` false) or after
+    /// the surface there scattered it toward `dir` (`scattered` true): a ray of a lobe light
+    /// sampling weighs (`prev_pdf` > 0, from `prev_point`) that meets one of `lenses` from
+    /// outside starts one; it goes on while the ray refracts into the sphere, meets it from
+    /// inside and refracts out, and ends at anything else (trace.wgsl: lens_step).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn lens_step(
+        &self,
+        lensed: Option<LensPath>,
+        hit: Hit,
+        ray: &Ray,
+        n_out: Vec3A,
+        prev_pdf: f32,
+        prev_point: Vec3A,
+        scattered: Option<Vec3A>,
+    ) -> Option<LensPath> {
+        if !self.f.lens_nee {
+            return None;
+        }
+        let same = |h: &LensPath| hit.r >> 30 == 0 && hit.r & INDEX == h.sphere;
+        let inward = |d: Vec3A| d.dot(n_out) < 0.0;
+        match (lensed, scattered) {
+            (Some(h), Some(d)) if h.stage == 1 && inward(d) => Some(LensPath { stage: 2, ..h }),
+            (Some(h), Some(d)) if h.stage == 3 && !inward(d) => Some(LensPath { stage: 4, ..h }),
+            (_, Some(_)) => None,
+            (Some(h), None) if h.stage == 2 && same(&h) && !inward(ray.dir) => {
+                Some(LensPath { stage: 3, ..h })
+            }
+            (_, None) => {
+                let i = hit.r & INDEX;
+                (prev_pdf > 0.0
+                    && hit.r >> 30 == 0
+                    && inward(ray.dir)
+                    && self.s.lenses.contains(&i))
+                .then_some(LensPath {
+                    sphere: i,
+                    from: prev_point,
+                    dir: ray.dir,
+                    pdf: prev_pdf,
+                    stage: 1,
+                })
+            }
+        }
+    }
+
+    /// The environment map's light as a clear glass sphere refracts it onto p (facing
+    /// shading normal n), for the lobe light sampling weighs, as `sample_mirror` for mirror
+    /// spheres: one of the scene's glass spheres chosen evenly, a direction drawn from the
+    /// map's distribution, and every path from p through the sphere toward it (`lens::roots`,
+    /// up to three), each with its three legs unoccluded, carrying the glass's tint twice and
+    /// the chance that `scatter_dielectric` refracts at both interfaces
+    /// (`lens::transmittance`), in p's solid angle at the map's density over the path's
+    /// spread, MIS-weighted against the lobe, which finds the same paths by scattering
+    /// through the sphere (`escaped`). Docs: MODEL-NOTES.md, "The map through a glass ball"
+    /// (trace.wgsl: sample_lens).
+    #[allow(clippy::too_many_arguments)]
+    fn sample_lens<const P: u32>(
+        &mut self,
+        p: Vec3A,
+        n: Vec3A,
+        n_geo: Vec3A,
+        from: u32,
+        lobe: Weighed,
+        rng: &mut Rng,
+    ) -> Vec3A {
+        let Some(map) = self.s.env.as_ref() else {
+            return Vec3A::ZERO;
+        };
+        let count = self.s.lenses.len();
+        let pick = if count > 1 { rng.rand() } else { 0.0 };
+        let i = self.s.lenses[((pick * count as f32) as usize).min(count - 1)];
+        let sphere = self.s.spheres[i as usize];
+        let (c, r) = (sphere_center(&sphere), sphere.radius);
+        if n.dot(c - p) <= -r {
+            return Vec3A::ZERO;
+        }
+        let u = &self.s.u;
+        let (u1, u2) = rng.rand2();
+        let smp = map.distribution.sample(u1, u2, u.env_rotation);
+        let w = Vec3A::from(smp.dir);
+        let m = &self.s.materials[sphere.material as usize];
+        if smp.pdf <= 0.0 {
+            return Vec3A::ZERO;
+        }
+        let Some(f) = lens::frame(p, c, r, m.ior, w) else {
+            return Vec3A::ZERO;
+        };
+        let (roots, found) = lens::roots(&f);
+        let radiance = Vec3A::from_array(map.radiance_at(smp.uv.0, smp.uv.1))
+            * u.env_intensity
+            * m.color
+            * m.color;
+        let mut sum = Vec3A::ZERO;
+        for &s in &roots[..found] {
+            let Some(x) = lens::path(&f, p, c, r, s) else {
+                continue;
+            };
+            let cos_s = n.dot(x.dir);
+            if cos_s <= 0.0 || (self.s.shading_normals() && n_geo.dot(x.dir) <= 0.0) {
+                continue;
+            }
+            // To the sphere (the first thing the ray meets must be it), across it, and from
+            // where it leaves to the map.
+            let to_lens = Ray {
+                origin: offset_ray(p, n_geo),
+                dir: x.dir,
+            };
+            let t_lens = hit_primitive::<ANY>(self.s, i, &to_lens, T_FAR);
+            if t_lens <= 0.0 || self.occluded::<P>(&to_lens, t_lens, i, from) {
+                continue;
+            }
+            let entry = p + x.dir * x.dist;
+            let chord = x.exit - entry;
+            let across = Ray {
+                origin: entry,
+                dir: chord.normalize(),
+            };
+            if self.occluded::<P>(&across, chord.length(), i, i) {
+                continue;
+            }
+            let to_map = Ray {
+                origin: offset_ray(x.exit, x.exit_normal),
+                dir: w,
+            };
+            if self.occluded::<P>(&to_map, T_FAR, NONE, i) {
+                continue;
+            }
+            sum += light_weighted(
+                radiance * lens::transmittance(m.ior, x.cos_i, x.cos_r),
+                x.dir,
+                cos_s,
+                self.lens_pdf(smp.pdf, x.spread),
+                lobe,
+            );
+        }
+        sum
     }
 
     /// Whether material `m`'s surface follows glTF's BRDF (`cpu::pbr`) rather than the
@@ -946,6 +1125,8 @@ impl<'a> Tracer<'a> {
         let mut skip = NONE;
         // The ray leaves a mirror sphere that `sample_mirror` samples (`mirror_hit`).
         let mut mirrored = None;
+        // The ray is on a path through a glass sphere that `sample_lens` samples (`lens_step`).
+        let mut lensed = None;
         while bounce <= u.max_bounces {
             segments += 1;
             #[cfg(test)]
@@ -959,13 +1140,14 @@ impl<'a> Tracer<'a> {
                 None => self.intersect::<P>(&ray, skip),
             };
             let Some(hit) = found else {
-                radiance += throughput * self.escaped(ray.dir, bounce, prev_pdf, mirrored);
+                radiance += throughput * self.escaped(ray.dir, bounce, prev_pdf, mirrored, lensed);
                 break;
             };
             let (point, material, local) = self.surface_at(hit, &ray);
             // A mirror sphere met from a lobe light sampling weighs: what it reflects from
             // the map next is weighed against `sample_mirror`.
             mirrored = self.mirror_hit(hit, &ray, &point, prev_pdf, prev_point);
+            lensed = self.lens_step(lensed, hit, &ray, point.normal, prev_pdf, prev_point, None);
             let (textured, mapped) = self.material_at(hit, local, material);
             let m = textured
                 .as_ref()
@@ -994,6 +1176,8 @@ impl<'a> Tracer<'a> {
             prev_pdf = 0.0;
             if self.f.dielectrics && m.smoothness < 0.0 {
                 sc = scatter_dielectric(m, ray.dir, n_out, rng);
+                lensed =
+                    self.lens_step(lensed, hit, &ray, n_out, prev_pdf, prev_point, Some(sc.dir));
             } else {
                 // The lecture's lobes, or glTF's BRDF (cpu::pbr), with one light-sampling
                 // call for both (trace.wgsl: path_step).
@@ -1049,6 +1233,13 @@ impl<'a> Tracer<'a> {
                         radiance += throughput
                             * tint
                             * self.sample_mirror::<P>(point.position, ns, n, from, weighed, rng);
+                    }
+                    // The map through the glass spheres: its paths scatter here, refract in
+                    // and out, and leave, within the bounces allowed.
+                    if self.f.lens_nee && !self.s.lenses.is_empty() && bounce + 3 <= u.max_bounces {
+                        radiance += throughput
+                            * tint
+                            * self.sample_lens::<P>(point.position, ns, n, from, weighed, rng);
                     }
                 }
                 let mut pbr_pdf = 0.0;

@@ -313,6 +313,16 @@ impl Material {
         };
         mirror && !self.is_emitter() && self.textured.is_none()
     }
+    /// A clear glass ball the map's light is sampled through (`common::arrays::lens_spheres`):
+    /// the lecture's dielectric without fuzz, denser than air (ior above 1), neither emitting
+    /// nor textured.
+    pub fn is_lens(&self) -> bool {
+        self.is_dielectric()
+            && self.ior > 1.0
+            && self.absorption == 0.0
+            && !self.is_emitter()
+            && self.textured.is_none()
+    }
     /// The lecture's glossy lobe: a specular lobe (specular > 0) blended with the diffuse
     /// direction (smoothness strictly between 0 and 1) and without fuzz, which light sampling
     /// weighs by its density (`cpu::material::gloss_pdf`).

@@ -1,0 +1,177 @@
+// #include "common/material.wgsl"
+// Twin: src/cpu/lens.rs (tests/twins.rs keeps their functions paired).
+// The map's light as a clear glass sphere refracts it onto a point (next-event estimation
+// through a glass ball, the sun's caustic; docs/MODEL-NOTES.md "The map through a glass
+// ball"): the paths from the point through the sphere toward a direction's light, the roots
+// of β(s) = ψ − 2 (i − r′) = β_w in the plane of the point, the centre and the light (the
+// specular chain of manifold next-event estimation, Hanika, Droske & Fascione, EGSR 2015),
+// bracketed on a grid of s and refined by safeguarded Newton steps, and how much the sphere
+// spreads the light. The arithmetic is src/cpu/lens.rs's, which derives it.
+
+// Intervals of s ∈ [−1, 1] the roots are bracketed in; the most roots; the most Newton steps
+// per root; the least cosine of incidence of a path; how near (in s) lens_spread_of's root
+// must be to a path's own.
+const LENS_INTERVALS: u32 = 16u;
+const LENS_MAX_ROOTS: u32 = 3u;
+const LENS_STEPS: u32 = 24u;
+const LENS_GRAZING: f32 = 1e-3;
+const LENS_MATCH: f32 = 1e-3;
+
+// The plane of a point, a glass sphere and a light's direction: a (point to centre), e2 (in
+// the plane, on the light's side), k = r / D, the light's angle beta from a, the index.
+struct LensFrame {
+    a: vec3f,
+    e2: vec3f,
+    k: f32,
+    beta: f32,
+    ior: f32,
+    ok: bool,
+}
+
+// The sines of incidence of the paths (the first `count` of s), in increasing order.
+struct LensRoots {
+    s: vec3f,
+    count: u32,
+}
+
+// One path: its first leg's direction and length, where it leaves the sphere and the normal
+// there, its cosines of incidence at the entry and the exit, and its spread.
+struct LensPath {
+    dir: vec3f,
+    dist: f32,
+    exit: vec3f,
+    cos_i: f32,
+    exit_normal: vec3f,
+    cos_r: f32,
+    spread: f32,
+    ok: bool,
+}
+
+// The plane of p, the sphere (centre c, radius r, index ior > 1) and the light's direction w;
+// not ok where p is inside the sphere or w along the line through p and the centre.
+fn lens_frame(p: vec3f, c: vec3f, r: f32, ior: f32, w: vec3f) -> LensFrame {
+    var out = LensFrame(vec3f(0.0), vec3f(0.0), 0.0, 0.0, ior, false);
+    let to_c = c - p;
+    let d = length(to_c);
+    if !(d > r * 1.0001) {
+        return out;
+    }
+    let a = to_c / d;
+    let ca = clamp(dot(w, a), -1.0, 1.0);
+    let perp = w - ca * a;
+    let sb = length(perp);
+    if !(sb >= 1e-6) {
+        return out;
+    }
+    out = LensFrame(a, perp / sb, r / d, atan2(sb, ca), ior, true);
+    return out;
+}
+
+// β(s) − β_w.
+fn lens_offset(f: LensFrame, s: f32) -> f32 {
+    return asin(f.k * s) - 2.0 * (asin(s) - asin(s / f.ior)) - f.beta;
+}
+
+// dβ / ds.
+fn lens_slope(f: LensFrame, s: f32) -> f32 {
+    let ks = f.k * s;
+    let sn = s / f.ior;
+    return f.k / sqrt(1.0 - ks * ks) - 2.0 / sqrt(1.0 - s * s) + 2.0 / (f.ior * sqrt(1.0 - sn * sn));
+}
+
+// The grid's s at index j of 0..=LENS_INTERVALS.
+fn lens_grid(j: u32) -> f32 {
+    return -1.0 + 2.0 * f32(j) / f32(LENS_INTERVALS);
+}
+
+// The root in [lo, hi], whose offsets differ in sign (glo the offset at lo).
+fn lens_refine(f: LensFrame, lo_in: f32, hi_in: f32, glo: f32) -> f32 {
+    var lo = lo_in;
+    var hi = hi_in;
+    let rising = glo < 0.0;
+    var s = 0.5 * (lo + hi);
+    for (var i = 0u; i < LENS_STEPS; i++) {
+        let g = lens_offset(f, s);
+        if (g < 0.0) == rising {
+            lo = s;
+        } else {
+            hi = s;
+        }
+        let next = s - g / lens_slope(f, s);
+        let to = select(0.5 * (lo + hi), next, next > lo && next < hi);
+        let step = abs(to - s);
+        s = to;
+        if step < 1e-7 {
+            break;
+        }
+    }
+    return s;
+}
+
+// The sines of incidence of the paths from the frame's point through the sphere to its light.
+fn lens_roots(f: LensFrame) -> LensRoots {
+    var out = LensRoots(vec3f(0.0), 0u);
+    // |β| ≤ asin k + 2 (π/2 − asin(1/n)): a light farther from the centre's direction has none.
+    if f.beta > asin(f.k) + 2.0 * (0.5 * PI - asin(1.0 / f.ior)) {
+        return out;
+    }
+    var glo = lens_offset(f, -1.0);
+    for (var j = 0u; j < LENS_INTERVALS; j++) {
+        let lo = lens_grid(j);
+        let hi = lens_grid(j + 1u);
+        let ghi = lens_offset(f, hi);
+        if (glo < 0.0) != (ghi < 0.0) && out.count < LENS_MAX_ROOTS {
+            out.s[out.count] = lens_refine(f, lo, hi, glo);
+            out.count += 1u;
+        }
+        glo = ghi;
+    }
+    return out;
+}
+
+// The path of sine of incidence s from p through the sphere (centre c, radius r).
+fn lens_path(f: LensFrame, p: vec3f, c: vec3f, r: f32, s: f32) -> LensPath {
+    let sin_psi = f.k * s;
+    let cos_psi = sqrt(max(1.0 - sin_psi * sin_psi, 0.0));
+    let dir = cos_psi * f.a + sin_psi * f.e2;
+    let cos_i = sqrt(max(1.0 - s * s, 0.0));
+    let sn = s / f.ior;
+    let cos_r = sqrt(max(1.0 - sn * sn, 0.0));
+    let dist = r * (cos_psi / f.k - cos_i);
+    let entry = p + dir * dist;
+    let n1 = (entry - c) / r;
+    let inside = (dir + cos_i * n1) / f.ior - cos_r * n1;
+    let exit = entry + normalize(inside) * (2.0 * r * cos_r);
+    let spread = f.k * f.k * abs(s) / (cos_psi * abs(lens_slope(f, s)) * sin(f.beta));
+    let ok = spread > 0.0 && spread < 3.0e38 && dist > 0.0 && cos_i > LENS_GRAZING;
+    return LensPath(dir, dist, exit, cos_i, (exit - c) / r, cos_r, spread, ok);
+}
+
+// The spread of the path whose first leg has direction dir from the frame's point, where
+// lens_roots finds that path, else 0.
+fn lens_spread_of(f: LensFrame, p: vec3f, c: vec3f, r: f32, dir: vec3f) -> f32 {
+    let s = dot(dir, f.e2) / f.k;
+    let found = lens_roots(f);
+    var gap = LENS_MATCH;
+    var best = 0.0;
+    var any = false;
+    for (var k = 0u; k < found.count; k++) {
+        let root = found.s[k];
+        if abs(root - s) < gap {
+            gap = abs(root - s);
+            best = root;
+            any = true;
+        }
+    }
+    if !any {
+        return 0.0;
+    }
+    let x = lens_path(f, p, c, r, best);
+    return select(0.0, x.spread, x.ok);
+}
+
+// The probability that scatter_dielectric refracts a ray through the sphere at both
+// interfaces (Schlick's Fresnel), entering at incidence cos_i and leaving at cos_r.
+fn lens_transmittance(ior: f32, cos_i: f32, cos_r: f32) -> f32 {
+    return (1.0 - schlick(cos_i, 1.0 / ior)) * (1.0 - schlick(cos_r, ior));
+}

@@ -1,0 +1,428 @@
+//! The map's light as a clear glass sphere refracts it onto a point (next-event estimation
+//! through a glass ball, the sun's caustic; docs/MODEL-NOTES.md "The map through a glass
+//! ball"): the paths that enter the sphere and leave it by refraction, toward a direction's
+//! light, and how much the sphere spreads that light. Twin: shaders/common/lens.wgsl
+//! (tests/twins.rs keeps their functions paired).
+//!
+//! The path is the one manifold next-event estimation solves for (Hanika, Droske &
+//! Fascione, "Manifold Next Event Estimation", EGSR 2015) with two refractive vertices; on
+//! a sphere it lies in the plane of the centre, the point and the light's direction, and by
+//! the path's reversibility it is the ray from the point traced through the sphere, one
+//! unknown: its sine of incidence s. The ray from p at angle ψ from the centre (sin ψ = s r /
+//! D) is turned toward the centre by i − r′ at each interface (sin i = s, sin r′ = s / n),
+//! so it leaves at angle β(s) = ψ − 2 (i − r′) (the ball lens's deviation: Born & Wolf,
+//! "Principles of Optics", §4.4; the rainbow's geometry without the inner reflection).
+//! β(s) = β_w has up to three roots (three rays through a point inside the caustic behind the
+//! ball, one outside it); they are bracketed on a fixed grid of s and refined by safeguarded
+//! Newton steps. A root the grid misses (two within one interval, near the caustic) is left
+//! to scattering, and the density `pdf_of` reports for it is 0, so the weights stay exact.
+
+use super::material::schlick;
+use glam::Vec3A;
+use std::f32::consts::FRAC_PI_2;
+
+/// Intervals of s ∈ [−1, 1] the roots are bracketed in.
+const INTERVALS: u32 = 16;
+/// The most roots a point has (three inside the caustic).
+pub const MAX_ROOTS: usize = 3;
+/// The most safeguarded Newton steps per root; it stops at a step under 10⁻⁷.
+const STEPS: u32 = 24;
+/// The least cosine of incidence of a path `path` returns.
+const GRAZING: f32 = 1e-3;
+/// How near (in s) the root `pdf_of` matches a path's own must be.
+const MATCH: f32 = 1e-3;
+
+/// The plane of a point, a glass sphere and a light's direction.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    /// Unit direction from the point to the centre.
+    pub a: Vec3A,
+    /// Unit direction in the plane, perpendicular to `a`, on the light's side.
+    pub e2: Vec3A,
+    /// r / D, the sine of the sphere's half-angle seen from the point.
+    pub k: f32,
+    /// The light's angle from `a` (in [0, π]).
+    pub beta: f32,
+    /// The sphere's index of refraction (above 1).
+    pub ior: f32,
+}
+
+/// One path from the point through the sphere to the light.
+#[derive(Clone, Copy, Debug)]
+pub struct Refraction {
+    /// Unit direction from the point to where it enters the sphere.
+    pub dir: Vec3A,
+    /// Distance from the point to the entry point.
+    pub dist: f32,
+    /// Where it leaves the sphere.
+    pub exit: Vec3A,
+    /// The sphere's outward normal there.
+    pub exit_normal: Vec3A,
+    /// Cosines of incidence at the entry (outside) and at the exit (inside).
+    pub cos_i: f32,
+    pub cos_r: f32,
+    /// The solid angle the point sees the light's image subtend, per unit solid angle of the
+    /// light: sin ψ |dψ / dβ| / sin β.
+    pub spread: f32,
+}
+
+/// The plane of `p`, the sphere (centre `c`, radius `r`, index `ior` > 1) and the light's
+/// direction `w` (unit, toward it), or None where `p` is inside the sphere or `w` is (within
+/// 10⁻⁶) along the line through p and the centre, where the plane is not defined.
+pub fn frame(p: Vec3A, c: Vec3A, r: f32, ior: f32, w: Vec3A) -> Option<Frame> {
+    let to_c = c - p;
+    let d = to_c.length();
+    if d.is_nan() || d <= r * 1.0001 {
+        return None;
+    }
+    let a = to_c / d;
+    let ca = w.dot(a).clamp(-1.0, 1.0);
+    let perp = w - ca * a;
+    let sb = perp.length();
+    if sb.is_nan() || sb < 1e-6 {
+        return None;
+    }
+    Some(Frame {
+        a,
+        e2: perp / sb,
+        k: r / d,
+        beta: sb.atan2(ca),
+        ior,
+    })
+}
+
+/// β(s) − β_w: the angle from the light of the ray of sine of incidence `s`, as it leaves.
+#[inline(always)]
+fn offset(f: &Frame, s: f32) -> f32 {
+    (f.k * s).asin() - 2.0 * (s.asin() - (s / f.ior).asin()) - f.beta
+}
+
+/// dβ / ds.
+#[inline(always)]
+fn slope(f: &Frame, s: f32) -> f32 {
+    let ks = f.k * s;
+    let sn = s / f.ior;
+    f.k / (1.0 - ks * ks).sqrt() - 2.0 / (1.0 - s * s).sqrt()
+        + 2.0 / (f.ior * (1.0 - sn * sn).sqrt())
+}
+
+/// The grid's s at index `j` of 0..=INTERVALS.
+#[inline(always)]
+fn grid(j: u32) -> f32 {
+    -1.0 + 2.0 * j as f32 / INTERVALS as f32
+}
+
+/// The root in [lo, hi], whose offsets `glo` and `ghi` differ in sign: Newton steps, each
+/// kept in the shrinking bracket (else halving it).
+fn refine(f: &Frame, mut lo: f32, mut hi: f32, glo: f32) -> f32 {
+    let rising = glo < 0.0;
+    let mut s = 0.5 * (lo + hi);
+    for _ in 0..STEPS {
+        let g = offset(f, s);
+        if (g < 0.0) == rising {
+            lo = s;
+        } else {
+            hi = s;
+        }
+        let next = s - g / slope(f, s);
+        let to = if next > lo && next < hi {
+            next
+        } else {
+            0.5 * (lo + hi)
+        };
+        let step = (to - s).abs();
+        s = to;
+        if step < 1e-7 {
+            break;
+        }
+    }
+    s
+}
+
+/// The sines of incidence of the paths from the frame's point through the sphere to its
+/// light, in increasing order, and how many there are (at most `MAX_ROOTS`).
+pub fn roots(f: &Frame) -> ([f32; MAX_ROOTS], usize) {
+    let mut out = [0.0; MAX_ROOTS];
+    let mut count = 0;
+    // |β| ≤ |ψ| + 2 |i − r′|, at most asin k + 2 (π/2 − asin(1/n)): a light farther from the
+    // centre's direction than that has no path (most of a point's lights, on its lit side).
+    if f.beta > f.k.asin() + 2.0 * (FRAC_PI_2 - f.ior.recip().asin()) {
+        return (out, 0);
+    }
+    let mut glo = offset(f, -1.0);
+    for j in 0..INTERVALS {
+        let (lo, hi) = (grid(j), grid(j + 1));
+        let ghi = offset(f, hi);
+        if (glo < 0.0) != (ghi < 0.0) && count < MAX_ROOTS {
+            out[count] = refine(f, lo, hi, glo);
+            count += 1;
+        }
+        glo = ghi;
+    }
+    (out, count)
+}
+
+/// The path of sine of incidence `s` from `p` through the sphere (centre `c`, radius `r`).
+pub fn path(f: &Frame, p: Vec3A, c: Vec3A, r: f32, s: f32) -> Option<Refraction> {
+    let sin_psi = f.k * s;
+    let cos_psi = (1.0 - sin_psi * sin_psi).max(0.0).sqrt();
+    let dir = cos_psi * f.a + sin_psi * f.e2;
+    let cos_i = (1.0 - s * s).max(0.0).sqrt();
+    let sn = s / f.ior;
+    let cos_r = (1.0 - sn * sn).max(0.0).sqrt();
+    let dist = r * (cos_psi / f.k - cos_i);
+    let entry = p + dir * dist;
+    let n1 = (entry - c) / r;
+    // Refracted in (material::refract_dir's Snell's law), across the chord of length
+    // 2r cos r′.
+    let inside = (dir + cos_i * n1) / f.ior - cos_r * n1;
+    let exit = entry + inside.normalize() * (2.0 * r * cos_r);
+    // sin ψ |dψ/dβ| / sin β, with dψ/ds = k / cos ψ: k² |s| / (cos ψ |β′(s)| sin β).
+    let spread = f.k * f.k * s.abs() / (cos_psi * slope(f, s).abs() * f.beta.sin());
+    // (Grazing paths, which carry next to no light, are left to scattering: their entry
+    // point is too ill-conditioned to trace to.)
+    if !(spread > 0.0 && spread.is_finite() && dist > 0.0 && cos_i > GRAZING) {
+        return None;
+    }
+    Some(Refraction {
+        dir,
+        dist,
+        exit,
+        exit_normal: (exit - c) / r,
+        cos_i,
+        cos_r,
+        spread,
+    })
+}
+
+/// The spread of the path whose first leg has direction `dir` from the frame's point (a ray
+/// the point's lobe drew, which went through the sphere and left it toward the frame's light),
+/// where `roots` finds that path, else None: light sampling would not have found it.
+pub fn spread_of(f: &Frame, p: Vec3A, c: Vec3A, r: f32, dir: Vec3A) -> Option<f32> {
+    let s = dir.dot(f.e2) / f.k;
+    let (found, count) = roots(f);
+    let mut best = None;
+    let mut gap = MATCH;
+    for &root in &found[..count] {
+        if (root - s).abs() < gap {
+            gap = (root - s).abs();
+            best = Some(root);
+        }
+    }
+    path(f, p, c, r, best?).map(|x| x.spread)
+}
+
+/// The probability that `material::scatter_dielectric` refracts a ray through the sphere at
+/// both interfaces (Schlick's Fresnel), entering at incidence cos i and leaving at cos r′.
+pub fn transmittance(ior: f32, cos_i: f32, cos_r: f32) -> f32 {
+    (1.0 - schlick(cos_i, 1.0 / ior)) * (1.0 - schlick(cos_r, ior))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Random numbers from a fixed LCG (no `rand` crate in the tests).
+    struct Lcg(u64);
+    impl Lcg {
+        fn f(&mut self) -> f32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 40) as f32 / (1u64 << 24) as f32
+        }
+        fn unit(&mut self) -> Vec3A {
+            loop {
+                let v = Vec3A::new(self.f(), self.f(), self.f()) * 2.0 - 1.0;
+                let l = v.length();
+                if l > 0.1 && l <= 1.0 {
+                    return v / l;
+                }
+            }
+        }
+    }
+
+    /// Snell's law in vector form (PBRT 4th ed. §9.3), `n` facing `d`: None at total internal
+    /// reflection. An implementation apart from the solver's angles.
+    fn refract(d: Vec3A, n: Vec3A, eta: f32) -> Option<Vec3A> {
+        let cos_i = -d.dot(n);
+        let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+        (k >= 0.0).then(|| (eta * d + (eta * cos_i - k.sqrt()) * n).normalize())
+    }
+
+    /// Where a ray from inside or outside meets the sphere (the far side from inside).
+    fn meet(o: Vec3A, d: Vec3A, c: Vec3A, r: f32, inside: bool) -> Option<Vec3A> {
+        let oc = o - c;
+        let b = oc.dot(d);
+        let disc = b * b - (oc.dot(oc) - r * r);
+        if disc < 0.0 {
+            return None;
+        }
+        let t = if inside {
+            -b + disc.sqrt()
+        } else {
+            -b - disc.sqrt()
+        };
+        (t > 0.0).then(|| o + t * d)
+    }
+
+    /// The light's direction as a ray from `p` along `dir` leaves the sphere, traced apart.
+    fn trace_through(p: Vec3A, dir: Vec3A, c: Vec3A, r: f32, ior: f32) -> Option<Vec3A> {
+        let e = meet(p, dir, c, r, false)?;
+        let inside = refract(dir, (e - c) / r, 1.0 / ior)?;
+        let x = meet(e, inside, c, r, true)?;
+        refract(inside, -(x - c) / r, ior)
+    }
+
+    /// Every path `roots` finds leaves the sphere toward the light (traced apart, by vector
+    /// Snell: within 0.2° where the exit's Jacobian is not extreme); `path` lands on the
+    /// sphere where it says; and the number of paths is a dense scan's (f64, 20 000 steps of
+    /// s) on all but the configurations where two roots share a grid interval (under 1 %).
+    #[test]
+    fn the_paths_refract_to_the_light() {
+        let mut rng = Lcg(3);
+        let (mut paths, mut missed, mut cases, mut inner) = (0, 0, 0, 0);
+        for _ in 0..4000 {
+            let c = Vec3A::new(rng.f(), rng.f(), rng.f()) * 2.0 - 1.0;
+            let r = 0.1 + rng.f();
+            let ior = 1.2 + 0.8 * rng.f();
+            let (p, w) = if cases % 2 == 0 {
+                (c + rng.unit() * r * (1.01 + 4.0 * rng.f()), rng.unit())
+            } else {
+                // Behind the sphere and near it, where three paths may meet.
+                let p = c + rng.unit() * r * (1.01 + 0.5 * rng.f());
+                (
+                    p,
+                    ((c - p).normalize() + 0.3 * rng.f() * rng.unit()).normalize(),
+                )
+            };
+            let Some(f) = frame(p, c, r, ior, w) else {
+                continue;
+            };
+            cases += 1;
+            let (found, count) = roots(&f);
+            // The dense scan, in f64.
+            let (k, b, n) = (f.k as f64, f.beta as f64, ior as f64);
+            let g = |s: f64| (k * s).asin() - 2.0 * (s.asin() - (s / n).asin()) - b;
+            let steps = 20000;
+            let dense = (0..steps)
+                .filter(|&j| {
+                    let lo = -1.0 + 2.0 * j as f64 / steps as f64;
+                    let hi = -1.0 + 2.0 * (j + 1) as f64 / steps as f64;
+                    (g(lo) < 0.0) != (g(hi) < 0.0)
+                })
+                .count();
+            if dense != count {
+                missed += 1;
+            }
+            if dense == 3 {
+                inner += 1;
+            }
+            for &s in &found[..count] {
+                let Some(x) = path(&f, p, c, r, s) else {
+                    continue;
+                };
+                let entry = p + x.dir * x.dist;
+                assert!(((entry - c).length() - r).abs() < 1e-4 * (1.0 + r));
+                assert!(((x.exit - c).length() - r).abs() < 1e-3 * (1.0 + r));
+                let out = trace_through(p, x.dir, c, r, ior)
+                    .unwrap_or_else(|| panic!("p {p} c {c} r {r} ior {ior} w {w} s {s}: no path"));
+                if x.spread < 100.0 {
+                    assert!(
+                        out.dot(w) > 1.0 - 6e-6,
+                        "p {p} c {c} r {r} ior {ior} w {w} s {s}: {}° off",
+                        out.dot(w).min(1.0).acos().to_degrees()
+                    );
+                }
+                paths += 1;
+            }
+        }
+        eprintln!("{paths} paths, {inner} with three, {missed} of {cases} missed");
+        assert!(
+            paths > 2000 && inner > 100,
+            "{paths} paths, {inner} points with three"
+        );
+        assert!(
+            (missed as f64) < 0.01 * cases as f64,
+            "{missed} of {cases} counted apart from the dense scan"
+        );
+    }
+
+    /// `spread` is the ratio of solid angles the solver's own map from light directions to
+    /// directions at p gives, measured by finite differences (to 1 %), in and out of the
+    /// caustic; and `spread_of` finds it again from a path's first direction, and nothing
+    /// from a direction no path has.
+    #[test]
+    fn the_spread_is_the_jacobian_of_the_refraction() {
+        let mut rng = Lcg(5);
+        let mut checked = 0;
+        for _ in 0..8000 {
+            let (c, r) = (Vec3A::ZERO, 0.5);
+            let ior = 1.3 + 0.6 * rng.f();
+            let p = rng.unit() * r * (1.05 + 5.0 * rng.f());
+            let w = rng.unit();
+            let Some(f) = frame(p, c, r, ior, w) else {
+                continue;
+            };
+            let (found, count) = roots(&f);
+            for &s in &found[..count] {
+                let Some(x) = path(&f, p, c, r, s) else {
+                    continue;
+                };
+                assert_eq!(spread_of(&f, p, c, r, x.dir), Some(x.spread));
+                if !(x.spread > 1e-3 && x.spread < 10.0 && s.abs() < 0.95 && s.abs() > 0.05) {
+                    continue;
+                }
+                let t1 = w.any_orthonormal_vector();
+                let t2 = w.cross(t1);
+                let h = 1e-3;
+                // The path near this one for a nearby light direction.
+                let dir_at = |dw: Vec3A| {
+                    let g = frame(p, c, r, ior, (w + dw).normalize())?;
+                    let (near, n) = roots(&g);
+                    near[..n]
+                        .iter()
+                        .filter_map(|&t| path(&g, p, c, r, t))
+                        .min_by(|a, b| {
+                            let da = (a.dir - x.dir).length();
+                            let db = (b.dir - x.dir).length();
+                            da.total_cmp(&db)
+                        })
+                        .map(|y| y.dir)
+                };
+                let (Some(a1), Some(b1), Some(a2), Some(b2)) = (
+                    dir_at(t1 * h),
+                    dir_at(-t1 * h),
+                    dir_at(t2 * h),
+                    dir_at(-t2 * h),
+                ) else {
+                    continue;
+                };
+                let seen = (a1 - b1).cross(a2 - b2).dot(x.dir).abs();
+                let source = (2.0 * h) * (2.0 * h);
+                assert!(
+                    (seen / source / x.spread - 1.0).abs() < 0.01,
+                    "p {p} ior {ior} w {w} s {s}: measured {} against {}",
+                    seen / source,
+                    x.spread
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked > 1000, "{checked}");
+        // A direction the sphere does not bend any path into.
+        let f = frame(Vec3A::new(0.0, 0.0, 3.0), Vec3A::ZERO, 0.5, 1.5, Vec3A::X).unwrap();
+        assert_eq!(roots(&f).1, 0);
+        assert!(spread_of(&f, Vec3A::new(0.0, 0.0, 3.0), Vec3A::ZERO, 0.5, -Vec3A::Z).is_none());
+    }
+
+    /// A path through the sphere's centre passes unbent, and Schlick's Fresnel lets through
+    /// (1 − r0)² of it; at grazing incidence nothing enters.
+    #[test]
+    fn head_on_the_sphere_passes_the_light_through() {
+        let r0 = (0.5f32 / 2.5).powi(2);
+        assert!((transmittance(1.5, 1.0, 1.0) - (1.0 - r0) * (1.0 - r0)).abs() < 1e-6);
+        assert_eq!(transmittance(1.5, 0.0, 0.7), 0.0);
+    }
+}
