@@ -12,6 +12,7 @@
 // per root; the least cosine of incidence of a path; how near (in s) lens_spread_of's root
 // must be to a path's own.
 const LENS_INTERVALS: u32 = 16u;
+const LENS_HALF: u32 = 8u;
 const LENS_MAX_ROOTS: u32 = 3u;
 const LENS_STEPS: u32 = 24u;
 const LENS_GRAZING: f32 = 1e-3;
@@ -67,9 +68,15 @@ fn lens_frame(p: vec3f, c: vec3f, r: f32, ior: f32, w: vec3f) -> LensFrame {
     return out;
 }
 
+// β(s): the angle from the centre's direction at which the ray of sine of incidence s
+// leaves; odd in s.
+fn lens_deviation(f: LensFrame, s: f32) -> f32 {
+    return asin(f.k * s) - 2.0 * (asin(s) - asin(s / f.ior));
+}
+
 // β(s) − β_w.
 fn lens_offset(f: LensFrame, s: f32) -> f32 {
-    return asin(f.k * s) - 2.0 * (asin(s) - asin(s / f.ior)) - f.beta;
+    return lens_deviation(f, s) - f.beta;
 }
 
 // dβ / ds.
@@ -115,11 +122,18 @@ fn lens_roots(f: LensFrame) -> LensRoots {
     if f.beta > asin(f.k) + 2.0 * (0.5 * PI - asin(1.0 / f.ior)) {
         return out;
     }
-    var glo = lens_offset(f, -1.0);
+    // β on the grid's half s ≥ 0 (s = m / LENS_HALF); the other half is its negative.
+    var half: array<f32, 9>;
+    for (var m = 0u; m <= LENS_HALF; m++) {
+        half[m] = lens_deviation(f, f32(m) / f32(LENS_HALF));
+    }
+    var glo = -half[LENS_HALF] - f.beta;
     for (var j = 0u; j < LENS_INTERVALS; j++) {
         let lo = lens_grid(j);
         let hi = lens_grid(j + 1u);
-        let ghi = lens_offset(f, hi);
+        let m = i32(j + 1u) - i32(LENS_HALF);
+        let b = half[u32(abs(m))];
+        let ghi = select(b, -b, m < 0) - f.beta;
         if (glo < 0.0) != (ghi < 0.0) && out.count < LENS_MAX_ROOTS {
             out.s[out.count] = lens_refine(f, lo, hi, glo);
             out.count += 1u;

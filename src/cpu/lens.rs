@@ -23,6 +23,8 @@ use std::f32::consts::FRAC_PI_2;
 
 /// Intervals of s ∈ [−1, 1] the roots are bracketed in.
 const INTERVALS: u32 = 16;
+/// Half of them: the grid's points with s ≥ 0 are 0, 1 / HALF, …, 1.
+const HALF: usize = INTERVALS as usize / 2;
 /// The most roots a point has (three inside the caustic).
 pub const MAX_ROOTS: usize = 3;
 /// The most safeguarded Newton steps per root; it stops at a step under 10⁻⁷.
@@ -91,10 +93,17 @@ pub fn frame(p: Vec3A, c: Vec3A, r: f32, ior: f32, w: Vec3A) -> Option<Frame> {
     })
 }
 
+/// β(s): the angle from the centre's direction at which the ray of sine of incidence `s`
+/// leaves; odd in s.
+#[inline(always)]
+fn deviation(f: &Frame, s: f32) -> f32 {
+    (f.k * s).asin() - 2.0 * (s.asin() - (s / f.ior).asin())
+}
+
 /// β(s) − β_w: the angle from the light of the ray of sine of incidence `s`, as it leaves.
 #[inline(always)]
 fn offset(f: &Frame, s: f32) -> f32 {
-    (f.k * s).asin() - 2.0 * (s.asin() - (s / f.ior).asin()) - f.beta
+    deviation(f, s) - f.beta
 }
 
 /// dβ / ds.
@@ -149,10 +158,20 @@ pub fn roots(f: &Frame) -> ([f32; MAX_ROOTS], usize) {
     if f.beta > f.k.asin() + 2.0 * (FRAC_PI_2 - f.ior.recip().asin()) {
         return (out, 0);
     }
-    let mut glo = offset(f, -1.0);
+    // β on the grid's half s ≥ 0 (s = m / HALF); the other half is its negative.
+    let mut half = [0.0; HALF + 1];
+    for (m, b) in half.iter_mut().enumerate() {
+        *b = deviation(f, m as f32 / HALF as f32);
+    }
+    let at = |j: u32| {
+        let m = j as i32 - HALF as i32;
+        let b = half[m.unsigned_abs() as usize];
+        if m < 0 { -b - f.beta } else { b - f.beta }
+    };
+    let mut glo = at(0);
     for j in 0..INTERVALS {
         let (lo, hi) = (grid(j), grid(j + 1));
-        let ghi = offset(f, hi);
+        let ghi = at(j + 1);
         if (glo < 0.0) != (ghi < 0.0) && count < MAX_ROOTS {
             out[count] = refine(f, lo, hi, glo);
             count += 1;

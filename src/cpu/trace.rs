@@ -718,10 +718,8 @@ impl<'a> Tracer<'a> {
             return Vec3A::ZERO;
         };
         let (roots, found) = lens::roots(&f);
-        let radiance = Vec3A::from_array(map.radiance_at(smp.uv.0, smp.uv.1))
-            * u.env_intensity
-            * m.color
-            * m.color;
+        // The map's radiance once, where a path reaches it.
+        let mut radiance = None;
         let mut sum = Vec3A::ZERO;
         for &s in &roots[..found] {
             let Some(x) = lens::path(&f, p, c, r, s) else {
@@ -757,8 +755,14 @@ impl<'a> Tracer<'a> {
             if self.occluded::<P>(&to_map, T_FAR, NONE, i) {
                 continue;
             }
+            let l = *radiance.get_or_insert_with(|| {
+                Vec3A::from_array(map.radiance_at(smp.uv.0, smp.uv.1))
+                    * u.env_intensity
+                    * m.color
+                    * m.color
+            });
             sum += light_weighted(
-                radiance * lens::transmittance(m.ior, x.cos_i, x.cos_r),
+                l * lens::transmittance(m.ior, x.cos_i, x.cos_r),
                 x.dir,
                 cos_s,
                 self.lens_pdf(smp.pdf, x.spread),
