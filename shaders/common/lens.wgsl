@@ -15,7 +15,7 @@ const LENS_INTERVALS: u32 = 16u;
 const LENS_HALF: u32 = 8u;
 const LENS_MAX_ROOTS: u32 = 3u;
 const LENS_STEPS: u32 = 24u;
-const LENS_GRAZING: f32 = 1e-3;
+const LENS_GRAZING: f32 = 1e-2;
 const LENS_MATCH: f32 = 1e-3;
 
 // The plane of a point, a glass sphere and a light's direction: a (point to centre), e2 (in
@@ -59,7 +59,8 @@ fn lens_frame(p: vec3f, c: vec3f, r: f32, ior: f32, w: vec3f) -> LensFrame {
     }
     let a = to_c / d;
     let ca = clamp(dot(w, a), -1.0, 1.0);
-    let perp = w - ca * a;
+    // w's part across a, as a × (w × a): square to a to rounding however near w is to a.
+    let perp = cross(a, cross(w, a));
     let sb = length(perp);
     if !(sb >= 1e-6) {
         return out;
@@ -91,12 +92,13 @@ fn lens_grid(j: u32) -> f32 {
     return -1.0 + 2.0 * f32(j) / f32(LENS_INTERVALS);
 }
 
-// The root in [lo, hi], whose offsets differ in sign (glo the offset at lo).
-fn lens_refine(f: LensFrame, lo_in: f32, hi_in: f32, glo: f32) -> f32 {
+// The root in [lo, hi], whose offsets glo and ghi differ in sign: Newton steps from the
+// chord's root, kept in the shrinking bracket.
+fn lens_refine(f: LensFrame, lo_in: f32, hi_in: f32, glo: f32, ghi: f32) -> f32 {
     var lo = lo_in;
     var hi = hi_in;
     let rising = glo < 0.0;
-    var s = 0.5 * (lo + hi);
+    var s = clamp(lo + (hi - lo) * glo / (glo - ghi), lo, hi);
     for (var i = 0u; i < LENS_STEPS; i++) {
         let g = lens_offset(f, s);
         if (g < 0.0) == rising {
@@ -135,7 +137,7 @@ fn lens_roots(f: LensFrame) -> LensRoots {
         let b = half[u32(abs(m))];
         let ghi = select(b, -b, m < 0) - f.beta;
         if (glo < 0.0) != (ghi < 0.0) && out.count < LENS_MAX_ROOTS {
-            out.s[out.count] = lens_refine(f, lo, hi, glo);
+            out.s[out.count] = lens_refine(f, lo, hi, glo, ghi);
             out.count += 1u;
         }
         glo = ghi;

@@ -30,7 +30,7 @@ pub const MAX_ROOTS: usize = 3;
 /// The most safeguarded Newton steps per root; it stops at a step under 10⁻⁷.
 const STEPS: u32 = 24;
 /// The least cosine of incidence of a path `path` returns.
-const GRAZING: f32 = 1e-3;
+const GRAZING: f32 = 1e-2;
 /// How near (in s) the root `pdf_of` matches a path's own must be.
 const MATCH: f32 = 1e-3;
 
@@ -79,7 +79,9 @@ pub fn frame(p: Vec3A, c: Vec3A, r: f32, ior: f32, w: Vec3A) -> Option<Frame> {
     }
     let a = to_c / d;
     let ca = w.dot(a).clamp(-1.0, 1.0);
-    let perp = w - ca * a;
+    // w's part across a, as a × (w × a): square to a to rounding however near w is to a
+    // (w − (w·a) a loses that where w is within a degree of a, behind the ball).
+    let perp = a.cross(w.cross(a));
     let sb = perp.length();
     if sb.is_nan() || sb < 1e-6 {
         return None;
@@ -121,11 +123,11 @@ fn grid(j: u32) -> f32 {
     -1.0 + 2.0 * j as f32 / INTERVALS as f32
 }
 
-/// The root in [lo, hi], whose offsets `glo` and `ghi` differ in sign: Newton steps, each
-/// kept in the shrinking bracket (else halving it).
-fn refine(f: &Frame, mut lo: f32, mut hi: f32, glo: f32) -> f32 {
+/// The root in [lo, hi], whose offsets `glo` and `ghi` differ in sign: Newton steps from
+/// the chord's root, each kept in the shrinking bracket (else halving it).
+fn refine(f: &Frame, mut lo: f32, mut hi: f32, glo: f32, ghi: f32) -> f32 {
     let rising = glo < 0.0;
-    let mut s = 0.5 * (lo + hi);
+    let mut s = (lo + (hi - lo) * glo / (glo - ghi)).clamp(lo, hi);
     for _ in 0..STEPS {
         let g = offset(f, s);
         if (g < 0.0) == rising {
@@ -173,7 +175,7 @@ pub fn roots(f: &Frame) -> ([f32; MAX_ROOTS], usize) {
         let (lo, hi) = (grid(j), grid(j + 1));
         let ghi = at(j + 1);
         if (glo < 0.0) != (ghi < 0.0) && count < MAX_ROOTS {
-            out[count] = refine(f, lo, hi, glo);
+            out[count] = refine(f, lo, hi, glo, ghi);
             count += 1;
         }
         glo = ghi;
@@ -343,7 +345,13 @@ mod tests {
                     continue;
                 };
                 let entry = p + x.dir * x.dist;
-                assert!(((entry - c).length() - r).abs() < 1e-4 * (1.0 + r));
+                assert!(
+                    ((entry - c).length() - r).abs() < 1e-4 * (1.0 + r),
+                    "p {p} c {c} r {r} ior {ior} s {s} k {} dist {} off {}",
+                    f.k,
+                    x.dist,
+                    (entry - c).length() - r
+                );
                 assert!(((x.exit - c).length() - r).abs() < 1e-3 * (1.0 + r));
                 let out = trace_through(p, x.dir, c, r, ior)
                     .unwrap_or_else(|| panic!("p {p} c {c} r {r} ior {ior} w {w} s {s}: no path"));
