@@ -10,12 +10,12 @@
 //! the path's reversibility it is the ray from the point traced through the sphere, one
 //! unknown: its sine of incidence s. The ray from p at angle ψ from the centre (sin ψ = s r /
 //! D) is turned toward the centre by i − r′ at each interface (sin i = s, sin r′ = s / n),
-//! so it leaves at angle β(s) = ψ − 2 (i − r′) (the ball lens's deviation: Born & Wolf,
-//! "Principles of Optics", §4.4; the rainbow's geometry without the inner reflection).
+//! so it leaves at angle β(s) = ψ − 2 (i − r′) (the ball lens's deviation: the rainbow's
+//! geometry, Descartes' ray through a drop, without its inner reflection).
 //! β(s) = β_w has up to three roots (three rays through a point inside the caustic behind the
 //! ball, one outside it); they are bracketed on a fixed grid of s and refined by safeguarded
 //! Newton steps. A root the grid misses (two within one interval, near the caustic) is left
-//! to scattering, and the density `pdf_of` reports for it is 0, so the weights stay exact.
+//! to scattering, and `spread_of` finds no density for it, so the weights stay exact.
 
 use super::material::schlick;
 use glam::Vec3A;
@@ -31,7 +31,7 @@ pub const MAX_ROOTS: usize = 3;
 const STEPS: u32 = 24;
 /// The least cosine of incidence of a path `path` returns.
 const GRAZING: f32 = 1e-2;
-/// How near (in s) the root `pdf_of` matches a path's own must be.
+/// How near (in s) the root `spread_of` matches to a path's own must be.
 const MATCH: f32 = 1e-3;
 
 /// The plane of a point, a glass sphere and a light's direction.
