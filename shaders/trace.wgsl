@@ -865,7 +865,7 @@ fn mirror_hit(hit: Hit, ray: Ray, position: vec3f, normal: vec3f, prev_pdf: f32,
 // sample_mirror, which says how): one of the mirror spheres chosen evenly, a direction from
 // the map's distribution, the point of the sphere that reflects it to p, both legs
 // unoccluded, MIS-weighted against the lobe.
-fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss: Gloss, state: ptr<function, Rng>) -> vec3f {
+fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss: Gloss, view: vec2i, state: ptr<function, Rng>) -> vec3f {
     let count = scene.n_mirrors;
     var pick = 0.0;
     if count > 1u {
@@ -911,7 +911,92 @@ fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, glo
         reflectance = pbr_mirror_reflectance(pbr_lobe(m, -x.dir, x.normal, true), x.cos_i);
     }
     let radiance = s.radiance * scene.env_intensity * reflectance;
-    return light_weighted(radiance, x.dir, cos_s, mirror_pdf(s.pdf, spread), pbr, lobe, gloss);
+    return weighed(radiance, p, x.dir, cos_s, mirror_pdf(s.pdf, spread), pbr, lobe, gloss, view);
+}
+
+// Where a ray from origin, a point of the camera's lens, along unit dir crosses the focus
+// plane, in pixels (x to the right, y down, as camera_ray counts them), and the density in
+// solid angle with which camera_ray draws dir from origin for that pixel: distance² over the
+// cosine and the pixel's area on the plane; z = 0 behind the plane (src/cpu/trace.rs:
+// pixel_at, which says why).
+fn pixel_at(origin: vec3f, dir: vec3f) -> vec3f {
+    let h = scene.cam_horizontal;
+    let v = scene.cam_vertical;
+    let centre = scene.cam_to_corner + 0.5 * h - 0.5 * v;
+    let ahead = normalize(centre);
+    let cos = dot(dir, ahead);
+    if cos <= 0.0 {
+        return vec3f(0.0);
+    }
+    let lens = origin - scene.cam_origin;
+    let dist = dot(centre - lens, ahead) / cos;
+    let q = lens + dist * dir - scene.cam_to_corner;
+    let h2 = dot(h, h);
+    let v2 = dot(v, v);
+    let w = f32(scene.width);
+    let ht = f32(scene.height);
+    let area = sqrt(h2 * v2) / (w * ht);
+    return vec3f(dot(q, h) / h2 * w, -dot(q, v) / v2 * ht, dist * dist / (cos * area));
+}
+
+// A light sample's estimate for the lobe light sampling weighs (light_weighted), or, from the
+// camera (view: the pixel; x < 0 for none), for that pixel's camera rays (view_weighted)
+// (src/cpu/trace.rs: weighed).
+fn weighed(radiance: vec3f, p: vec3f, dir: vec3f, cos_s: f32, pl: f32, pbr: bool, lobe: PbrLobe, gloss: Gloss, view: vec2i) -> vec3f {
+    if view.x >= 0 {
+        return view_weighted(radiance, p, dir, pl, vec2u(view));
+    }
+    return light_weighted(radiance, dir, cos_s, pl, pbr, lobe, gloss);
+}
+
+// A light sample of density pl that reaches the camera's lens point p along dir, as an
+// estimate of pixel px's value, weighed by the power heuristic against the pixel's camera
+// rays (src/cpu/trace.rs: view_weighted).
+fn view_weighted(radiance: vec3f, p: vec3f, dir: vec3f, pl: f32, px: vec2u) -> vec3f {
+    let v = pixel_at(p, dir);
+    if v.z > 0.0 && floor(v.x) == f32(px.x) && floor(v.y) == f32(px.y) {
+        return radiance / (v.z / pl + pl / v.z);
+    }
+    return vec3f(0.0);
+}
+
+// The environment map's light that the camera sees in the mirror spheres light sampling
+// samples, for pixel px whose camera ray is primary: sample_mirror from the ray's lens point,
+// counted where its path crosses the focus plane inside the pixel (src/cpu/trace.rs:
+// sample_view, which says why).
+fn sample_view(px: vec2u, primary: Ray, state: ptr<function, Rng>) -> vec3f {
+    if scene.max_bounces == 0u || !view_meets(primary) {
+        return vec3f(0.0);
+    }
+    let ahead = normalize(scene.cam_to_corner + 0.5 * scene.cam_horizontal - 0.5 * scene.cam_vertical);
+    return sample_mirror(primary.origin, ahead, ahead, false, PbrLobe(), Gloss(ahead, vec3f(0.0), 0.0), vec2i(px), state);
+}
+
+// Whether the pixel of camera ray primary may see one of the mirror spheres: some sphere's
+// cone from the ray's lens point meets the cone of the pixel's rays, within β of the ray,
+// sin β = the pixel's diagonal / the focus distance (src/cpu/trace.rs: view_meets).
+fn view_meets(primary: Ray) -> bool {
+    let h = scene.cam_horizontal / f32(scene.width);
+    let v = scene.cam_vertical / f32(scene.height);
+    let focus = length(scene.cam_to_corner + 0.5 * scene.cam_horizontal - 0.5 * scene.cam_vertical);
+    let sin_b = min(sqrt(dot(h, h) + dot(v, v)) / focus, 1.0);
+    let cos_b = sqrt(1.0 - sin_b * sin_b);
+    for (var k = 0u; k < scene.n_mirrors; k++) {
+        let sphere = spheres[lights[scene.n_lights + k].prim];
+        let to = sphere_center(sphere) - primary.origin;
+        let d2 = dot(to, to);
+        let r2 = sphere.radius * sphere.radius;
+        if d2 <= r2 {
+            return true;
+        }
+        // cos of the angle to the centre against cos(α + β), α the sphere's half-angle.
+        let sin_a = sqrt(r2 / d2);
+        let cos_a = sqrt(1.0 - r2 / d2);
+        if dot(primary.dir, to) >= sqrt(d2) * (cos_a * cos_b - sin_a * sin_b) {
+            return true;
+        }
+    }
+    return false;
 }
 
 // The density, in solid angle at the point that sees it, with which sample_lens finds the
@@ -1104,7 +1189,12 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     // A mirror sphere met from a lobe light sampling weighs: what it reflects from the map
     // next is weighed against sample_mirror.
     if HAS_MIRROR_NEE {
-        (*path).mirror = mirror_hit(hit, ray, surf.point.position, surf.point.normal, (*path).prev_pdf, (*path).prev_point);
+        // The camera ray's density (sample_view) stands for a lobe's at the first hit.
+        var drawn = (*path).prev_pdf;
+        if bounce == 0u && nee {
+            drawn = pixel_at(ray.origin, ray.dir).z;
+        }
+        (*path).mirror = mirror_hit(hit, ray, surf.point.position, surf.point.normal, drawn, (*path).prev_point);
     }
     if HAS_LENS_NEE {
         lens_step(path, hit, ray, surf.point.normal, false, vec3f(0.0));
@@ -1168,7 +1258,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
             // The map in the mirror spheres: its paths scatter here and at the mirror, and
             // leave it, within the bounces allowed.
             if HAS_MIRROR_NEE && scene.n_mirrors > 0u && bounce + 2u <= scene.max_bounces {
-                (*path).radiance += (*path).throughput * tint * sample_mirror(surf.point.position, ns, n, pbr, lobe, gloss, state);
+                (*path).radiance += (*path).throughput * tint * sample_mirror(surf.point.position, ns, n, pbr, lobe, gloss, vec2i(-1), state);
             }
             // The map through the glass spheres: its paths scatter here, refract in and out,
             // and leave, within the bounces allowed.
@@ -1317,6 +1407,10 @@ fn trace(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_in
             if fresh {
                 state = rng_init(pixel, batch.sample_base + i, scene.seed);
                 path = path_start(camera_ray(px, &state));
+                // The map in the mirror spheres, seen from the camera.
+                if HAS_MIRROR_NEE && HAS_NEE && (scene.n_lights > 0u || env_pick() > 0.0) {
+                    path.radiance += sample_view(px, path.ray, &state);
+                }
                 fresh = false;
             }
             segments += 1u;

@@ -173,7 +173,8 @@ fn trace_row<const P: u32, const NEE: bool>(
             for x in 0..n {
                 let ray = rays[x].expect("a ray for every pixel of the group");
                 let known = first.map(|h| h[x]);
-                let (radiance, segments) = t.trace_path::<P, NEE>(ray, known, &mut rngs[x]);
+                let (radiance, segments) =
+                    t.trace_path::<P, NEE>((x0 + x as u32, y), ray, known, &mut rngs[x]);
                 c.segments += segments as u64;
                 c.drawn[rngs[x].taken() as usize] += 1;
                 if !radiance.is_finite() {

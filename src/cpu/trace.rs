@@ -825,6 +825,7 @@ impl<'a> Tracer<'a> {
         n_geo: Vec3A,
         from: u32,
         lobe: Weighed,
+        view: Option<(u32, u32)>,
         rng: &mut Rng,
     ) -> Vec3A {
         let Some(map) = self.s.env.as_ref() else {
@@ -883,12 +884,14 @@ impl<'a> Tracer<'a> {
         };
         let radiance =
             Vec3A::from_array(map.radiance_at(smp.uv.0, smp.uv.1)) * u.env_intensity * reflectance;
-        light_weighted(
+        self.weighed(
             radiance,
+            p,
             x.dir,
             cos_s,
             self.mirror_pdf(smp.pdf, spread),
             lobe,
+            view,
         )
     }
 
@@ -926,6 +929,131 @@ impl<'a> Tracer<'a> {
             origin: u.cam_origin + lens,
             dir: (target - lens).normalize(),
         }
+    }
+
+    /// Where a ray from `origin`, a point of the camera's lens, along unit `dir` crosses the
+    /// focus plane, in pixels (x to the right, y down, as `camera_ray` counts them), and the
+    /// density in solid angle with which `camera_ray` draws `dir` from `origin` for that
+    /// pixel: uniform over the pixel's rectangle of the plane, so distance² over the cosine
+    /// and the rectangle's area (pbrt-v4 §5.4.4, the camera's importance); None behind the
+    /// plane (trace.wgsl: pixel_at).
+    #[inline(always)]
+    fn pixel_at(&self, origin: Vec3A, dir: Vec3A) -> Option<(f32, f32, f32)> {
+        let u = &self.s.u;
+        let (h, v) = (u.cam_horizontal, u.cam_vertical);
+        let centre = u.cam_to_corner + 0.5 * h - 0.5 * v;
+        let ahead = centre.normalize();
+        let cos = dir.dot(ahead);
+        if cos <= 0.0 {
+            return None;
+        }
+        // The lens point relative to the camera's origin lies in the lens plane, square to
+        // `ahead`.
+        let lens = origin - u.cam_origin;
+        let dist = (centre - lens).dot(ahead) / cos;
+        let q = lens + dist * dir - u.cam_to_corner;
+        let (h2, v2) = (h.length_squared(), v.length_squared());
+        let (w, ht) = (u.width as f32, u.height as f32);
+        let area = (h2 * v2).sqrt() / (w * ht);
+        Some((
+            q.dot(h) / h2 * w,
+            -q.dot(v) / v2 * ht,
+            dist * dist / (cos * area),
+        ))
+    }
+
+    /// A light sample's estimate for the lobe light sampling weighs (`light_weighted`), or,
+    /// from the camera (`view`: the pixel, `sample_view`), for that pixel's camera rays
+    /// (`view_weighted`) (trace.wgsl: weighed).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn weighed(
+        &self,
+        radiance: Vec3A,
+        p: Vec3A,
+        dir: Vec3A,
+        cos_s: f32,
+        pl: f32,
+        lobe: Weighed,
+        view: Option<(u32, u32)>,
+    ) -> Vec3A {
+        match view {
+            Some(px) => self.view_weighted(radiance, p, dir, pl, px),
+            None => light_weighted(radiance, dir, cos_s, pl, lobe),
+        }
+    }
+
+    /// A light sample of density `pl` that reaches the camera's lens point `p` along `dir`,
+    /// as an estimate of pixel `px`'s value: none where `dir` is not in the pixel, else
+    /// radiance · p_c / pl, weighed by the power heuristic against p_c, the density with
+    /// which the pixel's camera rays find `dir` (`pixel_at`): radiance / (p_c/pl + pl/p_c),
+    /// which neither square overflows (trace.wgsl: view_weighted).
+    #[inline(always)]
+    fn view_weighted(
+        &self,
+        radiance: Vec3A,
+        p: Vec3A,
+        dir: Vec3A,
+        pl: f32,
+        px: (u32, u32),
+    ) -> Vec3A {
+        match self.pixel_at(p, dir) {
+            Some((x, y, pc))
+                if pc > 0.0 && x.floor() == px.0 as f32 && y.floor() == px.1 as f32 =>
+            {
+                radiance / (pc / pl + pl / pc)
+            }
+            _ => Vec3A::ZERO,
+        }
+    }
+
+    /// The environment map's light that the camera sees in the mirror spheres light sampling
+    /// samples, for pixel `px` whose camera ray is `primary`: `sample_mirror` from the ray's
+    /// lens point as from a surface, its path counted where it crosses the focus plane inside
+    /// the pixel and weighed against the pixel's camera rays, which find the same paths
+    /// (`trace_path` weighs them at the first hit). The sun's image in a ball is smaller than
+    /// a pixel: camera rays find it as fireflies, this in every sample. Only where the pixel
+    /// may see a mirror sphere (`view_meets`). Docs: MODEL-NOTES.md, "The map in a mirror
+    /// ball" (trace.wgsl: sample_view).
+    fn sample_view<const P: u32>(&mut self, px: (u32, u32), primary: &Ray, rng: &mut Rng) -> Vec3A {
+        let u = &self.s.u;
+        // Camera, mirror, map: one scattering.
+        if u.max_bounces == 0 || !self.view_meets(primary, &self.s.mirrors) {
+            return Vec3A::ZERO;
+        }
+        let ahead = (u.cam_to_corner + 0.5 * u.cam_horizontal - 0.5 * u.cam_vertical).normalize();
+        let o = primary.origin;
+        self.sample_mirror::<P>(o, ahead, ahead, NONE, Weighed::Cosine, Some(px), rng)
+    }
+
+    /// Whether the pixel of camera ray `primary` may see one of `spheres` (the paths
+    /// `sample_view` samples begin on the sphere): some sphere's cone from the ray's lens
+    /// point meets the cone of the pixel's rays. Those reach the focus plane within the
+    /// pixel's diagonal of the ray's point, and the plane is at least the focus distance
+    /// away, so they stay within β of the ray, sin β = diagonal / focus distance. The rest of
+    /// the image takes no draw and no solve (trace.wgsl: view_meets).
+    #[inline(always)]
+    fn view_meets(&self, primary: &Ray, spheres: &[u32]) -> bool {
+        let u = &self.s.u;
+        let (h, v) = (
+            u.cam_horizontal / u.width as f32,
+            u.cam_vertical / u.height as f32,
+        );
+        let focus = (u.cam_to_corner + 0.5 * u.cam_horizontal - 0.5 * u.cam_vertical).length();
+        let sin_b = ((h.length_squared() + v.length_squared()).sqrt() / focus).min(1.0);
+        let cos_b = (1.0 - sin_b * sin_b).sqrt();
+        spheres.iter().any(|&i| {
+            let s = &self.s.spheres[i as usize];
+            let to = sphere_center(s) - primary.origin;
+            let d2 = to.length_squared();
+            let r2 = s.radius * s.radius;
+            if d2 <= r2 {
+                return true;
+            }
+            // cos of the angle to the centre against cos(α + β), α the sphere's half-angle.
+            let (sin_a, cos_a) = ((r2 / d2).sqrt(), (1.0 - r2 / d2).sqrt());
+            primary.dir.dot(to) >= d2.sqrt() * (cos_a * cos_b - sin_a * sin_b)
+        })
     }
 
     /// Solid-angle density with which light sampling from `origin` picks the direction that
@@ -1111,6 +1239,7 @@ impl<'a> Tracer<'a> {
     /// of the (t, reference) or of None for a miss), else None.
     pub fn trace_path<const P: u32, const NEE: bool>(
         &mut self,
+        px: (u32, u32),
         primary: Ray,
         mut first: Option<Option<(f32, u32)>>,
         rng: &mut Rng,
@@ -1131,6 +1260,16 @@ impl<'a> Tracer<'a> {
         let mut mirrored = None;
         // The ray is on a path through a glass sphere that `sample_lens` samples (`lens_step`).
         let mut lensed = None;
+        // The map in the mirror spheres, seen from the camera (`sample_view`), and the density
+        // with which the camera ray was drawn, that weighs its own such paths at the first
+        // hit; 0 without.
+        let mut view_pdf = 0.0;
+        if nee && self.f.mirror_nee {
+            radiance += self.sample_view::<P>(px, &primary, rng);
+            view_pdf = self
+                .pixel_at(primary.origin, primary.dir)
+                .map_or(0.0, |v| v.2);
+        }
         while bounce <= u.max_bounces {
             segments += 1;
             #[cfg(test)]
@@ -1150,7 +1289,9 @@ impl<'a> Tracer<'a> {
             let (point, material, local) = self.surface_at(hit, &ray);
             // A mirror sphere met from a lobe light sampling weighs: what it reflects from
             // the map next is weighed against `sample_mirror`.
-            mirrored = self.mirror_hit(hit, &ray, &point, prev_pdf, prev_point);
+            // The camera ray's density stands for a lobe's at the first hit.
+            let drawn = if bounce == 0 { view_pdf } else { prev_pdf };
+            mirrored = self.mirror_hit(hit, &ray, &point, drawn, prev_point);
             lensed = self.lens_step(lensed, hit, &ray, point.normal, prev_pdf, prev_point, None);
             let (textured, mapped) = self.material_at(hit, local, material);
             let m = textured
@@ -1236,7 +1377,15 @@ impl<'a> Tracer<'a> {
                     {
                         radiance += throughput
                             * tint
-                            * self.sample_mirror::<P>(point.position, ns, n, from, weighed, rng);
+                            * self.sample_mirror::<P>(
+                                point.position,
+                                ns,
+                                n,
+                                from,
+                                weighed,
+                                None,
+                                rng,
+                            );
                     }
                     // The map through the glass spheres: its paths scatter here, refract in
                     // and out, and leave, within the bounces allowed.
