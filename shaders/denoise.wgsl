@@ -587,8 +587,8 @@ fn finish(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_i
             let scale = relative_weight(proxy, e, o);
             let r = (x - y) * (x - y) * k;
             let rr = dot(r * scale, vec3f(1.0));
-            let ta = estimate_terms(fa, fb, x, y, product_weight(fa, fb));
-            let tg = estimate_terms(ga, gb, x, y, product_weight(ga, gb));
+            let ta = estimate_terms(fa, fb, x, y, filtered_weight(fa, fb, x, y));
+            let tg = estimate_terms(ga, gb, x, y, filtered_weight(ga, gb, x, y));
             let odd = select(0.0, 1.0, ((gid.x + gid.y) & 1u) == 1u);
             // The choice's sums (src/common/estimate.rs, `product_weight`).
             let cw = product_weight(x, y);

@@ -2,9 +2,9 @@
 // say why): the factor that makes a pixel's (A − B)² the variance of its pooled mean, and the
 // weight of its squared error in pbrt's relative MSE, 1 / (reference² proxy + 0.01), the
 // proxy being the mean of the pixel's 3×3 neighbours clamped to the range of its two half
-// means; and the weight made of two independent estimates (`product_weight`). Included by
-// resolve.wgsl and denoise.wgsl, which walk `proxy_window` with their own `half_mean` (each
-// reads the accumulation its own way).
+// means; the weight made of two independent estimates (`product_weight`), and a filtered
+// image's (`filtered_weight`). Included by resolve.wgsl and denoise.wgsl, which walk
+// `proxy_window` with their own `half_mean` (each reads the accumulation its own way).
 
 // pbrt's relative-MSE epsilon (src/common/estimate.rs: REL_MSE_EPSILON).
 const REL_MSE_EPSILON: f32 = 0.01;
@@ -79,4 +79,15 @@ fn relative_weight(s: ProxySums, a: vec4f, b: vec4f) -> vec3f {
 // filter's two outputs); src/common/estimate.rs, `product_weight`.
 fn product_weight(a: vec3f, b: vec3f) -> vec3f {
     return 1.0 / (max(a * b, vec3f(0.0)) + REL_MSE_EPSILON);
+}
+
+// Where a spike both halves see is crushed by a filter (src/common/estimate.rs, SPIKE).
+const SPIKE: f32 = 2.0;
+
+// The weight of a filtered image's term, from the filter's two outputs da and db and the
+// pixel's half means a and b: product_weight of the outputs, unless both halves are more
+// than SPIKE times as bright (src/common/estimate.rs, `filtered_weight`, which says why).
+fn filtered_weight(da: vec3f, db: vec3f, a: vec3f, b: vec3f) -> vec3f {
+    let lo = max(min(a, b), vec3f(0.0)) / SPIKE;
+    return min(product_weight(da, db), 1.0 / (lo * lo + REL_MSE_EPSILON));
 }

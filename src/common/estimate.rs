@@ -23,7 +23,8 @@
 //! bright path that only one half found, where the neighbours did not, reads as a firefly
 //! even where it is the pixel's usual light (`pbr`'s glossy highlights of small lamps and the
 //! caustic scene read up to 2.5× high). The denoiser's estimates of its filtered images divide
-//! by the product of the filter's two outputs instead (`product_weight`, which says why).
+//! by the product of the filter's two outputs instead (`product_weight`, which says why), or
+//! by the smaller half where a filter crushes a spike both halves see (`filtered_weight`).
 
 use rayon::prelude::*;
 
@@ -133,6 +134,26 @@ pub fn relative_weights(even: &[[f32; 4]], odd: &[[f32; 4]], w: usize, h: usize)
 ///   made the shown estimate 10× the truth at one sample a half (tests/denoise.rs).
 pub fn product_weight(a: f64, b: f64) -> f64 {
     1.0 / ((a * b).max(0.0) + REL_MSE_EPSILON)
+}
+
+/// Where a spike both halves see is crushed by a filter: the part of a filtered image's
+/// weight that the pixel's halves set, the smaller half mean over [`SPIKE`].
+pub const SPIKE: f64 = 2.0;
+
+/// The weight of a filtered image's term at a pixel, from the filter's two outputs `da` and
+/// `db` and the pixel's half means `a` and `b`: [`product_weight`] of the outputs, unless
+/// both halves are more than [`SPIKE`] times as bright, then 1 / ((min(a, b)/SPIKE)² + ε).
+/// A bright feature smaller than a pixel that every sample finds (the sun in a mirror ball,
+/// `sample_view`) is crushed by the filters, so D(A)·D(B) falls far below its reference²,
+/// and the term, the filter's bias there, read relative to it was up to 90× its truth: the
+/// shown estimate on `pbr` at 16 spp read 3.14 of the true error. The smaller half is
+/// large only where both halves are, so a firefly in one half leaves the weight as it was;
+/// the margin keeps the ordinary pixels, where a half mean and the filtered value differ by
+/// noise, on the product (with the margin 1 the shown estimate on `cornell` at 16 spp fell
+/// to 0.73 of the truth; tests/estimate.rs, BENCHMARKS.md "The sun in a mirror ball, seen").
+pub fn filtered_weight(da: f64, db: f64, a: f64, b: f64) -> f64 {
+    let lo = a.min(b).max(0.0) / SPIKE;
+    product_weight(da, db).min(1.0 / (lo * lo + REL_MSE_EPSILON))
 }
 
 #[cfg(test)]

@@ -37,13 +37,16 @@
 //! The raw image's estimate is `render::Snapshot::error_estimate`'s: (A − B)²·n_A·n_B/(n_A +
 //! n_B)². Both are reported as pbrt's relative MSE, each channel's term divided by the
 //! reference² proxy + 0.01 (`common::estimate::relative_weights` for the raw image's terms),
-//! as the preview's noise figure is, or by D(A)·D(B) + 0.01 for each filter's terms; the
-//! per-tile choice divides by A·B + 0.01 (`product_weight` both).
+//! as the preview's noise figure is, or by D(A)·D(B) + 0.01 for each filter's terms (by
+//! (min(A, B)/2)² + 0.01 where that is larger: `filtered_weight`); the per-tile choice divides
+//! by A·B + 0.01 (`product_weight`).
 
 pub mod atrous;
 pub mod regress;
 
-use crate::common::estimate::{half_mean, pair_factor, product_weight, relative_weights};
+use crate::common::estimate::{
+    filtered_weight, half_mean, pair_factor, product_weight, relative_weights,
+};
 use crate::common::resolved::{Doubt, Estimate};
 use crate::common::{Guides, Resolved};
 use crate::output::LinearImage;
@@ -433,7 +436,7 @@ pub fn denoise(even: &[[f32; 4]], odd: &[[f32; 4]], guides: &Guides) -> Denoised
             pixel_r += r * scale;
             for (f, (da, db)) in filters.iter().enumerate() {
                 let (dx, dy) = (da[p][c] as f64, db[p][c] as f64);
-                let scale = product_weight(dx, dy);
+                let scale = filtered_weight(dx, dy, x, y);
                 let e = 0.5 * (dx - y).powi(2) + 0.5 * (dy - x).powi(2)
                     - 0.5 * (x - y).powi(2)
                     - 0.25 * (dx - dy).powi(2);
