@@ -219,6 +219,7 @@ fn the_tuner_times_whole_rounds_taken_in_several_submissions() {
     let scene = Scene::load("basic").unwrap();
     let options = RenderOptions {
         submission: std::time::Duration::from_micros(1),
+        tune_on_software: true,
         ..Default::default()
     };
     let mut r = Renderer::new(Backend::Gpu(ctx()), &scene, settings(256, 64, 8), options);

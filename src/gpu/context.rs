@@ -30,8 +30,9 @@ const HINT: &str = "How to fix: on a machine without a GPU install Mesa's softwa
     libgl1-mesa-dri` (llvmpipe, OpenGL). On a GPU machine install its Vulkan driver and the \
     loader (`libvulkan1`). WGPU_BACKEND=vulkan|gl restricts the backends tried.";
 
-/// Storage buffers the tracer binds in one stage.
-const STORAGE_BUFFERS_NEEDED: u32 = 15;
+/// Storage buffers the tracer binds in one stage: its 17 bindings (the scene's and the
+/// dispatch's values among them, shaders/common/types.wgsl says why) and the guides' sums.
+const STORAGE_BUFFERS_NEEDED: u32 = 18;
 
 /// One line naming an adapter: `NVIDIA H100 (Vulkan, DiscreteGpu, driver 550.1)`.
 pub fn describe(info: &wgpu::AdapterInfo) -> String {

@@ -80,16 +80,16 @@ const ENTRY_POINTS: [&str; 6] = [
 
 impl DenoisePass {
     pub fn new(device: &wgpu::Device) -> DenoisePass {
-        use wgpu::BufferBindingType::{Storage, Uniform};
+        use wgpu::BufferBindingType::Storage;
         let (ro, rw) = (Storage { read_only: true }, Storage { read_only: false });
-        let kinds = [Uniform, ro, ro, ro, rw, rw, ro, rw, rw, rw, rw];
+        let kinds = [ro, ro, ro, ro, rw, rw, ro, rw, rw, rw, rw];
         let (layout, pipelines) = super::passes(device, "denoise", &kinds, &ENTRY_POINTS);
         let uniforms = (0..=ITERATIONS)
             .map(|_| {
                 device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("denoise.uniforms"),
                     size: std::mem::size_of::<ResolveUniforms>() as u64,
-                    usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
                     mapped_at_creation: false,
                 })
             })

@@ -16,13 +16,13 @@ pub struct ReducePass {
 
 impl ReducePass {
     pub fn new(device: &wgpu::Device) -> ReducePass {
-        use wgpu::BufferBindingType::{Storage, Uniform};
+        use wgpu::BufferBindingType::Storage;
         let (layout, pipeline) = simple_pass(
             device,
             "reduce",
             &[
-                Uniform,
-                Uniform,
+                Storage { read_only: true },
+                Storage { read_only: true },
                 Storage { read_only: false },
                 Storage { read_only: false },
                 Storage { read_only: true },

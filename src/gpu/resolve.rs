@@ -45,12 +45,12 @@ pub struct ResolvePass {
 
 impl ResolvePass {
     pub fn new(device: &wgpu::Device) -> ResolvePass {
-        use wgpu::BufferBindingType::{Storage, Uniform};
+        use wgpu::BufferBindingType::Storage;
         let (layout, pipeline) = simple_pass(
             device,
             "resolve",
             &[
-                Uniform,
+                Storage { read_only: true },
                 Storage { read_only: true },
                 Storage { read_only: true },
                 Storage { read_only: false },
@@ -61,7 +61,7 @@ impl ResolvePass {
         let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("resolve.uniforms"),
             size: std::mem::size_of::<ResolveUniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         let slots = (0..SLOTS)

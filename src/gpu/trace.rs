@@ -96,14 +96,14 @@ fn compile(
 
 impl TracePass {
     pub fn new(device: &wgpu::Device) -> TracePass {
-        use wgpu::BufferBindingType::{Storage, Uniform};
+        use wgpu::BufferBindingType::Storage;
         let ro = Storage { read_only: true };
         let rw = Storage { read_only: false };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("trace.layout"),
             entries: &[
-                entry(0, Uniform),
-                entry(1, Uniform),
+                entry(0, ro),
+                entry(1, ro),
                 entry(2, ro),
                 entry(3, ro),
                 entry(4, ro),
@@ -135,7 +135,7 @@ impl TracePass {
         let dispatch = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("trace.dispatch"),
             size: std::mem::size_of::<DispatchUniforms>() as u64,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
         TracePass {

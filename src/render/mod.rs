@@ -68,6 +68,11 @@ pub struct RenderOptions {
     /// Always trace with the scene's specialized pipeline, never measure it against the
     /// generic one (`tune`); tests that compare the two use it.
     pub no_tune: bool,
+    /// Measure the two pipelines on a software adapter too (tests of the tuner). Off by
+    /// default: on lavapipe the generic pipeline's first dispatch compiles for about 100 s
+    /// (BENCHMARKS.md, "Shaders compiled once on lavapipe"), and a CPU's few cores favour the
+    /// specialized one anyway.
+    pub tune_on_software: bool,
     /// The index of the first sample of every pixel (0: a whole render): a shard of a render
     /// traces samples `first_sample..` with their own random streams, as the whole render
     /// would (`render --shard`).
@@ -98,6 +103,7 @@ impl Default for RenderOptions {
             lanes: None,
             first_look: false,
             no_tune: false,
+            tune_on_software: false,
             first_sample: 0,
         }
     }
@@ -430,13 +436,17 @@ impl Renderer {
     /// Not on the CPU tracer: there both are monomorphizations of one Rust function, with no
     /// driver between the code and the machine to surprise, and the specialized CPU tracer is
     /// measured at least as fast as the generic one on every shipped scene instead
-    /// (BENCHMARKS.md).
+    /// (BENCHMARKS.md). Nor on a software adapter unless asked (`tune_on_software`).
     fn retune(&mut self) {
         let generic = self.generic_features();
+        let timed = match &self.engine {
+            Engine::Gpu(g) => self.options.tune_on_software || !g.ctx.is_software(),
+            Engine::Cpu(_) => false,
+        };
         self.tune = (!self.options.generic
             && !self.options.no_tune
             && self.options.extra.is_none()
-            && !matches!(self.engine, Engine::Cpu(_))
+            && timed
             && self.features != generic)
             .then(|| tune::Tune::new(self.features, generic));
         self.trial = None;
