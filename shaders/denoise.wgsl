@@ -39,7 +39,7 @@ const REGRESS_MIN_WEIGHT: f32 = 1e-12;
 const RIDGE: f32 = 1e-3;
 
 // `mode`: the à-trous iteration's step in pixels.
-@group(0) @binding(0) var<storage, read> params: ResolveUniforms;
+@group(0) @binding(0) var<uniform> params: ResolveUniforms;
 @group(0) @binding(1) var<storage, read> accum_even: array<u32>;
 @group(0) @binding(2) var<storage, read> accum_odd: array<u32>;
 @group(0) @binding(3) var<storage, read> guide_sums: array<u32>;

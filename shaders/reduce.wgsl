@@ -4,8 +4,8 @@
 // per pixel of the submission's rows (src/gpu/reduce.rs drives it). The sums are fixed point,
 // so the result does not depend on how the samples were spread over lanes.
 
-@group(0) @binding(0) var<storage, read> scene: SceneUniforms;
-@group(0) @binding(1) var<storage, read> batch: DispatchUniforms;
+@group(0) @binding(0) var<uniform> scene: SceneUniforms;
+@group(0) @binding(1) var<uniform> batch: DispatchUniforms;
 @group(0) @binding(2) var<storage, read_write> accum_even: array<u32>;
 @group(0) @binding(3) var<storage, read_write> accum_odd: array<u32>;
 @group(0) @binding(4) var<storage, read> scratch: array<u32>;

@@ -11,7 +11,7 @@
 // `params.mode` is 1.
 
 
-@group(0) @binding(0) var<storage, read> params: ResolveUniforms;
+@group(0) @binding(0) var<uniform> params: ResolveUniforms;
 @group(0) @binding(1) var<storage, read> accum_even: array<u32>;
 @group(0) @binding(2) var<storage, read> accum_odd: array<u32>;
 // Two vec4f per output pixel: (r, g, b, fewest samples in either half of any block pixel)

@@ -46,8 +46,8 @@ override COUNT_SEGMENTS: bool = false;
 // Walk the BVH, or test every primitive in turn (tests compare the two; see src/common/features.rs).
 override USE_BVH: bool = true;
 
-@group(0) @binding(0) var<storage, read> scene: SceneUniforms;
-@group(0) @binding(1) var<storage, read> batch: DispatchUniforms;
+@group(0) @binding(0) var<uniform> scene: SceneUniforms;
+@group(0) @binding(1) var<uniform> batch: DispatchUniforms;
 @group(0) @binding(2) var<storage, read> materials: array<Material>;
 @group(0) @binding(3) var<storage, read> spheres: array<Sphere>;
 @group(0) @binding(4) var<storage, read> quads: array<Quad>;

@@ -612,7 +612,7 @@ fn the_gpu_denoiser_agrees_with_the_host_one() {
     assert_eq!(snap.data.invalid, invalid, "the snapshot reads the counter");
     let host = denoise(&snap.data.even, &snap.data.odd, r.guides());
     let host_frame = host.resolved(1, 0);
-    let mut pass = DenoisePass::new(&ctx.device);
+    let mut pass = DenoisePass::new(&ctx);
     let g = pass.run(
         &ctx,
         r.accumulation().unwrap(),

@@ -40,7 +40,7 @@ fn the_gpu_resolve_matches_the_host_downsample_and_noise_estimate() {
         let snap = r.snapshot();
         assert_eq!(snap.invalid_samples(), invalid);
         let host = cells::downsample(&snap.image(), factor);
-        let mut pass = ResolvePass::new(&ctx.device);
+        let mut pass = ResolvePass::new(&ctx);
         let slot = pass
             .request(&ctx, r.accumulation().unwrap(), (s.width, s.height), factor)
             .expect("a free slot");
@@ -98,7 +98,7 @@ fn the_gpu_resolve_adds_another_devices_sums_exactly() {
     total.add(&cpu_sums);
     let Sums { even, odd, invalid } = total;
     let (ce, co) = (cpu_sums.even, cpu_sums.odd);
-    let mut pass = ResolvePass::new(&ctx.device);
+    let mut pass = ResolvePass::new(&ctx);
     for factor in [1, 2] {
         let host = Resolved::from_sums(&even, &odd, (s.width, s.height), factor, invalid);
         pass.set_extra(&ctx, &ce, &co);
@@ -143,7 +143,7 @@ fn the_noise_estimate_waits_for_a_sample_in_each_half() {
     let s = settings(8, 8, 4);
     let mut r = Renderer::new(ctx.clone(), &scene, s, RenderOptions::default());
     r.render_spp(1);
-    let mut pass = ResolvePass::new(&ctx.device);
+    let mut pass = ResolvePass::new(&ctx);
     let slot = pass
         .request(&ctx, r.accumulation().unwrap(), (8, 8), 1)
         .expect("a free slot");
@@ -212,7 +212,7 @@ fn the_gpu_and_the_host_doubt_the_same_estimates() {
         let s = settings(24, 12, 8);
         let mut r = Renderer::new(ctx.clone(), &scene, s, RenderOptions::default());
         r.render_spp(spp);
-        let mut pass = ResolvePass::new(&ctx.device);
+        let mut pass = ResolvePass::new(&ctx);
         let slot = pass
             .request(&ctx, r.accumulation().unwrap(), (s.width, s.height), 2)
             .expect("a free slot");

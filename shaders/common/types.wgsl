@@ -3,12 +3,8 @@
 // (byte offsets in the comments; a test checks both against naga's layout).
 //
 // The per-scene and per-dispatch values (`SceneUniforms`, `DispatchUniforms`, `ResolveUniforms`)
-// are bound as read-only storage buffers, not uniform buffers: Mesa's lavapipe (the software
-// adapter the tests run on) inlines uniform-buffer values that branches and loop bounds read
-// and, in the Mesa that Debian 12 ships (22.3), compiles the whole shader again with LLVM at
-// every dispatch that binds it (src/gallium/frontends/lavapipe/lvp_inline_uniforms.c and
-// lvp_execute.c, `update_inline_shader_state`). A 32x24 image of 4 spp took 10.5 s on lavapipe,
-// nearly all of it compiling; storage buffers are never inlined, so the tracer compiles once.
+// are declared `var<uniform>`; on lavapipe they are bound as read-only storage buffers instead
+// (src/gpu/mod.rs, `Values`, says why).
 
 struct SceneUniforms {
     cam_origin: vec3f,      //   0  look_from

@@ -5,7 +5,7 @@
 //! regression writes the one the last iteration did not.
 
 use super::accum::Accumulation;
-use super::{GpuContext, bind_buffers};
+use super::{GpuContext, Values, bind_buffers};
 use crate::common::layout::ResolveUniforms;
 use crate::denoise::{DenoisedTiles, TILE_FLOATS};
 
@@ -79,17 +79,18 @@ const ENTRY_POINTS: [&str; 6] = [
 ];
 
 impl DenoisePass {
-    pub fn new(device: &wgpu::Device) -> DenoisePass {
+    pub fn new(ctx: &GpuContext) -> DenoisePass {
         use wgpu::BufferBindingType::Storage;
+        let (device, values) = (&ctx.device, Values::of(ctx));
         let (ro, rw) = (Storage { read_only: true }, Storage { read_only: false });
-        let kinds = [ro, ro, ro, ro, rw, rw, ro, rw, rw, rw, rw];
-        let (layout, pipelines) = super::passes(device, "denoise", &kinds, &ENTRY_POINTS);
+        let kinds = [values.binding(), ro, ro, ro, rw, rw, ro, rw, rw, rw, rw];
+        let (layout, pipelines) = super::passes(device, values, "denoise", &kinds, &ENTRY_POINTS);
         let uniforms = (0..=ITERATIONS)
             .map(|_| {
                 device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("denoise.uniforms"),
                     size: std::mem::size_of::<ResolveUniforms>() as u64,
-                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                    usage: Values::USAGE,
                     mapped_at_creation: false,
                 })
             })

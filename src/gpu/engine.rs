@@ -63,7 +63,7 @@ impl GpuEngine {
         features: Features,
     ) -> GpuEngine {
         let device = &ctx.device;
-        let trace = TracePass::new(device);
+        let trace = TracePass::new(&ctx);
         if options.compile_in_background {
             // The fallback for the feature sets edits will introduce.
             trace.prepare_in_background(device, options.generic);
@@ -85,7 +85,7 @@ impl GpuEngine {
             scratch_slots(&ctx, &options, settings),
         );
         let bind_group = trace.bind_group(device, &buffers, &accum);
-        let reduce = ReducePass::new(device);
+        let reduce = ReducePass::new(&ctx);
         let reduce_bind_group =
             reduce.bind_group(device, &buffers, trace.dispatch_buffer(), &accum);
         accum.reset_counters(&ctx.queue);

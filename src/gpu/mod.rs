@@ -39,15 +39,65 @@ pub(crate) fn layout_entry(
     }
 }
 
+/// How the passes bind their small per-scene and per-dispatch values, which the WGSL declares
+/// `var<uniform>` (`SceneUniforms`, `DispatchUniforms`, `ResolveUniforms`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Values {
+    /// Uniform buffers, on every adapter but lavapipe: a GPU reads them through its constant
+    /// cache. Read-only storage buffers cost an H100 3–6 % of its samples/s (BENCHMARKS.md,
+    /// "Shaders compiled once on lavapipe").
+    Uniform,
+    /// Read-only storage buffers, on lavapipe. Its Mesa (22.3 in Debian 12) inlines the
+    /// uniform-buffer values that branches and loop bounds read and compiles the whole shader
+    /// again with LLVM at every dispatch that binds it (Mesa,
+    /// src/gallium/frontends/lavapipe/lvp_inline_uniforms.c, and `update_inline_shader_state`
+    /// in lvp_execute.c); storage buffers are never inlined, so a pipeline compiles once and
+    /// Mesa's shader cache keeps it for the next process.
+    Storage,
+}
+
+impl Values {
+    /// The binding for `ctx`'s adapter.
+    pub fn of(ctx: &context::GpuContext) -> Values {
+        if context::is_lavapipe(&ctx.info) {
+            Values::Storage
+        } else {
+            Values::Uniform
+        }
+    }
+
+    /// The bind group layout's type of a values buffer.
+    pub fn binding(self) -> wgpu::BufferBindingType {
+        match self {
+            Values::Uniform => wgpu::BufferBindingType::Uniform,
+            Values::Storage => wgpu::BufferBindingType::Storage { read_only: true },
+        }
+    }
+
+    /// The WGSL with its `var<uniform>` declarations bound as `self` says.
+    pub fn wgsl(self, src: String) -> String {
+        match self {
+            Values::Uniform => src,
+            Values::Storage => src.replace("var<uniform>", "var<storage, read>"),
+        }
+    }
+
+    /// The usages of a values buffer: both, so that one buffer serves either binding.
+    pub const USAGE: wgpu::BufferUsages = wgpu::BufferUsages::UNIFORM
+        .union(wgpu::BufferUsages::STORAGE)
+        .union(wgpu::BufferUsages::COPY_DST);
+}
+
 /// The bind group layout (buffers of these types, bound in order from 0) and the pipeline
 /// of a small compute pass whose WGSL file and entry point are both named `name`
 /// (`reduce.wgsl`, `fn reduce`).
 pub(crate) fn simple_pass(
     device: &wgpu::Device,
+    values: Values,
     name: &str,
     buffers: &[wgpu::BufferBindingType],
 ) -> (wgpu::BindGroupLayout, wgpu::ComputePipeline) {
-    let (layout, mut pipelines) = passes(device, name, buffers, &[name]);
+    let (layout, mut pipelines) = passes(device, values, name, buffers, &[name]);
     (layout, pipelines.remove(0))
 }
 
@@ -55,6 +105,7 @@ pub(crate) fn simple_pass(
 /// pipelines of `entry_points` of the WGSL file `name.wgsl`, one pipeline each.
 pub(crate) fn passes(
     device: &wgpu::Device,
+    values: Values,
     name: &str,
     buffers: &[wgpu::BufferBindingType],
     entry_points: &[&str],
@@ -74,7 +125,7 @@ pub(crate) fn passes(
         immediate_size: 0,
     });
     let file = format!("{name}.wgsl");
-    let src = shader::assemble(&file).unwrap_or_else(|e| panic!("{file}: {e}"));
+    let src = values.wgsl(shader::assemble(&file).unwrap_or_else(|e| panic!("{file}: {e}")));
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
         label: Some(&file),
         source: wgpu::ShaderSource::Wgsl(src.into()),

@@ -4,7 +4,7 @@
 
 use super::accum::Accumulation;
 use super::scene_buffers::SceneBuffers;
-use super::{bind_buffers, simple_pass};
+use super::{GpuContext, Values, bind_buffers, simple_pass};
 
 /// Invocations per workgroup (`@workgroup_size` of `fn reduce`).
 const WORKGROUP: u32 = 64;
@@ -15,14 +15,16 @@ pub struct ReducePass {
 }
 
 impl ReducePass {
-    pub fn new(device: &wgpu::Device) -> ReducePass {
+    pub fn new(ctx: &GpuContext) -> ReducePass {
         use wgpu::BufferBindingType::Storage;
+        let values = Values::of(ctx);
         let (layout, pipeline) = simple_pass(
-            device,
+            &ctx.device,
+            values,
             "reduce",
             &[
-                Storage { read_only: true },
-                Storage { read_only: true },
+                values.binding(),
+                values.binding(),
                 Storage { read_only: false },
                 Storage { read_only: false },
                 Storage { read_only: true },

@@ -6,7 +6,7 @@
 //! GPU, so that the frame is still made there and only the small image read back.
 
 use super::accum::Accumulation;
-use super::{GpuContext, bind_buffers, simple_pass};
+use super::{GpuContext, Values, bind_buffers, simple_pass};
 use crate::common::layout::ResolveUniforms;
 use crate::common::resolved::Resolved;
 use std::sync::Arc;
@@ -44,13 +44,15 @@ pub struct ResolvePass {
 }
 
 impl ResolvePass {
-    pub fn new(device: &wgpu::Device) -> ResolvePass {
+    pub fn new(ctx: &GpuContext) -> ResolvePass {
         use wgpu::BufferBindingType::Storage;
+        let (device, values) = (&ctx.device, Values::of(ctx));
         let (layout, pipeline) = simple_pass(
             device,
+            values,
             "resolve",
             &[
-                Storage { read_only: true },
+                values.binding(),
                 Storage { read_only: true },
                 Storage { read_only: true },
                 Storage { read_only: false },
@@ -61,7 +63,7 @@ impl ResolvePass {
         let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("resolve.uniforms"),
             size: std::mem::size_of::<ResolveUniforms>() as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            usage: Values::USAGE,
             mapped_at_creation: false,
         });
         let slots = (0..SLOTS)

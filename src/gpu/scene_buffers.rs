@@ -111,7 +111,7 @@ impl SceneBuffers {
             uniforms: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("scene.uniforms"),
                 contents: bytemuck::bytes_of(&u),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                usage: super::Values::USAGE,
             }),
             materials: storage(device, "scene.materials", &p.materials),
             spheres: storage(device, "scene.spheres", &p.spheres),

@@ -24,7 +24,7 @@
 use super::accum::Accumulation;
 use super::scene_buffers::SceneBuffers;
 use super::timer::GpuTimer;
-use super::{bind_buffers, layout_entry as entry, shader};
+use super::{GpuContext, Values, bind_buffers, layout_entry as entry, shader};
 use crate::common::Features;
 use crate::common::layout::DispatchUniforms;
 use std::collections::{HashMap, HashSet};
@@ -95,15 +95,17 @@ fn compile(
 }
 
 impl TracePass {
-    pub fn new(device: &wgpu::Device) -> TracePass {
+    pub fn new(ctx: &GpuContext) -> TracePass {
         use wgpu::BufferBindingType::Storage;
+        let device = &ctx.device;
+        let values = Values::of(ctx);
         let ro = Storage { read_only: true };
         let rw = Storage { read_only: false };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("trace.layout"),
             entries: &[
-                entry(0, ro),
-                entry(1, ro),
+                entry(0, values.binding()),
+                entry(1, values.binding()),
                 entry(2, ro),
                 entry(3, ro),
                 entry(4, ro),
@@ -126,7 +128,7 @@ impl TracePass {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let src = shader::assemble("trace.wgsl").expect("trace.wgsl assembles");
+        let src = values.wgsl(shader::assemble("trace.wgsl").expect("trace.wgsl assembles"));
         let workgroup = workgroup_size(&src);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("trace.wgsl"),
@@ -135,7 +137,7 @@ impl TracePass {
         let dispatch = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("trace.dispatch"),
             size: std::mem::size_of::<DispatchUniforms>() as u64,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            usage: Values::USAGE,
             mapped_at_creation: false,
         });
         TracePass {
