@@ -41,7 +41,7 @@ fn display() -> Display {
         .stderr(Stdio::null())
         .spawn()
         .expect("Xvfb (apt-get install xvfb)");
-    let deadline = Instant::now() + Duration::from_secs(20);
+    let deadline = Instant::now() + Duration::from_secs(60);
     while !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
         assert!(Instant::now() < deadline, "Xvfb did not start");
         std::thread::sleep(Duration::from_millis(100));
