@@ -836,7 +836,7 @@ fn follows_pbr(m: Material) -> bool {
 // The density, in solid angle at the point that sees it, with which sample_mirror finds the
 // map's direction of density pdf in a mirror sphere of spread `spread`.
 fn mirror_pdf(pdf: f32, spread: f32) -> f32 {
-    return pdf / (f32(scene.n_mirrors) * spread);
+    return pdf / (f32(scene.n_mirrors + scene.n_lenses) * spread);
 }
 
 // Where a ray from a lobe light sampling weighs (prev_pdf > 0, from prev_point) meets one of
@@ -847,7 +847,7 @@ fn mirror_hit(hit: Hit, ray: Ray, position: vec3f, normal: vec3f, prev_pdf: f32,
         return vec2f(0.0);
     }
     var listed = false;
-    for (var k = 0u; k < scene.n_mirrors; k++) {
+    for (var k = 0u; k < scene.n_mirrors + scene.n_lenses; k++) {
         listed = listed || lights[scene.n_lights + k].prim == hit.index;
     }
     if !listed {
@@ -866,7 +866,7 @@ fn mirror_hit(hit: Hit, ray: Ray, position: vec3f, normal: vec3f, prev_pdf: f32,
 // the map's distribution, the point of the sphere that reflects it to p, both legs
 // unoccluded, MIS-weighted against the lobe.
 fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss: Gloss, view: vec2i, state: ptr<function, Rng>) -> vec3f {
-    let count = scene.n_mirrors;
+    let count = scene.n_mirrors + scene.n_lenses;
     var pick = 0.0;
     if count > 1u {
         pick = rand(state);
@@ -904,10 +904,12 @@ fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, glo
         return vec3f(0.0);
     }
     // What the mirror reflects: the lecture's specular tint, or glTF's Fresnel at the angle
-    // of incidence.
+    // of incidence; glass, the chance that scatter_dielectric reflects there and its tint.
     let m = materials[sphere.material];
     var reflectance = m.specular_color;
-    if follows_pbr(m) {
+    if m.smoothness < 0.0 {
+        reflectance = m.color * schlick(x.cos_i, 1.0 / m.ior);
+    } else if follows_pbr(m) {
         reflectance = pbr_mirror_reflectance(pbr_lobe(m, -x.dir, x.normal, true), x.cos_i);
     }
     let radiance = s.radiance * scene.env_intensity * reflectance;
@@ -960,29 +962,38 @@ fn view_weighted(radiance: vec3f, p: vec3f, dir: vec3f, pl: f32, px: vec2u) -> v
     return vec3f(0.0);
 }
 
-// The environment map's light that the camera sees in the mirror spheres light sampling
-// samples, for pixel px whose camera ray is primary: sample_mirror from the ray's lens point,
-// counted where its path crosses the focus plane inside the pixel (src/cpu/trace.rs:
-// sample_view, which says why).
+// The environment map's light that the camera sees in the mirror spheres and through the
+// glass spheres light sampling samples, for pixel px whose camera ray is primary:
+// sample_mirror and sample_lens from the ray's lens point, counted where their paths cross
+// the focus plane inside the pixel (src/cpu/trace.rs: sample_view, which says why).
 fn sample_view(px: vec2u, primary: Ray, state: ptr<function, Rng>) -> vec3f {
-    if scene.max_bounces == 0u || !view_meets(primary) {
-        return vec3f(0.0);
-    }
     let ahead = normalize(scene.cam_to_corner + 0.5 * scene.cam_horizontal - 0.5 * scene.cam_vertical);
-    return sample_mirror(primary.origin, ahead, ahead, false, PbrLobe(), Gloss(ahead, vec3f(0.0), 0.0), vec2i(px), state);
+    let gloss = Gloss(ahead, vec3f(0.0), 0.0);
+    var sum = vec3f(0.0);
+    // Camera, mirror, map: one scattering.
+    if HAS_MIRROR_NEE && scene.max_bounces >= 1u && view_meets(primary, scene.n_lights, scene.n_mirrors + scene.n_lenses) {
+        sum += sample_mirror(primary.origin, ahead, ahead, false, PbrLobe(), gloss, vec2i(px), state);
+    }
+    // Camera, into the glass, (a reflection inside,) out, map: two scatterings (three).
+    if HAS_LENS_NEE && scene.max_bounces >= 2u && view_meets(primary, scene.n_lights + scene.n_mirrors, scene.n_lenses) {
+        let inner = u32(scene.max_bounces >= 3u);
+        sum += sample_lens(primary.origin, ahead, ahead, false, PbrLobe(), gloss, vec2i(px), inner, state);
+    }
+    return sum;
 }
 
-// Whether the pixel of camera ray primary may see one of the mirror spheres: some sphere's
-// cone from the ray's lens point meets the cone of the pixel's rays, within β of the ray,
-// sin β = the pixel's diagonal / the focus distance (src/cpu/trace.rs: view_meets).
-fn view_meets(primary: Ray) -> bool {
+// Whether the pixel of camera ray primary may see one of the `count` spheres whose entries in
+// the lights' buffer begin at `first`: some sphere's cone from the ray's lens point meets the
+// cone of the pixel's rays, within β of the ray, sin β = the pixel's diagonal / the focus
+// distance (src/cpu/trace.rs: view_meets).
+fn view_meets(primary: Ray, first: u32, count: u32) -> bool {
     let h = scene.cam_horizontal / f32(scene.width);
     let v = scene.cam_vertical / f32(scene.height);
     let focus = length(scene.cam_to_corner + 0.5 * scene.cam_horizontal - 0.5 * scene.cam_vertical);
     let sin_b = min(sqrt(dot(h, h) + dot(v, v)) / focus, 1.0);
     let cos_b = sqrt(1.0 - sin_b * sin_b);
-    for (var k = 0u; k < scene.n_mirrors; k++) {
-        let sphere = spheres[lights[scene.n_lights + k].prim];
+    for (var k = 0u; k < count; k++) {
+        let sphere = spheres[lights[first + k].prim];
         let to = sphere_center(sphere) - primary.origin;
         let d2 = dot(to, to);
         let r2 = sphere.radius * sphere.radius;
@@ -1010,19 +1021,21 @@ fn lens_pdf(pdf: f32, spread: f32) -> f32 {
 fn lens_spread(path: Path, dir: vec3f) -> f32 {
     let sphere = spheres[path.lens_sphere];
     let c = sphere_center(sphere);
-    let f = lens_frame(path.lens_from, c, sphere.radius, materials[sphere.material].ior, dir);
+    var f = lens_frame(path.lens_from, c, sphere.radius, materials[sphere.material].ior, dir);
     if !f.ok {
         return 0.0;
     }
+    f.inner = path.lens_inner;
     return lens_spread_of(f, path.lens_from, c, sphere.radius, path.lens_dir);
 }
 
 // The path's glass-sphere path after the ray met `hit` (scattered false) or after the
 // surface there scattered it toward `dir` (scattered true): a ray of a lobe light sampling
-// weighs that meets one of the glass spheres from outside starts one (stage 1); it goes on
-// while the ray refracts in (2), meets the sphere from inside (3) and refracts out (4), and
+// weighs (drawn > 0: its density, or the camera's, sample_view) that meets one of the glass
+// spheres from outside starts one (stage 1); it goes on while the ray refracts in (2), meets
+// the sphere from inside (3), reflects there at most once (2 again) and refracts out (4), and
 // ends (0) at anything else (src/cpu/trace.rs: lens_step).
-fn lens_step(path: ptr<function, Path>, hit: Hit, ray: Ray, n_out: vec3f, scattered: bool, dir: vec3f) {
+fn lens_step(path: ptr<function, Path>, hit: Hit, ray: Ray, n_out: vec3f, drawn: f32, scattered: bool, dir: vec3f) {
     let stage = (*path).lens_stage;
     if scattered {
         let inward = dot(dir, n_out) < 0.0;
@@ -1030,6 +1043,9 @@ fn lens_step(path: ptr<function, Path>, hit: Hit, ray: Ray, n_out: vec3f, scatte
             (*path).lens_stage = 2u;
         } else if stage == 3u && !inward {
             (*path).lens_stage = 4u;
+        } else if stage == 3u && (*path).lens_inner == 0u {
+            (*path).lens_stage = 2u;
+            (*path).lens_inner = 1u;
         } else {
             (*path).lens_stage = 0u;
         }
@@ -1041,7 +1057,7 @@ fn lens_step(path: ptr<function, Path>, hit: Hit, ray: Ray, n_out: vec3f, scatte
         return;
     }
     (*path).lens_stage = 0u;
-    if (*path).prev_pdf > 0.0 && hit.kind == KIND_SPHERE && dot(ray.dir, n_out) < 0.0 {
+    if drawn > 0.0 && hit.kind == KIND_SPHERE && dot(ray.dir, n_out) < 0.0 {
         var listed = false;
         let first = scene.n_lights + scene.n_mirrors;
         for (var k = 0u; k < scene.n_lenses; k++) {
@@ -1052,17 +1068,19 @@ fn lens_step(path: ptr<function, Path>, hit: Hit, ray: Ray, n_out: vec3f, scatte
             (*path).lens_sphere = hit.index;
             (*path).lens_from = (*path).prev_point;
             (*path).lens_dir = ray.dir;
-            (*path).lens_pdf = (*path).prev_pdf;
+            (*path).lens_pdf = drawn;
+            (*path).lens_inner = 0u;
         }
     }
 }
 
 // The environment map's light as a clear glass sphere refracts it onto p (src/cpu/trace.rs:
 // sample_lens, which says how): one of the glass spheres chosen evenly, a direction from the
-// map's distribution, and every path from p through the sphere toward it, each with its three
-// legs unoccluded, tinted by the glass twice and by the chance of refracting at both
-// interfaces, MIS-weighted against the lobe.
-fn sample_lens(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss: Gloss, state: ptr<function, Rng>) -> vec3f {
+// map's distribution, and every path from p through the sphere toward it, with up to `inner`
+// reflections inside, each with its legs unoccluded, tinted by the glass at each interface
+// and by the chance of the path's refractions and reflection, MIS-weighted against the lobe
+// (or, from the camera, view: the pixel, against its camera rays).
+fn sample_lens(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss: Gloss, view: vec2i, inner: u32, state: ptr<function, Rng>) -> vec3f {
     let count = scene.n_lenses;
     var pick = 0.0;
     if count > 1u {
@@ -1080,38 +1098,52 @@ fn sample_lens(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss
     if s.pdf <= 0.0 {
         return vec3f(0.0);
     }
-    let f = lens_frame(p, c, r, m.ior, s.dir);
+    var f = lens_frame(p, c, r, m.ior, s.dir);
     if !f.ok {
         return vec3f(0.0);
     }
-    let found = lens_roots(f);
     let radiance = s.radiance * scene.env_intensity * m.color * m.color;
     var sum = vec3f(0.0);
-    for (var k = 0u; k < found.count; k++) {
-        let x = lens_path(f, p, c, r, found.s[k]);
-        if !x.ok {
-            continue;
+    for (var reflections = 0u; reflections <= inner; reflections++) {
+        f.inner = reflections;
+        // The glass's tint once more at the reflection.
+        var tint = vec3f(1.0);
+        if reflections > 0u {
+            tint = m.color;
         }
-        let cos_s = dot(n, x.dir);
-        if cos_s <= 0.0 || ((HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && dot(n_geo, x.dir) <= 0.0) {
-            continue;
+        let found = lens_roots(f);
+        for (var k = 0u; k < found.count; k++) {
+            let x = lens_path(f, p, c, r, found.s[k]);
+            if !x.ok {
+                continue;
+            }
+            let cos_s = dot(n, x.dir);
+            if cos_s <= 0.0 || ((HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && dot(n_geo, x.dir) <= 0.0) {
+                continue;
+            }
+            // To the sphere (the first thing the ray meets must be it), across it (twice, with a
+            // reflection inside), and from where it leaves to the map.
+            let to_lens = Ray(offset_ray(p, n_geo), x.dir);
+            let t_lens = hit_primitive(prim, to_lens, T_FAR);
+            if t_lens <= 0.0 || occluded(to_lens, t_lens, prim) {
+                continue;
+            }
+            let entry = p + x.dir * x.dist;
+            let chord = x.turn - entry;
+            if occluded(Ray(entry, normalize(chord)), length(chord), prim) {
+                continue;
+            }
+            if reflections > 0u {
+                let back = x.exit - x.turn;
+                if occluded(Ray(x.turn, normalize(back)), length(back), prim) {
+                    continue;
+                }
+            }
+            if occluded(Ray(offset_ray(x.exit, x.exit_normal), s.dir), T_FAR, prim) {
+                continue;
+            }
+            sum += weighed(radiance * tint * lens_transmittance(m.ior, x.cos_i, x.cos_r, reflections), p, x.dir, cos_s, lens_pdf(s.pdf, x.spread), pbr, lobe, gloss, view);
         }
-        // To the sphere (the first thing the ray meets must be it), across it, and from where
-        // it leaves to the map.
-        let to_lens = Ray(offset_ray(p, n_geo), x.dir);
-        let t_lens = hit_primitive(prim, to_lens, T_FAR);
-        if t_lens <= 0.0 || occluded(to_lens, t_lens, prim) {
-            continue;
-        }
-        let entry = p + x.dir * x.dist;
-        let chord = x.exit - entry;
-        if occluded(Ray(entry, normalize(chord)), length(chord), prim) {
-            continue;
-        }
-        if occluded(Ray(offset_ray(x.exit, x.exit_normal), s.dir), T_FAR, prim) {
-            continue;
-        }
-        sum += light_weighted(radiance * lens_transmittance(m.ior, x.cos_i, x.cos_r), x.dir, cos_s, lens_pdf(s.pdf, x.spread), pbr, lobe, gloss);
     }
     return sum;
 }
@@ -1158,16 +1190,17 @@ struct Path {
     mirror: vec2f,
     // A path through a glass sphere that sample_lens samples, begun right after a lobe light
     // sampling weighs (lens_step): its stage (0: none), the sphere, the point the lobe drew
-    // from, the ray's direction and the lobe's density.
+    // from, the ray's direction and the lobe's density, and its reflections inside so far.
     lens_stage: u32,
     lens_sphere: u32,
     lens_from: vec3f,
     lens_pdf: f32,
     lens_dir: vec3f,
+    lens_inner: u32,
 }
 
 fn path_start(primary: Ray) -> Path {
-    return Path(primary, vec3f(1.0), vec3f(0.0), 0u, 0.0, primary.origin, vec3f(0.0, 1.0, 0.0), vec2f(0.0), 0u, 0u, vec3f(0.0), 0.0, vec3f(0.0));
+    return Path(primary, vec3f(1.0), vec3f(0.0), 0u, 0.0, primary.origin, vec3f(0.0, 1.0, 0.0), vec2f(0.0), 0u, 0u, vec3f(0.0), 0.0, vec3f(0.0), 0u);
 }
 
 // One segment of a path (MODEL.md "Scattering"): traces its ray and either ends the path
@@ -1188,16 +1221,16 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     let m = sh.m;
     // A mirror sphere met from a lobe light sampling weighs: what it reflects from the map
     // next is weighed against sample_mirror.
+    // The camera ray's density (sample_view) stands for a lobe's at the first hit.
+    var drawn = (*path).prev_pdf;
+    if (HAS_MIRROR_NEE || HAS_LENS_NEE) && bounce == 0u && nee {
+        drawn = pixel_at(ray.origin, ray.dir).z;
+    }
     if HAS_MIRROR_NEE {
-        // The camera ray's density (sample_view) stands for a lobe's at the first hit.
-        var drawn = (*path).prev_pdf;
-        if bounce == 0u && nee {
-            drawn = pixel_at(ray.origin, ray.dir).z;
-        }
         (*path).mirror = mirror_hit(hit, ray, surf.point.position, surf.point.normal, drawn, (*path).prev_point);
     }
     if HAS_LENS_NEE {
-        lens_step(path, hit, ray, surf.point.normal, false, vec3f(0.0));
+        lens_step(path, hit, ray, surf.point.normal, drawn, false, vec3f(0.0));
     }
     // Inside a volume's boundary the medium attenuates, by Beer–Lambert's law over the
     // segment's length (KHR_materials_volume; a closed mesh, not nested).
@@ -1224,7 +1257,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     if HAS_DIELECTRICS && m.smoothness < 0.0 {
         sc = scatter_dielectric(m, ray.dir, n_out, state);
         if HAS_LENS_NEE {
-            lens_step(path, hit, ray, n_out, true, sc.dir);
+            lens_step(path, hit, ray, n_out, 0.0, true, sc.dir);
         }
     } else {
         // The lecture's lobes, or glTF's BRDF (common/pbr.wgsl); one light-sampling call for
@@ -1257,13 +1290,15 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
             (*path).radiance += (*path).throughput * tint * sample_light(surf.point.position, ns, n, pbr, lobe, gloss, state);
             // The map in the mirror spheres: its paths scatter here and at the mirror, and
             // leave it, within the bounces allowed.
-            if HAS_MIRROR_NEE && scene.n_mirrors > 0u && bounce + 2u <= scene.max_bounces {
+            if HAS_MIRROR_NEE && scene.n_mirrors + scene.n_lenses > 0u && bounce + 2u <= scene.max_bounces {
                 (*path).radiance += (*path).throughput * tint * sample_mirror(surf.point.position, ns, n, pbr, lobe, gloss, vec2i(-1), state);
             }
             // The map through the glass spheres: its paths scatter here, refract in and out,
             // and leave, within the bounces allowed.
+            // With a reflection inside, one bounce more.
             if HAS_LENS_NEE && scene.n_lenses > 0u && bounce + 3u <= scene.max_bounces {
-                (*path).radiance += (*path).throughput * tint * sample_lens(surf.point.position, ns, n, pbr, lobe, gloss, state);
+                let inner = u32(bounce + 4u <= scene.max_bounces);
+                (*path).radiance += (*path).throughput * tint * sample_lens(surf.point.position, ns, n, pbr, lobe, gloss, vec2i(-1), inner, state);
             }
         }
         var pbr_pdf = 0.0;
@@ -1407,8 +1442,9 @@ fn trace(@builtin(global_invocation_id) gid: vec3u, @builtin(local_invocation_in
             if fresh {
                 state = rng_init(pixel, batch.sample_base + i, scene.seed);
                 path = path_start(camera_ray(px, &state));
-                // The map in the mirror spheres, seen from the camera.
-                if HAS_MIRROR_NEE && HAS_NEE && (scene.n_lights > 0u || env_pick() > 0.0) {
+                // The map in the mirror spheres and through the glass spheres, seen from the
+                // camera.
+                if (HAS_MIRROR_NEE || HAS_LENS_NEE) && HAS_NEE && (scene.n_lights > 0u || env_pick() > 0.0) {
                     path.radiance += sample_view(px, path.ray, &state);
                 }
                 fresh = false;

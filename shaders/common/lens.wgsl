@@ -3,7 +3,8 @@
 // The map's light as a clear glass sphere refracts it onto a point (next-event estimation
 // through a glass ball, the sun's caustic; docs/MODEL-NOTES.md "The map through a glass
 // ball"): the paths from the point through the sphere toward a direction's light, the roots
-// of β(s) = ψ − 2 (i − r′) = β_w in the plane of the point, the centre and the light (the
+// of β(s) = ψ − 2 (i − r′) = β_w (+ π + 2r′ with a reflection inside: Descartes' rainbow ray)
+// in the plane of the point, the centre and the light (the
 // specular chain of manifold next-event estimation, Hanika, Droske & Fascione, EGSR 2015),
 // bracketed on a grid of s and refined by safeguarded Newton steps, and how much the sphere
 // spreads the light. The arithmetic is src/cpu/lens.rs's, which derives it.
@@ -17,9 +18,13 @@ const LENS_MAX_ROOTS: u32 = 3u;
 const LENS_STEPS: u32 = 24u;
 const LENS_GRAZING: f32 = 1e-2;
 const LENS_MATCH: f32 = 1e-3;
+// The most folds of β with a reflection inside on s ∈ (0, 1), and the bisection steps per fold.
+const LENS_MAX_FOLDS: u32 = 2u;
+const LENS_FOLD_STEPS: u32 = 20u;
 
 // The plane of a point, a glass sphere and a light's direction: a (point to centre), e2 (in
-// the plane, on the light's side), k = r / D, the light's angle beta from a, the index.
+// the plane, on the light's side), k = r / D, the light's angle beta from a, the index, and
+// the paths' reflections inside (0 or 1).
 struct LensFrame {
     a: vec3f,
     e2: vec3f,
@@ -27,6 +32,7 @@ struct LensFrame {
     beta: f32,
     ior: f32,
     ok: bool,
+    inner: u32,
 }
 
 // The sines of incidence of the paths (the first `count` of s), in increasing order.
@@ -35,11 +41,13 @@ struct LensRoots {
     count: u32,
 }
 
-// One path: its first leg's direction and length, where it leaves the sphere and the normal
-// there, its cosines of incidence at the entry and the exit, and its spread.
+// One path: its first leg's direction and length, where it reflects inside (else where it
+// leaves), where it leaves the sphere and the normal there, its cosines of incidence at the
+// entry and the exit, and its spread.
 struct LensPath {
     dir: vec3f,
     dist: f32,
+    turn: vec3f,
     exit: vec3f,
     cos_i: f32,
     exit_normal: vec3f,
@@ -51,7 +59,7 @@ struct LensPath {
 // The plane of p, the sphere (centre c, radius r, index ior > 1) and the light's direction w;
 // not ok where p is inside the sphere or w along the line through p and the centre.
 fn lens_frame(p: vec3f, c: vec3f, r: f32, ior: f32, w: vec3f) -> LensFrame {
-    var out = LensFrame(vec3f(0.0), vec3f(0.0), 0.0, 0.0, ior, false);
+    var out = LensFrame(vec3f(0.0), vec3f(0.0), 0.0, 0.0, ior, false, 0u);
     let to_c = c - p;
     let d = length(to_c);
     if !(d > r * 1.0001) {
@@ -65,14 +73,19 @@ fn lens_frame(p: vec3f, c: vec3f, r: f32, ior: f32, w: vec3f) -> LensFrame {
     if !(sb >= 1e-6) {
         return out;
     }
-    out = LensFrame(a, perp / sb, r / d, atan2(sb, ca), ior, true);
+    out = LensFrame(a, perp / sb, r / d, atan2(sb, ca), ior, true, 0u);
     return out;
 }
 
 // β(s): the angle from the centre's direction at which the ray of sine of incidence s
-// leaves; odd in s.
+// leaves (with a reflection inside, in (0, 2π)); β(−s) = 2π · inner − β(s).
 fn lens_deviation(f: LensFrame, s: f32) -> f32 {
-    return asin(f.k * s) - 2.0 * (asin(s) - asin(s / f.ior));
+    let r = asin(s / f.ior);
+    let b = asin(f.k * s) - 2.0 * (asin(s) - r);
+    if f.inner == 0u {
+        return b;
+    }
+    return b + PI + 2.0 * r;
 }
 
 // β(s) − β_w.
@@ -84,7 +97,54 @@ fn lens_offset(f: LensFrame, s: f32) -> f32 {
 fn lens_slope(f: LensFrame, s: f32) -> f32 {
     let ks = f.k * s;
     let sn = s / f.ior;
-    return f.k / sqrt(1.0 - ks * ks) - 2.0 / sqrt(1.0 - s * s) + 2.0 / (f.ior * sqrt(1.0 - sn * sn));
+    let refracted = 2.0 / (f.ior * sqrt(1.0 - sn * sn));
+    return f.k / sqrt(1.0 - ks * ks) - 2.0 / sqrt(1.0 - s * s) + refracted * f32(1u + f.inner);
+}
+
+// Whether the frame's light is within the angles its paths leave at (src/cpu/lens.rs:
+// reaches, which derives the bounds).
+fn lens_reaches(f: LensFrame) -> bool {
+    if f.inner == 0u {
+        return f.beta <= asin(f.k) + 2.0 * (0.5 * PI - asin(1.0 / f.ior));
+    }
+    let s2 = (4.0 - f.ior * f.ior) / 3.0;
+    var bow = 0.0;
+    if s2 > 0.0 {
+        let s = sqrt(s2);
+        bow = 4.0 * asin(s / f.ior) - 2.0 * asin(s);
+    }
+    let edge = PI - 4.0 * asin(1.0 / f.ior);
+    return f.beta >= PI - asin(f.k) - max(bow, edge) - 1e-4;
+}
+
+// The folds of β on s ∈ (0, 1) with a reflection inside (the first `count` of s), where β′
+// changes sign between the half grid's points, bisected (src/cpu/lens.rs: folds).
+fn lens_folds(f: LensFrame) -> LensRoots {
+    var out = LensRoots(vec3f(0.0), 0u);
+    var lo = 0.0;
+    var rising = lens_slope(f, 0.0) >= 0.0;
+    for (var m = 1u; m <= LENS_HALF; m++) {
+        let hi = f32(m) / f32(LENS_HALF);
+        // β′(1) is −∞ (the ray grazes in), not computed: WGSL may assume floats finite.
+        let up = m < LENS_HALF && lens_slope(f, hi) >= 0.0;
+        if up != rising && out.count < LENS_MAX_FOLDS {
+            var a = lo;
+            var b = hi;
+            for (var i = 0u; i < LENS_FOLD_STEPS; i++) {
+                let mid = 0.5 * (a + b);
+                if (lens_slope(f, mid) >= 0.0) == rising {
+                    a = mid;
+                } else {
+                    b = mid;
+                }
+            }
+            out.s[out.count] = 0.5 * (a + b);
+            out.count += 1u;
+            rising = !rising;
+        }
+        lo = hi;
+    }
+    return out;
 }
 
 // The grid's s at index j of 0..=LENS_INTERVALS.
@@ -117,25 +177,50 @@ fn lens_refine(f: LensFrame, lo_in: f32, hi_in: f32, glo: f32, ghi: f32) -> f32 
     return s;
 }
 
-// The sines of incidence of the paths from the frame's point through the sphere to its light.
+// The sines of incidence of the paths from the frame's point through the sphere to its light:
+// bracketed on a grid, or with a reflection inside between β's folds and the ends.
 fn lens_roots(f: LensFrame) -> LensRoots {
     var out = LensRoots(vec3f(0.0), 0u);
-    // |β| ≤ asin k + 2 (π/2 − asin(1/n)): a light farther from the centre's direction has none.
-    if f.beta > asin(f.k) + 2.0 * (0.5 * PI - asin(1.0 / f.ior)) {
+    if !lens_reaches(f) {
         return out;
     }
-    // β on the grid's half s ≥ 0 (s = m / LENS_HALF); the other half is its negative.
+    if f.inner > 0u {
+        let fold = lens_folds(f);
+        let n = fold.count;
+        // −1, the folds' mirror images, the folds, 1.
+        var cuts: array<f32, 6>;
+        cuts[0] = -1.0;
+        for (var j = 0u; j < n; j++) {
+            cuts[1u + j] = -fold.s[n - 1u - j];
+            cuts[1u + n + j] = fold.s[j];
+        }
+        cuts[1u + 2u * n] = 1.0;
+        var glo = lens_offset(f, -1.0);
+        for (var j = 0u; j <= 2u * n; j++) {
+            let lo = cuts[j];
+            let hi = cuts[j + 1u];
+            let ghi = lens_offset(f, hi);
+            if (glo < 0.0) != (ghi < 0.0) && out.count < LENS_MAX_ROOTS {
+                out.s[out.count] = lens_refine(f, lo, hi, glo, ghi);
+                out.count += 1u;
+            }
+            glo = ghi;
+        }
+        return out;
+    }
+    // β on the grid's half s ≥ 0 (s = m / LENS_HALF); the other half is 2π · inner less it.
     var half: array<f32, 9>;
     for (var m = 0u; m <= LENS_HALF; m++) {
         half[m] = lens_deviation(f, f32(m) / f32(LENS_HALF));
     }
-    var glo = -half[LENS_HALF] - f.beta;
+    let mirrored = 2.0 * PI * f32(f.inner);
+    var glo = mirrored - half[LENS_HALF] - f.beta;
     for (var j = 0u; j < LENS_INTERVALS; j++) {
         let lo = lens_grid(j);
         let hi = lens_grid(j + 1u);
         let m = i32(j + 1u) - i32(LENS_HALF);
         let b = half[u32(abs(m))];
-        let ghi = select(b, -b, m < 0) - f.beta;
+        let ghi = select(b, mirrored - b, m < 0) - f.beta;
         if (glo < 0.0) != (ghi < 0.0) && out.count < LENS_MAX_ROOTS {
             out.s[out.count] = lens_refine(f, lo, hi, glo, ghi);
             out.count += 1u;
@@ -156,11 +241,17 @@ fn lens_path(f: LensFrame, p: vec3f, c: vec3f, r: f32, s: f32) -> LensPath {
     let dist = r * (cos_psi / f.k - cos_i);
     let entry = p + dir * dist;
     let n1 = (entry - c) / r;
-    let inside = (dir + cos_i * n1) / f.ior - cos_r * n1;
-    let exit = entry + normalize(inside) * (2.0 * r * cos_r);
+    let inside = normalize((dir + cos_i * n1) / f.ior - cos_r * n1);
+    let chord = 2.0 * r * cos_r;
+    let turn = entry + inside * chord;
+    var exit = turn;
+    if f.inner != 0u {
+        let n2 = (turn - c) / r;
+        exit = turn + (inside - 2.0 * dot(inside, n2) * n2) * chord;
+    }
     let spread = f.k * f.k * abs(s) / (cos_psi * abs(lens_slope(f, s)) * sin(f.beta));
     let ok = spread > 0.0 && spread < 3.0e38 && dist > 0.0 && cos_i > LENS_GRAZING;
-    return LensPath(dir, dist, exit, cos_i, (exit - c) / r, cos_r, spread, ok);
+    return LensPath(dir, dist, turn, exit, cos_i, (exit - c) / r, cos_r, spread, ok);
 }
 
 // The spread of the path whose first leg has direction dir from the frame's point, where
@@ -186,8 +277,13 @@ fn lens_spread_of(f: LensFrame, p: vec3f, c: vec3f, r: f32, dir: vec3f) -> f32 {
     return select(0.0, x.spread, x.ok);
 }
 
-// The probability that scatter_dielectric refracts a ray through the sphere at both
-// interfaces (Schlick's Fresnel), entering at incidence cos_i and leaving at cos_r.
-fn lens_transmittance(ior: f32, cos_i: f32, cos_r: f32) -> f32 {
-    return (1.0 - schlick(cos_i, 1.0 / ior)) * (1.0 - schlick(cos_r, ior));
+// The probability that scatter_dielectric takes a ray through the sphere on the path:
+// refracted in at incidence cos_i, reflected `inner` times inside and refracted out, each at
+// cos_r (Schlick's Fresnel).
+fn lens_transmittance(ior: f32, cos_i: f32, cos_r: f32, inner: u32) -> f32 {
+    let through = (1.0 - schlick(cos_i, 1.0 / ior)) * (1.0 - schlick(cos_r, ior));
+    if inner == 0u {
+        return through;
+    }
+    return through * schlick(cos_r, ior);
 }

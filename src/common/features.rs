@@ -42,9 +42,9 @@ pub struct Features {
     /// An HDR environment map: looked up where rays leave the scene, and sampled by
     /// next-event estimation (with `nee`).
     pub env_map: bool,
-    /// Perfect mirror spheres under an environment map that lights the scene: next-event
-    /// estimation also samples the map's light as a mirror ball reflects it (with `nee`;
-    /// `common::arrays::mirror_spheres`).
+    /// Perfect mirror spheres (or clear glass balls, which reflect too) under an environment
+    /// map that lights the scene: next-event estimation also samples the map's light as a
+    /// mirror ball reflects it (with `nee`; `common::arrays::mirror_spheres`).
     pub mirror_nee: bool,
     /// Clear glass balls under an environment map that lights the scene: next-event
     /// estimation also samples the map's light as the ball refracts it (the sun's caustic;
@@ -232,8 +232,9 @@ impl Features {
             f.gloss_nee |= o.material.is_glossy();
         }
         f.gloss_nee &= f.nee;
-        f.mirror_nee = !crate::common::arrays::mirror_spheres(scene, true).is_empty();
         f.lens_nee = !crate::common::arrays::lens_spheres(scene, true).is_empty();
+        // A glass ball reflects the map too.
+        f.mirror_nee = f.lens_nee || !crate::common::arrays::mirror_spheres(scene, true).is_empty();
         f
     }
 

@@ -142,6 +142,9 @@ pub struct CpuScene {
     /// The glass spheres light sampling refracts the map through, likewise
     /// (`common::arrays::lens_spheres`, which follow the mirror spheres).
     pub lenses: Vec<u32>,
+    /// The spheres light sampling reflects the map in: the mirror spheres, then the glass
+    /// ones (their outer surface reflects as Fresnel says).
+    pub reflectors: Vec<u32>,
     /// Copies of instanced meshes, whose trees follow the top level in `bvh`.
     pub instances: Vec<Instance>,
     /// Triangles the top level names (an instanced mesh's follow them).
@@ -193,6 +196,7 @@ impl CpuScene {
             triangles: Vec::new(),
             lights: Vec::new(),
             mirrors: Vec::new(),
+            reflectors: Vec::new(),
             lenses: Vec::new(),
             instances: instances
                 .iter()
@@ -328,5 +332,6 @@ impl CpuScene {
         let m = n + self.u.n_mirrors as usize;
         self.mirrors = p.lights[n..m].iter().map(|l| l.prim & REF_INDEX).collect();
         self.lenses = p.lights[m..].iter().map(|l| l.prim & REF_INDEX).collect();
+        self.reflectors = p.lights[n..].iter().map(|l| l.prim & REF_INDEX).collect();
     }
 }

@@ -16,7 +16,7 @@ use super::bvh8::Stack8;
 use super::intersect::*;
 use super::lens;
 use super::material::{
-    Scatter, gloss_pdf, reflect, refract_dir, scatter_dielectric, scatter_surface,
+    Scatter, gloss_pdf, reflect, refract_dir, scatter_dielectric, scatter_surface, schlick,
 };
 use super::mirror;
 #[cfg(target_arch = "x86_64")]
@@ -187,8 +187,11 @@ struct LensPath {
     from: Vec3A,
     dir: Vec3A,
     pdf: f32,
-    /// 1: met from outside; 2: refracted in; 3: met from inside; 4: refracted out.
+    /// 1: met from outside; 2: refracted in (or reflected inside); 3: met from inside; 4:
+    /// refracted out.
     stage: u8,
+    /// Reflections inside so far (at most one: `lens::Frame::inner`).
+    inner: u8,
 }
 
 fn power_heuristic(a: f32, b: f32) -> f32 {
@@ -609,7 +612,7 @@ impl<'a> Tracer<'a> {
     /// finds the map's direction of density `pdf` in a mirror sphere of spread `spread`.
     #[inline(always)]
     fn mirror_pdf(&self, pdf: f32, spread: f32) -> f32 {
-        pdf / (self.s.mirrors.len() as f32 * spread)
+        pdf / (self.s.reflectors.len() as f32 * spread)
     }
 
     /// The density, in solid angle at the point that sees it, with which `sample_lens` finds
@@ -625,15 +628,19 @@ impl<'a> Tracer<'a> {
         let s = &self.s.spheres[h.sphere as usize];
         let c = sphere_center(s);
         let ior = self.s.materials[s.material as usize].ior;
-        let f = lens::frame(h.from, c, s.radius, ior, dir)?;
+        let f = lens::Frame {
+            inner: h.inner as u32,
+            ..lens::frame(h.from, c, s.radius, ior, dir)?
+        };
         lens::spread_of(&f, h.from, c, s.radius, h.dir)
     }
 
     /// The glass-sphere path `lensed` after the ray met `hit` (`scattered` false) or after
     /// the surface there scattered it toward `dir` (`scattered` true): a ray of a lobe light
-    /// sampling weighs (`prev_pdf` > 0, from `prev_point`) that meets one of `lenses` from
-    /// outside starts one; it goes on while the ray refracts into the sphere, meets it from
-    /// inside and refracts out, and ends at anything else (trace.wgsl: lens_step).
+    /// sampling weighs (`prev_pdf` > 0, from `prev_point`; or a camera ray, `sample_view`)
+    /// that meets one of `lenses` from outside starts one; it goes on while the ray refracts
+    /// into the sphere, meets it from inside, reflects there at most once and refracts out,
+    /// and ends at anything else (trace.wgsl: lens_step).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn lens_step(
@@ -654,6 +661,11 @@ impl<'a> Tracer<'a> {
         match (lensed, scattered) {
             (Some(h), Some(d)) if h.stage == 1 && inward(d) => Some(LensPath { stage: 2, ..h }),
             (Some(h), Some(d)) if h.stage == 3 && !inward(d) => Some(LensPath { stage: 4, ..h }),
+            (Some(h), Some(_)) if h.stage == 3 && h.inner == 0 => Some(LensPath {
+                stage: 2,
+                inner: 1,
+                ..h
+            }),
             (_, Some(_)) => None,
             (Some(h), None) if h.stage == 2 && same(&h) && !inward(ray.dir) => {
                 Some(LensPath { stage: 3, ..h })
@@ -670,21 +682,23 @@ impl<'a> Tracer<'a> {
                     dir: ray.dir,
                     pdf: prev_pdf,
                     stage: 1,
+                    inner: 0,
                 })
             }
         }
     }
 
     /// The environment map's light as a clear glass sphere refracts it onto p (facing
-    /// shading normal n), for the lobe light sampling weighs, as `sample_mirror` for mirror
-    /// spheres: one of the scene's glass spheres chosen evenly, a direction drawn from the
-    /// map's distribution, and every path from p through the sphere toward it (`lens::roots`,
-    /// up to three), each with its three legs unoccluded, carrying the glass's tint twice and
-    /// the chance that `scatter_dielectric` refracts at both interfaces
-    /// (`lens::transmittance`), in p's solid angle at the map's density over the path's
-    /// spread, MIS-weighted against the lobe, which finds the same paths by scattering
-    /// through the sphere (`escaped`). Docs: MODEL-NOTES.md, "The map through a glass ball"
-    /// (trace.wgsl: sample_lens).
+    /// shading normal n), for the lobe light sampling weighs (or the camera, `view`), as
+    /// `sample_mirror` for mirror spheres: one of the scene's glass spheres chosen evenly, a
+    /// direction drawn from the map's distribution, and every path from p through the sphere
+    /// toward it (`lens::roots`, up to three), and with up to `inner` reflections inside up
+    /// to three more, each with its legs unoccluded, carrying the glass's tint at each
+    /// interface and the chance that `scatter_dielectric` refracts in, reflects and refracts
+    /// out as the path does (`lens::transmittance`), in p's solid angle at the map's density
+    /// over the path's spread, MIS-weighted against the lobe, which finds the same paths by
+    /// scattering through the sphere (`escaped`). Docs: MODEL-NOTES.md, "The map through a
+    /// glass ball" (trace.wgsl: sample_lens).
     #[allow(clippy::too_many_arguments)]
     fn sample_lens<const P: u32>(
         &mut self,
@@ -693,6 +707,8 @@ impl<'a> Tracer<'a> {
         n_geo: Vec3A,
         from: u32,
         lobe: Weighed,
+        view: Option<(u32, u32)>,
+        inner: u32,
         rng: &mut Rng,
     ) -> Vec3A {
         let Some(map) = self.s.env.as_ref() else {
@@ -714,60 +730,77 @@ impl<'a> Tracer<'a> {
         if smp.pdf <= 0.0 {
             return Vec3A::ZERO;
         }
-        let Some(f) = lens::frame(p, c, r, m.ior, w) else {
+        let Some(through) = lens::frame(p, c, r, m.ior, w) else {
             return Vec3A::ZERO;
         };
-        let (roots, found) = lens::roots(&f);
         // The map's radiance once, where a path reaches it.
         let mut radiance = None;
         let mut sum = Vec3A::ZERO;
-        for &s in &roots[..found] {
-            let Some(x) = lens::path(&f, p, c, r, s) else {
-                continue;
-            };
-            let cos_s = n.dot(x.dir);
-            if cos_s <= 0.0 || (self.s.shading_normals() && n_geo.dot(x.dir) <= 0.0) {
-                continue;
+        for inner in 0..=inner {
+            let f = lens::Frame { inner, ..through };
+            let (roots, found) = lens::roots(&f);
+            for &s in &roots[..found] {
+                let Some(x) = lens::path(&f, p, c, r, s) else {
+                    continue;
+                };
+                let cos_s = n.dot(x.dir);
+                if cos_s <= 0.0 || (self.s.shading_normals() && n_geo.dot(x.dir) <= 0.0) {
+                    continue;
+                }
+                // To the sphere (the first thing the ray meets must be it), across it (twice,
+                // with a reflection inside), and from where it leaves to the map.
+                let to_lens = Ray {
+                    origin: offset_ray(p, n_geo),
+                    dir: x.dir,
+                };
+                let t_lens = hit_primitive::<ANY>(self.s, i, &to_lens, T_FAR);
+                if t_lens <= 0.0 || self.occluded::<P>(&to_lens, t_lens, i, from) {
+                    continue;
+                }
+                let entry = p + x.dir * x.dist;
+                let chord = x.turn - entry;
+                let across = Ray {
+                    origin: entry,
+                    dir: chord.normalize(),
+                };
+                if self.occluded::<P>(&across, chord.length(), i, i) {
+                    continue;
+                }
+                if inner > 0 {
+                    let back = x.exit - x.turn;
+                    let across = Ray {
+                        origin: x.turn,
+                        dir: back.normalize(),
+                    };
+                    if self.occluded::<P>(&across, back.length(), i, i) {
+                        continue;
+                    }
+                }
+                let to_map = Ray {
+                    origin: offset_ray(x.exit, x.exit_normal),
+                    dir: w,
+                };
+                if self.occluded::<P>(&to_map, T_FAR, NONE, i) {
+                    continue;
+                }
+                let l = *radiance.get_or_insert_with(|| {
+                    Vec3A::from_array(map.radiance_at(smp.uv.0, smp.uv.1))
+                        * u.env_intensity
+                        * m.color
+                        * m.color
+                });
+                // The glass's tint once more at the reflection.
+                let tint = if inner > 0 { m.color } else { Vec3A::ONE };
+                sum += self.weighed(
+                    l * tint * lens::transmittance(m.ior, x.cos_i, x.cos_r, inner),
+                    p,
+                    x.dir,
+                    cos_s,
+                    self.lens_pdf(smp.pdf, x.spread),
+                    lobe,
+                    view,
+                );
             }
-            // To the sphere (the first thing the ray meets must be it), across it, and from
-            // where it leaves to the map.
-            let to_lens = Ray {
-                origin: offset_ray(p, n_geo),
-                dir: x.dir,
-            };
-            let t_lens = hit_primitive::<ANY>(self.s, i, &to_lens, T_FAR);
-            if t_lens <= 0.0 || self.occluded::<P>(&to_lens, t_lens, i, from) {
-                continue;
-            }
-            let entry = p + x.dir * x.dist;
-            let chord = x.exit - entry;
-            let across = Ray {
-                origin: entry,
-                dir: chord.normalize(),
-            };
-            if self.occluded::<P>(&across, chord.length(), i, i) {
-                continue;
-            }
-            let to_map = Ray {
-                origin: offset_ray(x.exit, x.exit_normal),
-                dir: w,
-            };
-            if self.occluded::<P>(&to_map, T_FAR, NONE, i) {
-                continue;
-            }
-            let l = *radiance.get_or_insert_with(|| {
-                Vec3A::from_array(map.radiance_at(smp.uv.0, smp.uv.1))
-                    * u.env_intensity
-                    * m.color
-                    * m.color
-            });
-            sum += light_weighted(
-                l * lens::transmittance(m.ior, x.cos_i, x.cos_r),
-                x.dir,
-                cos_s,
-                self.lens_pdf(smp.pdf, x.spread),
-                lobe,
-            );
         }
         sum
     }
@@ -797,7 +830,7 @@ impl<'a> Tracer<'a> {
             return None;
         }
         let i = hit.r & INDEX;
-        if !self.s.mirrors.contains(&i) {
+        if !self.s.reflectors.contains(&i) {
             return None;
         }
         let s = &self.s.spheres[i as usize];
@@ -831,9 +864,9 @@ impl<'a> Tracer<'a> {
         let Some(map) = self.s.env.as_ref() else {
             return Vec3A::ZERO;
         };
-        let count = self.s.mirrors.len();
+        let count = self.s.reflectors.len();
         let pick = if count > 1 { rng.rand() } else { 0.0 };
-        let i = self.s.mirrors[((pick * count as f32) as usize).min(count - 1)];
+        let i = self.s.reflectors[((pick * count as f32) as usize).min(count - 1)];
         let sphere = self.s.spheres[i as usize];
         let c = sphere_center(&sphere);
         // A sphere wholly behind the surface reflects nothing onto it.
@@ -875,9 +908,12 @@ impl<'a> Tracer<'a> {
             return Vec3A::ZERO;
         }
         // What the mirror reflects: the lecture's specular tint, or glTF's Fresnel at the
-        // angle of incidence.
+        // angle of incidence; glass, the chance that `scatter_dielectric` reflects there
+        // (Schlick's Fresnel) and its tint.
         let m = &self.s.materials[sphere.material as usize];
-        let reflectance = if self.follows_pbr(m) {
+        let reflectance = if m.smoothness < 0.0 {
+            m.color * schlick(x.cos_i, 1.0 / m.ior)
+        } else if self.follows_pbr(m) {
             pbr::mirror_reflectance(&pbr::lobe(m, -x.dir, x.normal, true), x.cos_i)
         } else {
             m.specular_color
@@ -1007,23 +1043,31 @@ impl<'a> Tracer<'a> {
         }
     }
 
-    /// The environment map's light that the camera sees in the mirror spheres light sampling
-    /// samples, for pixel `px` whose camera ray is `primary`: `sample_mirror` from the ray's
-    /// lens point as from a surface, its path counted where it crosses the focus plane inside
-    /// the pixel and weighed against the pixel's camera rays, which find the same paths
-    /// (`trace_path` weighs them at the first hit). The sun's image in a ball is smaller than
-    /// a pixel: camera rays find it as fireflies, this in every sample. Only where the pixel
-    /// may see a mirror sphere (`view_meets`). Docs: MODEL-NOTES.md, "The map in a mirror
-    /// ball" (trace.wgsl: sample_view).
+    /// The environment map's light that the camera sees in the mirror spheres and through
+    /// the glass spheres light sampling samples, for pixel `px` whose camera ray is
+    /// `primary`: `sample_mirror` and `sample_lens` from the ray's lens point as from a
+    /// surface, their paths counted where they cross the focus plane inside the pixel and
+    /// weighed against the pixel's camera rays, which find the same paths (`trace_path` weighs
+    /// them at the first hit). The sun's image in a ball is smaller than a pixel: camera rays
+    /// find it as fireflies, this in every sample. Only where the pixel may see such a sphere
+    /// (`view_meets`). Docs: MODEL-NOTES.md, "The map in a mirror ball" and "The map through a
+    /// glass ball" (trace.wgsl: sample_view).
     fn sample_view<const P: u32>(&mut self, px: (u32, u32), primary: &Ray, rng: &mut Rng) -> Vec3A {
         let u = &self.s.u;
-        // Camera, mirror, map: one scattering.
-        if u.max_bounces == 0 || !self.view_meets(primary, &self.s.mirrors) {
-            return Vec3A::ZERO;
-        }
         let ahead = (u.cam_to_corner + 0.5 * u.cam_horizontal - 0.5 * u.cam_vertical).normalize();
         let o = primary.origin;
-        self.sample_mirror::<P>(o, ahead, ahead, NONE, Weighed::Cosine, Some(px), rng)
+        let mut sum = Vec3A::ZERO;
+        // Camera, mirror, map: one scattering.
+        if self.f.mirror_nee && u.max_bounces >= 1 && self.view_meets(primary, &self.s.reflectors) {
+            sum += self.sample_mirror::<P>(o, ahead, ahead, NONE, Weighed::Cosine, Some(px), rng);
+        }
+        // Camera, into the glass, (a reflection inside,) out, map: two scatterings (three).
+        if self.f.lens_nee && u.max_bounces >= 2 && self.view_meets(primary, &self.s.lenses) {
+            let inner = (u.max_bounces >= 3) as u32;
+            let lobe = Weighed::Cosine;
+            sum += self.sample_lens::<P>(o, ahead, ahead, NONE, lobe, Some(px), inner, rng);
+        }
+        sum
     }
 
     /// Whether the pixel of camera ray `primary` may see one of `spheres` (the paths
@@ -1264,7 +1308,7 @@ impl<'a> Tracer<'a> {
         // with which the camera ray was drawn, that weighs its own such paths at the first
         // hit; 0 without.
         let mut view_pdf = 0.0;
-        if nee && self.f.mirror_nee {
+        if nee && (self.f.mirror_nee || self.f.lens_nee) {
             radiance += self.sample_view::<P>(px, &primary, rng);
             view_pdf = self
                 .pixel_at(primary.origin, primary.dir)
@@ -1292,7 +1336,7 @@ impl<'a> Tracer<'a> {
             // The camera ray's density stands for a lobe's at the first hit.
             let drawn = if bounce == 0 { view_pdf } else { prev_pdf };
             mirrored = self.mirror_hit(hit, &ray, &point, drawn, prev_point);
-            lensed = self.lens_step(lensed, hit, &ray, point.normal, prev_pdf, prev_point, None);
+            lensed = self.lens_step(lensed, hit, &ray, point.normal, drawn, prev_point, None);
             let (textured, mapped) = self.material_at(hit, local, material);
             let m = textured
                 .as_ref()
@@ -1372,7 +1416,7 @@ impl<'a> Tracer<'a> {
                     // The map in the mirror spheres: its paths scatter here and at the
                     // mirror, and leave it, within the bounces allowed.
                     if self.f.mirror_nee
-                        && !self.s.mirrors.is_empty()
+                        && !self.s.reflectors.is_empty()
                         && bounce + 2 <= u.max_bounces
                     {
                         radiance += throughput
@@ -1389,10 +1433,21 @@ impl<'a> Tracer<'a> {
                     }
                     // The map through the glass spheres: its paths scatter here, refract in
                     // and out, and leave, within the bounces allowed.
+                    // With a reflection inside, one bounce more.
                     if self.f.lens_nee && !self.s.lenses.is_empty() && bounce + 3 <= u.max_bounces {
+                        let inner = (bounce + 4 <= u.max_bounces) as u32;
                         radiance += throughput
                             * tint
-                            * self.sample_lens::<P>(point.position, ns, n, from, weighed, rng);
+                            * self.sample_lens::<P>(
+                                point.position,
+                                ns,
+                                n,
+                                from,
+                                weighed,
+                                None,
+                                inner,
+                                rng,
+                            );
                     }
                 }
                 let mut pbr_pdf = 0.0;
