@@ -94,7 +94,7 @@ fn main() {
         // Also with the output averaged 8×8 (a 64th of the readback), which leaves mostly the
         // filter's own time.
         let gpu_ms = backend.gpu().map(|ctx| {
-            let mut pass = termtrace::gpu::denoise::DenoisePass::new(&ctx);
+            let mut pass = termtrace::gpu::denoise::DenoisePass::new(ctx);
             let (accum, guides) = (r.accumulation().unwrap(), r.guide_buffer().unwrap());
             let mut best = [f64::INFINITY; 2];
             // Half a second of runs first: a GPU idle for a moment has lowered its clock

@@ -37,7 +37,7 @@ fn main() {
         }
         let gpu = backend.gpu().map(|ctx| {
             let accum = r.accumulation().expect("a GPU accumulation");
-            let mut pass = ResolvePass::new(&ctx);
+            let mut pass = ResolvePass::new(ctx);
             let frame = |pass: &mut ResolvePass| {
                 let slot = pass
                     .request(ctx, accum, (w, h), factor)

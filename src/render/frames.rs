@@ -42,7 +42,7 @@ pub struct Frames<T> {
 impl<T: Copy> Frames<T> {
     pub fn new(backend: &Backend) -> Frames<T> {
         Frames {
-            resolve: backend.gpu().map(|ctx| ResolvePass::new(&ctx)),
+            resolve: backend.gpu().map(|ctx| ResolvePass::new(ctx)),
             backend: backend.clone(),
             denoiser: None,
             host: None,
@@ -132,7 +132,7 @@ impl<T: Copy> Frames<T> {
                 ) {
                     // On the GPU, where the sums and the guides are (shaders/denoise.wgsl).
                     (Backend::Gpu(ctx), Some(accum), Some(guides)) => {
-                        let pass = self.denoiser.get_or_insert_with(|| DenoisePass::new(&ctx));
+                        let pass = self.denoiser.get_or_insert_with(|| DenoisePass::new(ctx));
                         let tiles = pass.run(ctx, accum, guides, size, factor);
                         crate::denoise::from_tiles(tiles, size, factor)
                     }
