@@ -80,11 +80,11 @@ const ENTRY_POINTS: [&str; 6] = [
 
 impl DenoisePass {
     pub fn new(ctx: &GpuContext) -> DenoisePass {
-        use wgpu::BufferBindingType::Storage;
-        let (device, values) = (&ctx.device, Values::of(ctx));
+        use wgpu::BufferBindingType::{Storage, Uniform};
+        let device = &ctx.device;
         let (ro, rw) = (Storage { read_only: true }, Storage { read_only: false });
-        let kinds = [values.binding(), ro, ro, ro, rw, rw, ro, rw, rw, rw, rw];
-        let (layout, pipelines) = super::passes(device, values, "denoise", &kinds, &ENTRY_POINTS);
+        let kinds = [Uniform, ro, ro, ro, rw, rw, ro, rw, rw, rw, rw];
+        let (layout, pipelines) = super::passes(ctx, "denoise", &kinds, &ENTRY_POINTS);
         let uniforms = (0..=ITERATIONS)
             .map(|_| {
                 device.create_buffer(&wgpu::BufferDescriptor {

@@ -66,11 +66,14 @@ impl Values {
         }
     }
 
-    /// The bind group layout's type of a values buffer.
-    pub fn binding(self) -> wgpu::BufferBindingType {
-        match self {
-            Values::Uniform => wgpu::BufferBindingType::Uniform,
-            Values::Storage => wgpu::BufferBindingType::Storage { read_only: true },
+    /// A layout's binding type `ty` as bound here: a uniform buffer becomes a read-only
+    /// storage buffer where `self` is `Storage`, as [`Values::wgsl`] rewrites its declaration.
+    pub fn binding(self, ty: wgpu::BufferBindingType) -> wgpu::BufferBindingType {
+        match (self, ty) {
+            (Values::Storage, wgpu::BufferBindingType::Uniform) => {
+                wgpu::BufferBindingType::Storage { read_only: true }
+            }
+            _ => ty,
         }
     }
 
@@ -92,28 +95,28 @@ impl Values {
 /// of a small compute pass whose WGSL file and entry point are both named `name`
 /// (`reduce.wgsl`, `fn reduce`).
 pub(crate) fn simple_pass(
-    device: &wgpu::Device,
-    values: Values,
+    ctx: &GpuContext,
     name: &str,
     buffers: &[wgpu::BufferBindingType],
 ) -> (wgpu::BindGroupLayout, wgpu::ComputePipeline) {
-    let (layout, mut pipelines) = passes(device, values, name, buffers, &[name]);
+    let (layout, mut pipelines) = passes(ctx, name, buffers, &[name]);
     (layout, pipelines.remove(0))
 }
 
 /// The bind group layout (buffers of these types, bound in order from 0) shared by the
-/// pipelines of `entry_points` of the WGSL file `name.wgsl`, one pipeline each.
+/// pipelines of `entry_points` of the WGSL file `name.wgsl`, one pipeline each. Its uniform
+/// buffers are bound as [`Values::of`] the context says.
 pub(crate) fn passes(
-    device: &wgpu::Device,
-    values: Values,
+    ctx: &GpuContext,
     name: &str,
     buffers: &[wgpu::BufferBindingType],
     entry_points: &[&str],
 ) -> (wgpu::BindGroupLayout, Vec<wgpu::ComputePipeline>) {
+    let (device, values) = (&ctx.device, Values::of(ctx));
     let entries: Vec<_> = buffers
         .iter()
         .enumerate()
-        .map(|(i, &ty)| layout_entry(i as u32, ty))
+        .map(|(i, &ty)| layout_entry(i as u32, values.binding(ty)))
         .collect();
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some(&format!("{name}.layout")),
@@ -182,4 +185,35 @@ pub(crate) fn bind_buffers(
         layout,
         entries: &entries,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Values;
+    use wgpu::BufferBindingType::{Storage, Uniform};
+
+    #[test]
+    fn storage_values_rebind_every_uniform_and_nothing_else() {
+        for file in ["trace.wgsl", "reduce.wgsl", "resolve.wgsl", "denoise.wgsl"] {
+            let src = super::shader::assemble(file).unwrap();
+            let uniforms = src.matches("var<uniform>").count();
+            assert!(uniforms > 0, "{file} declares its values var<uniform>");
+            let storage = Values::Storage.wgsl(src.clone());
+            assert!(!storage.contains("var<uniform>"), "{file}");
+            assert_eq!(
+                storage.matches("var<storage, read>").count(),
+                src.matches("var<storage, read>").count() + uniforms,
+                "{file}"
+            );
+            assert_eq!(Values::Uniform.wgsl(src.clone()), src);
+            naga::front::wgsl::parse_str(&storage).unwrap_or_else(|e| panic!("{file}: {e}"));
+        }
+        let rw = Storage { read_only: false };
+        assert_eq!(
+            Values::Storage.binding(Uniform),
+            Storage { read_only: true }
+        );
+        assert_eq!(Values::Storage.binding(rw), rw);
+        assert_eq!(Values::Uniform.binding(Uniform), Uniform);
+    }
 }

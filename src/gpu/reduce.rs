@@ -4,7 +4,7 @@
 
 use super::accum::Accumulation;
 use super::scene_buffers::SceneBuffers;
-use super::{GpuContext, Values, bind_buffers, simple_pass};
+use super::{GpuContext, bind_buffers, simple_pass};
 
 /// Invocations per workgroup (`@workgroup_size` of `fn reduce`).
 const WORKGROUP: u32 = 64;
@@ -16,15 +16,13 @@ pub struct ReducePass {
 
 impl ReducePass {
     pub fn new(ctx: &GpuContext) -> ReducePass {
-        use wgpu::BufferBindingType::Storage;
-        let values = Values::of(ctx);
+        use wgpu::BufferBindingType::{Storage, Uniform};
         let (layout, pipeline) = simple_pass(
-            &ctx.device,
-            values,
+            ctx,
             "reduce",
             &[
-                values.binding(),
-                values.binding(),
+                Uniform,
+                Uniform,
                 Storage { read_only: false },
                 Storage { read_only: false },
                 Storage { read_only: true },

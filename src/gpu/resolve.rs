@@ -45,14 +45,12 @@ pub struct ResolvePass {
 
 impl ResolvePass {
     pub fn new(ctx: &GpuContext) -> ResolvePass {
-        use wgpu::BufferBindingType::Storage;
-        let (device, values) = (&ctx.device, Values::of(ctx));
+        use wgpu::BufferBindingType::{Storage, Uniform};
         let (layout, pipeline) = simple_pass(
-            device,
-            values,
+            ctx,
             "resolve",
             &[
-                values.binding(),
+                Uniform,
                 Storage { read_only: true },
                 Storage { read_only: true },
                 Storage { read_only: false },
@@ -60,7 +58,7 @@ impl ResolvePass {
                 Storage { read_only: true },
             ],
         );
-        let uniforms = device.create_buffer(&wgpu::BufferDescriptor {
+        let uniforms = ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("resolve.uniforms"),
             size: std::mem::size_of::<ResolveUniforms>() as u64,
             usage: Values::USAGE,

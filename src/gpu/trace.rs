@@ -96,7 +96,7 @@ fn compile(
 
 impl TracePass {
     pub fn new(ctx: &GpuContext) -> TracePass {
-        use wgpu::BufferBindingType::Storage;
+        use wgpu::BufferBindingType::{Storage, Uniform};
         let device = &ctx.device;
         let values = Values::of(ctx);
         let ro = Storage { read_only: true };
@@ -104,8 +104,8 @@ impl TracePass {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("trace.layout"),
             entries: &[
-                entry(0, values.binding()),
-                entry(1, values.binding()),
+                entry(0, values.binding(Uniform)),
+                entry(1, values.binding(Uniform)),
                 entry(2, ro),
                 entry(3, ro),
                 entry(4, ro),
