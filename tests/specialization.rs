@@ -251,3 +251,32 @@ fn the_tuner_times_whole_rounds_taken_in_several_submissions() {
     assert!(timed.contains(&r.features()) && timed.iter().any(|p| *p != r.features()));
     assert!(chosen == r.features() || timed.contains(&chosen));
 }
+
+#[test]
+fn a_software_adapter_traces_with_the_scene_s_own_pipeline_and_times_none() {
+    use termtrace::render::{Backend, Renderer};
+    // On lavapipe the generic pipeline's first dispatch compiles for minutes (BENCHMARKS.md,
+    // "Shaders compiled once on lavapipe"): unless asked (`tune_on_software`, the test above),
+    // a software adapter never times it against the scene's own.
+    let ctx = ctx();
+    assert!(ctx.is_software(), "the tests' adapter is a software one");
+    let scene = Scene::load("basic").unwrap();
+    let options = RenderOptions {
+        submission: std::time::Duration::from_micros(1),
+        ..Default::default()
+    };
+    let mut r = Renderer::new(Backend::Gpu(ctx), &scene, settings(256, 64, 8), options);
+    for _ in 0..12 {
+        r.submit(u32::MAX).expect("samples left");
+        assert_eq!(
+            r.last_pipeline(),
+            Some(r.features()),
+            "only the scene's own pipeline"
+        );
+        r.wait(0);
+    }
+    assert!(
+        !r.tuning() && r.tuned().is_none(),
+        "no tuner on a software adapter"
+    );
+}
