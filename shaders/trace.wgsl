@@ -778,26 +778,57 @@ fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, glos
 // A light sample's estimate for the lobe that light sampling weighs: radiance arriving from
 // dir (cos_s against the shading normal), drawn with density pl, times glTF's BRDF (pbr) or
 // the lecture's lobe's f·cos, which is its density (the glossy lobe's gloss_pdf, the cosine
-// lobe's cos_s / π; its tint the caller applies), weighed by the power heuristic against the
-// lobe's density (src/cpu/trace.rs: light_weighted).
+// lobe's cos_s / π; its tint the caller applies), or the mixture of the glossy and the cosine
+// lobe (gloss.p < 1, tints included), weighed by the power heuristic against the lobe's
+// density (src/cpu/trace.rs: light_weighted).
 fn light_weighted(radiance: vec3f, dir: vec3f, cos_s: f32, pl: f32, pbr: bool, lobe: PbrLobe, gloss: Gloss) -> vec3f {
     if HAS_PBR && pbr {
         let e = pbr_eval(lobe, dir);
         return radiance * e.xyz * (power_heuristic(pl, e.w) / pl);
     }
     if HAS_GLOSS_NEE && gloss.s > 0.0 {
+        if gloss.p < 1.0 {
+            let pg = gloss.p * gloss_pdf(dir, gloss.n, gloss.r, gloss.s);
+            let pd = (1.0 - gloss.p) * (cos_s / PI);
+            return radiance * (gloss.spec * pg + gloss.diff * pd) * (power_heuristic(pl, pg + pd) / pl);
+        }
         let pdf = gloss_pdf(dir, gloss.n, gloss.r, gloss.s);
         return radiance * (pdf / pl * power_heuristic(pl, pdf));
     }
     return radiance * (cos_s / PI / pl * power_heuristic(pl, cos_s / PI));
 }
 
-// The lecture's glossy lobe as light sampling weighs it (src/cpu/trace.rs: Weighed::Gloss):
-// the shading normal, the mirror direction and the smoothness; s = 0 for the cosine lobe.
+// The density of the lecture's lobe light sampling weighs at direction dir that the path drew
+// (its MIS weight against light samples; src/cpu/trace.rs: lobe_pdf).
+fn lobe_pdf(gloss: Gloss, dir: vec3f, ns: vec3f) -> f32 {
+    let pd = max(dot(dir, ns), 0.0) / PI;
+    if HAS_GLOSS_NEE && gloss.s > 0.0 {
+        let pg = gloss_pdf(dir, gloss.n, gloss.r, gloss.s);
+        if gloss.p < 1.0 {
+            return gloss.p * pg + (1.0 - gloss.p) * pd;
+        }
+        return pg;
+    }
+    return pd;
+}
+
+// The lecture's glossy lobe as light sampling weighs it (src/cpu/trace.rs: Weighed::Gloss and
+// Weighed::Mixed): the shading normal, the mirror direction and the smoothness (s = 0 for the
+// cosine lobe), and the probability p with which the material takes it: below 1, light
+// sampling weighs its mixture with the cosine lobe, with their tints spec and diff, whichever
+// lobe the path goes on by.
 struct Gloss {
     n: vec3f,
     r: vec3f,
     s: f32,
+    p: f32,
+    spec: vec3f,
+    diff: vec3f,
+}
+
+// The cosine lobe about n, as light sampling weighs it.
+fn cosine_lobe(n: vec3f) -> Gloss {
+    return Gloss(n, vec3f(0.0), 0.0, 1.0, vec3f(1.0), vec3f(1.0));
 }
 
 // SceneUniforms.env_mode (src/common/arrays.rs).
@@ -968,7 +999,7 @@ fn view_weighted(radiance: vec3f, p: vec3f, dir: vec3f, pl: f32, px: vec2u) -> v
 // the focus plane inside the pixel (src/cpu/trace.rs: sample_view, which says why).
 fn sample_view(px: vec2u, primary: Ray, state: ptr<function, Rng>) -> vec3f {
     let ahead = normalize(scene.cam_to_corner + 0.5 * scene.cam_horizontal - 0.5 * scene.cam_vertical);
-    let gloss = Gloss(ahead, vec3f(0.0), 0.0);
+    let gloss = cosine_lobe(ahead);
     var sum = vec3f(0.0);
     // Camera, mirror, map: one scattering.
     if HAS_MIRROR_NEE && scene.max_bounces >= 1u && view_meets(primary, scene.n_lights, scene.n_mirrors + scene.n_lenses) {
@@ -1271,16 +1302,20 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         let ns = shading_normal_at(sh, hit, surf.local, n_out, n);
         var lobe = PbrLobe();
         // The lecture's glossy lobe: the specular one blended with the diffuse direction,
-        // without fuzz (src/scene/model.rs: Material::is_glossy).
-        var gloss = Gloss(ns, vec3f(0.0), 0.0);
-        if HAS_GLOSS_NEE && is_spec && m.smoothness > 0.0 && m.smoothness < 1.0 && m.absorption == 0.0 {
-            gloss = Gloss(ns, reflect(ray.dir, ns), m.smoothness);
+        // without fuzz (src/scene/model.rs: Material::is_glossy). Taken at a probability below
+        // 1, light sampling weighs its mixture with the cosine lobe whichever lobe was drawn.
+        var gloss = cosine_lobe(ns);
+        var tint = select(m.color, m.specular_color, is_spec);
+        if HAS_GLOSS_NEE && !pbr && m.specular > 0.0 && m.smoothness > 0.0 && m.smoothness < 1.0 && m.absorption == 0.0 {
+            gloss = Gloss(ns, reflect(ray.dir, ns), m.smoothness, m.specular, m.specular_color, m.color);
+            if m.specular < 1.0 {
+                tint = vec3f(1.0);
+            }
         }
         // A lobe with a density light sampling can weigh: the Lambertian one, the lecture's
         // specular one at smoothness 0 (the same distribution, its own tint) or glossy, or
         // glTF's but for its mirror.
         var light_lobe = !is_spec || m.smoothness == 0.0 || gloss.s > 0.0;
-        var tint = select(m.color, m.specular_color, is_spec);
         if pbr {
             lobe = pbr_lobe(m, -ray.dir, ns, dot(ray.dir, n_out) < 0.0);
             light_lobe = lobe.alpha >= PBR_ALPHA_MIN || lobe.p_spec < 1.0;
@@ -1324,11 +1359,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
             (*path).prev_pdf = pbr_pdf;
             (*path).prev_normal = ns;
         } else if light_lobe {
-            if HAS_GLOSS_NEE && gloss.s > 0.0 {
-                (*path).prev_pdf = gloss_pdf(sc.dir, gloss.n, gloss.r, gloss.s);
-            } else {
-                (*path).prev_pdf = max(dot(sc.dir, ns), 0.0) / PI;
-            }
+            (*path).prev_pdf = lobe_pdf(gloss, sc.dir, ns);
             (*path).prev_normal = ns;
         }
     }

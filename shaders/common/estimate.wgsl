@@ -1,10 +1,11 @@
 // The two-halves error estimate's per-pixel terms (src/common/estimate.rs, whose comments
 // say why): the factor that makes a pixel's (A − B)² the variance of its pooled mean, and the
 // weight of its squared error in pbrt's relative MSE, 1 / (reference² proxy + 0.01), the
-// proxy being the mean of the pixel's 3×3 neighbours clamped to the range of its two half
-// means; the weight made of two independent estimates (`product_weight`), and a filtered
-// image's (`filtered_weight`). Included by resolve.wgsl and denoise.wgsl, which walk
-// `proxy_window` with their own `half_mean` (each reads the accumulation its own way).
+// proxy being the mean of the pixel's 3×3 neighbours, at most the larger of its two half
+// means and at least what they agree on; the weight made of two independent
+// estimates (`product_weight`), and a filtered image's (`filtered_weight`). Included by
+// resolve.wgsl and denoise.wgsl, which walk `proxy_window` with their own `half_mean` (each
+// reads the accumulation its own way).
 
 // pbrt's relative-MSE epsilon (src/common/estimate.rs: REL_MSE_EPSILON).
 const REL_MSE_EPSILON: f32 = 0.01;
@@ -68,7 +69,9 @@ fn relative_weight(s: ProxySums, a: vec4f, b: vec4f) -> vec3f {
     let t = proxy_terms(a, b);
     var v = t.mean;
     if s.count > 0.0 {
-        v = max(min(s.sum / s.count, t.hi), t.lo);
+        // What the halves agree on (src/common/estimate.rs, `proxy_weight`).
+        let lift = t.lo * clamp(SPIKE * t.lo / max(t.hi, vec3f(1e-30)), vec3f(1.0 / SPIKE), vec3f(1.0));
+        v = max(min(s.sum / s.count, t.hi), lift);
     }
     v = max(v, vec3f(0.0));
     return 1.0 / (v * v + REL_MSE_EPSILON);
@@ -81,7 +84,8 @@ fn product_weight(a: vec3f, b: vec3f) -> vec3f {
     return 1.0 / (max(a * b, vec3f(0.0)) + REL_MSE_EPSILON);
 }
 
-// Where a spike both halves see is crushed by a filter (src/common/estimate.rs, SPIKE).
+// How far a pixel's halves may disagree and still lift the proxy by their smaller mean, and
+// the factor of a spike that a filter crushes (src/common/estimate.rs, SPIKE).
 const SPIKE: f32 = 2.0;
 
 // The weight of a filtered image's term, from the filter's two outputs da and db and the

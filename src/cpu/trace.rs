@@ -208,6 +208,17 @@ enum Weighed<'a> {
     /// The lecture's glossy lobe (`material::gloss_pdf`): the shading normal, the mirror
     /// direction and the smoothness.
     Gloss { n: Vec3A, r: Vec3A, s: f32 },
+    /// The lecture's glossy lobe taken at probability `p` beside the cosine lobe (its
+    /// `specular` below 1): their mixture, with each lobe's tint (`spec`, `diff`), so that
+    /// every sample's light sample finds the highlight, whichever lobe the path goes on by.
+    Mixed {
+        n: Vec3A,
+        r: Vec3A,
+        s: f32,
+        p: f32,
+        spec: Vec3A,
+        diff: Vec3A,
+    },
     /// glTF's BRDF.
     Pbr(&'a pbr::Lobe),
 }
@@ -215,7 +226,8 @@ enum Weighed<'a> {
 /// A light sample's estimate for the lobe that light sampling weighs: `radiance` arriving from
 /// `dir` (cos_s against the shading normal), drawn with density `pl`, times glTF's BRDF, or
 /// the lecture's lobe's f·cos, which is its density (the cosine lobe's cos_s / π; its tint the
-/// caller applies), weighed by the power heuristic against the lobe's density (trace.wgsl:
+/// caller applies), or the mixture of the glossy and the cosine lobe (`Weighed::Mixed`, tints
+/// included), weighed by the power heuristic against the lobe's density (trace.wgsl:
 /// light_weighted).
 #[inline(always)]
 fn light_weighted(radiance: Vec3A, dir: Vec3A, cos_s: f32, pl: f32, lobe: Weighed) -> Vec3A {
@@ -229,6 +241,30 @@ fn light_weighted(radiance: Vec3A, dir: Vec3A, cos_s: f32, pl: f32, lobe: Weighe
             let pdf = gloss_pdf(dir, n, r, s);
             radiance * (pdf / pl * power_heuristic(pl, pdf))
         }
+        Weighed::Mixed {
+            n,
+            r,
+            s,
+            p,
+            spec,
+            diff,
+        } => {
+            let (pg, pd) = (p * gloss_pdf(dir, n, r, s), (1.0 - p) * (cos_s / PI));
+            radiance * (spec * pg + diff * pd) * (power_heuristic(pl, pg + pd) / pl)
+        }
+    }
+}
+
+/// The density of the lobe light sampling weighs at direction `dir` that the path drew (its
+/// MIS weight against light samples; trace.wgsl: path_step): the lecture's lobes' (glTF's BRDF
+/// gives its own).
+fn lobe_pdf(lobe: Weighed, dir: Vec3A, ns: Vec3A) -> f32 {
+    match lobe {
+        Weighed::Gloss { n, r, s } => gloss_pdf(dir, n, r, s),
+        Weighed::Mixed { n, r, s, p, .. } => {
+            p * gloss_pdf(dir, n, r, s) + (1.0 - p) * (dir.dot(ns).max(0.0) / PI)
+        }
+        _ => dir.dot(ns).max(0.0) / PI,
     }
 }
 
@@ -1380,21 +1416,34 @@ impl<'a> Tracer<'a> {
                 let ns = self.shading_normal_at(hit, mapped, local, n_out, n);
                 let lobe = pbr.then(|| pbr::lobe(m, -ray.dir, ns, front));
                 // The lecture's glossy lobe: the specular one blended with the diffuse
-                // direction, without fuzz (`Material::is_glossy`).
-                let gloss = self.f.gloss_nee
-                    && is_spec
+                // direction, without fuzz (`Material::is_glossy`). Taken at a probability
+                // below 1, light sampling weighs its mixture with the cosine lobe whichever
+                // lobe was drawn (`Weighed::Mixed`).
+                let glossy = self.f.gloss_nee
+                    && !pbr
+                    && m.specular > 0.0
                     && m.smoothness > 0.0
                     && m.smoothness < 1.0
                     && m.absorption == 0.0;
+                let mixed = glossy && m.specular < 1.0;
+                let gloss = glossy && !mixed;
                 // A lobe with a density light sampling can weigh: the Lambertian one, the
                 // lecture's specular one at smoothness 0 or glossy, or glTF's but for its
                 // mirror.
                 let light_lobe = match &lobe {
                     Some(l) => l.alpha >= pbr::ALPHA_MIN || l.p_spec < 1.0,
-                    None => !is_spec || m.smoothness == 0.0 || gloss,
+                    None => !is_spec || m.smoothness == 0.0 || glossy,
                 };
                 let weighed = match &lobe {
                     Some(l) => Weighed::Pbr(l),
+                    None if mixed => Weighed::Mixed {
+                        n: ns,
+                        r: reflect(ray.dir, ns),
+                        s: m.smoothness,
+                        p: m.specular,
+                        spec: m.specular_color,
+                        diff: m.color,
+                    },
                     None if gloss => Weighed::Gloss {
                         n: ns,
                         r: reflect(ray.dir, ns),
@@ -1405,6 +1454,7 @@ impl<'a> Tracer<'a> {
                 if nee && light_lobe {
                     let tint = match (&lobe, is_spec) {
                         (Some(_), _) => Vec3A::ONE,
+                        (None, _) if mixed => Vec3A::ONE,
                         (None, true) => m.specular_color,
                         (None, false) => m.color,
                     };
@@ -1477,10 +1527,7 @@ impl<'a> Tracer<'a> {
                     prev_pdf = pbr_pdf;
                     prev_normal = ns;
                 } else if light_lobe {
-                    prev_pdf = match weighed {
-                        Weighed::Gloss { n, r, s } => gloss_pdf(sc.dir, n, r, s),
-                        _ => sc.dir.dot(ns).max(0.0) / PI,
-                    };
+                    prev_pdf = lobe_pdf(weighed, sc.dir, ns);
                     prev_normal = ns;
                 }
             }
