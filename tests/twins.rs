@@ -149,6 +149,9 @@ const TWINS: &[Twin] = &[
             "hit_ref",
             "count_tests",
             "count_visit",
+            // The cosine lobe as light sampling weighs it: the host's `Weighed::Cosine`, an
+            // enum's variant where WGSL has a struct.
+            "cosine_lobe",
             "fixed_load",
             "fixed_store",
             "guide_of",
