@@ -259,12 +259,11 @@ fn light_weighted(radiance: Vec3A, dir: Vec3A, cos_s: f32, pl: f32, lobe: Weighe
 /// MIS weight against light samples; trace.wgsl: path_step): the lecture's lobes' (glTF's BRDF
 /// gives its own).
 fn lobe_pdf(lobe: Weighed, dir: Vec3A, ns: Vec3A) -> f32 {
+    let cosine = dir.dot(ns).max(0.0) / PI;
     match lobe {
         Weighed::Gloss { n, r, s } => gloss_pdf(dir, n, r, s),
-        Weighed::Mixed { n, r, s, p, .. } => {
-            p * gloss_pdf(dir, n, r, s) + (1.0 - p) * (dir.dot(ns).max(0.0) / PI)
-        }
-        _ => dir.dot(ns).max(0.0) / PI,
+        Weighed::Mixed { n, r, s, p, .. } => p * gloss_pdf(dir, n, r, s) + (1.0 - p) * cosine,
+        _ => cosine,
     }
 }
 

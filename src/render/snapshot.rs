@@ -88,7 +88,8 @@ impl Snapshot {
     /// Returned as errors over the whole image: `rmse` the root of the mean estimated MSE, and
     /// `rel_rmse` the root of pbrt's relative MSE, MSE / (reference² + 0.01), with the
     /// unknown reference² estimated by the mean of each pixel's 3×3 neighbours, at most the
-    /// larger of its half means and at least half the smaller (`common::estimate` says why).
+    /// larger of its half means and at least what they agree on (`common::estimate` says
+    /// why).
     pub fn error_estimate(&self) -> Option<ErrorEstimate> {
         if self.min_half_samples() < 1 {
             return None;
