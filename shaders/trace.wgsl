@@ -761,18 +761,41 @@ fn sample_light(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, glos
         material = q.material;
     }
     let cos_s = dot(n, dir);
-    if cos_s <= 0.0 || ((HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && dot(n_geo, dir) <= 0.0) {
+    let side = shadow_side(cos_s, n_geo, dir, pbr, lobe);
+    if all(side == vec3f(0.0)) {
         return vec3f(0.0);
     }
     // Visible if nothing but the light lies between p and the light's own hit along dir (no
     // distance epsilon: the light is skipped by identity, not by distance).
-    let shadow = Ray(offset_ray(p, n_geo), dir);
+    let shadow = Ray(offset_ray(p, side), dir);
     let t_light = hit_primitive(light.prim, shadow, T_FAR);
     if t_light <= 0.0 || occluded(shadow, t_light, light.prim) {
         return vec3f(0.0);
     }
     let m = materials[material];
     return light_weighted(m.color * m.light, dir, cos_s, (1.0 - pe) * choice.pmf * pdf, pbr, lobe, gloss);
+}
+
+// Whether light sampling also looks below the surface: glTF's BRDF (`pbr`) where it transmits
+// through a rough boundary, whose density there is known (pbr_eval_through); a smooth one's
+// transmission is a delta that no light sample can meet (src/cpu/trace.rs: transmits).
+fn transmits(pbr: bool, lobe: PbrLobe) -> bool {
+    return HAS_PBR_TRANSMISSION && pbr && lobe.transmission > 0.0 && lobe.alpha >= PBR_ALPHA_MIN;
+}
+
+// The side a light sample toward dir (cos_s against the shading normal) leaves its point on:
+// the facing geometric normal n_geo where the lobe reflects, its opposite where the lobe
+// transmits (transmits) and dir lies below both normals, else zero: the lobe sends nothing
+// toward dir (src/cpu/trace.rs: shadow_side).
+fn shadow_side(cos_s: f32, n_geo: vec3f, dir: vec3f, pbr: bool, lobe: PbrLobe) -> vec3f {
+    let normals = HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS;
+    if cos_s > 0.0 && !(normals && dot(n_geo, dir) <= 0.0) {
+        return n_geo;
+    }
+    if cos_s < 0.0 && transmits(pbr, lobe) && !(normals && dot(n_geo, dir) >= 0.0) {
+        return -n_geo;
+    }
+    return vec3f(0.0);
 }
 
 // A light sample's estimate for the lobe that light sampling weighs: radiance arriving from
@@ -848,10 +871,14 @@ fn env_pick() -> f32 {
 fn sample_env(p: vec3f, n: vec3f, n_geo: vec3f, pe: f32, pbr: bool, lobe: PbrLobe, gloss: Gloss, state: ptr<function, Rng>) -> vec3f {
     let s = env_sample(rand2(state), scene.env_rotation);
     let cos_s = dot(n, s.dir);
-    if s.pdf <= 0.0 || cos_s <= 0.0 || ((HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && dot(n_geo, s.dir) <= 0.0) {
+    if s.pdf <= 0.0 {
         return vec3f(0.0);
     }
-    if occluded(Ray(offset_ray(p, n_geo), s.dir), T_FAR, EMPTY_SLOT) {
+    let side = shadow_side(cos_s, n_geo, s.dir, pbr, lobe);
+    if all(side == vec3f(0.0)) {
+        return vec3f(0.0);
+    }
+    if occluded(Ray(offset_ray(p, side), s.dir), T_FAR, EMPTY_SLOT) {
         return vec3f(0.0);
     }
     return light_weighted(s.radiance * scene.env_intensity, s.dir, cos_s, pe * s.pdf, pbr, lobe, gloss);
@@ -1216,6 +1243,8 @@ struct Path {
     prev_pdf: f32,
     prev_point: vec3f,
     prev_normal: vec3f,
+    // The last bounce drew the ray through the surface (glTF's transmission).
+    prev_through: bool,
     // Where the ray leaves a mirror sphere that sample_mirror samples, met right after a lobe
     // light sampling weighs: (that lobe's density, the sphere's spread), else zeros.
     mirror: vec2f,
@@ -1231,7 +1260,7 @@ struct Path {
 }
 
 fn path_start(primary: Ray) -> Path {
-    return Path(primary, vec3f(1.0), vec3f(0.0), 0u, 0.0, primary.origin, vec3f(0.0, 1.0, 0.0), vec2f(0.0), 0u, 0u, vec3f(0.0), 0.0, vec3f(0.0), 0u);
+    return Path(primary, vec3f(1.0), vec3f(0.0), 0u, 0.0, primary.origin, vec3f(0.0, 1.0, 0.0), false, vec2f(0.0), 0u, 0u, vec3f(0.0), 0.0, vec3f(0.0), 0u);
 }
 
 // One segment of a path (MODEL.md "Scattering"): traces its ray and either ends the path
@@ -1256,6 +1285,11 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     var drawn = (*path).prev_pdf;
     if (HAS_MIRROR_NEE || HAS_LENS_NEE) && bounce == 0u && nee {
         drawn = pixel_at(ray.origin, ray.dir).z;
+    }
+    // A ray drawn through a surface is none that those samplers find (they sample on the
+    // side of the normal).
+    if HAS_PBR_TRANSMISSION && (*path).prev_through {
+        drawn = 0.0;
     }
     if HAS_MIRROR_NEE {
         (*path).mirror = mirror_hit(hit, ray, surf.point.position, surf.point.normal, drawn, (*path).prev_point);
@@ -1285,6 +1319,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     let n_out = surf.point.normal;
     var sc: Scatter;
     (*path).prev_pdf = 0.0;
+    (*path).prev_through = false;
     if HAS_DIELECTRICS && m.smoothness < 0.0 {
         sc = scatter_dielectric(m, ray.dir, n_out, state);
         if HAS_LENS_NEE {
@@ -1341,9 +1376,9 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         if pbr {
             let ps = pbr_sample(lobe, state);
             sc = Scatter(ps.dir, ps.weight, !ps.ok);
-            // Light sampling finds no direction through the surface: a light the transmitted
-            // ray meets counts fully.
-            pbr_pdf = select(ps.pdf, 0.0, ps.through);
+            // Where light sampling finds no direction through the surface (transmits), a
+            // light the transmitted ray meets counts fully.
+            pbr_pdf = select(ps.pdf, 0.0, ps.through && !(nee && light_lobe && transmits(pbr, lobe)));
             through = ps.through;
         } else {
             sc = scatter_surface(m, ray.dir, ns, is_spec, state);
@@ -1358,6 +1393,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         if pbr {
             (*path).prev_pdf = pbr_pdf;
             (*path).prev_normal = ns;
+            (*path).prev_through = through;
         } else if light_lobe {
             (*path).prev_pdf = lobe_pdf(gloss, sc.dir, ns);
             (*path).prev_normal = ns;

@@ -616,7 +616,7 @@ impl<'a> Tracer<'a> {
         p: Vec3A,
         n: Vec3A,
         n_geo: Vec3A,
-        from: u32,
+        from: (u32, u32),
         pe: f32,
         lobe: Weighed,
         rng: &mut Rng,
@@ -629,12 +629,15 @@ impl<'a> Tracer<'a> {
         let s = map.distribution.sample(u1, u2, u.env_rotation);
         let dir = Vec3A::from(s.dir);
         let cos_s = n.dot(dir);
-        if s.pdf <= 0.0 || cos_s <= 0.0 || (self.s.shading_normals() && n_geo.dot(dir) <= 0.0) {
+        if s.pdf <= 0.0 {
             return Vec3A::ZERO;
         }
+        let Some((side, from)) = self.shadow_side(cos_s, n_geo, dir, lobe, from) else {
+            return Vec3A::ZERO;
+        };
         let radiance = Vec3A::from_array(map.radiance_at(s.uv.0, s.uv.1)) * u.env_intensity;
         let shadow = Ray {
-            origin: offset_ray(p, n_geo),
+            origin: offset_ray(p, side),
             dir,
         };
         if self.occluded::<P>(&shadow, T_FAR, NONE, from) {
@@ -1162,6 +1165,40 @@ impl<'a> Tracer<'a> {
         }
     }
 
+    /// Whether light sampling also looks below the surface for `lobe`: glTF's BRDF where it
+    /// transmits through a rough boundary, whose density there is known (`pbr::eval_through`;
+    /// trace.wgsl: transmits). A smooth one's transmission is a delta, which no light sample
+    /// can meet.
+    #[inline(always)]
+    fn transmits(&self, lobe: Weighed) -> bool {
+        self.f.pbr_transmission
+            && matches!(lobe, Weighed::Pbr(l) if l.transmission > 0.0 && l.alpha >= pbr::ALPHA_MIN)
+    }
+
+    /// The side a light sample toward `dir` (cos_s against the shading normal) leaves its
+    /// point on, and the primitive it cannot meet (of `from`'s two, `sample_light`): the
+    /// facing geometric normal's side where the lobe reflects, the other where it transmits
+    /// (`transmits`) and `dir` lies below both normals; None where the lobe sends nothing
+    /// toward `dir` (trace.wgsl: shadow_side).
+    #[inline(always)]
+    fn shadow_side(
+        &self,
+        cos_s: f32,
+        n_geo: Vec3A,
+        dir: Vec3A,
+        lobe: Weighed,
+        from: (u32, u32),
+    ) -> Option<(Vec3A, u32)> {
+        let normals = self.s.shading_normals();
+        if cos_s > 0.0 && !(normals && n_geo.dot(dir) <= 0.0) {
+            return Some((n_geo, from.0));
+        }
+        if cos_s < 0.0 && self.transmits(lobe) && !(normals && n_geo.dot(dir) >= 0.0) {
+            return Some((-n_geo, from.1));
+        }
+        None
+    }
+
     fn light_weight(&self, l: &GpuLight, p: Vec3A, n: Vec3A) -> f32 {
         let i = (l.prim & INDEX) as usize;
         let (center, r2) = if l.prim >> 30 == 0 {
@@ -1231,14 +1268,17 @@ impl<'a> Tracer<'a> {
     /// weighs, MIS-weighted (`light_weighted`: the lecture's lobes with their f·cos included
     /// and their tint not). `n_geo`: the facing geometric normal; the shadow ray leaves on its
     /// side, never into it.
-    /// `from`: the primitive p lies on, where the shadow ray cannot meet it (`leaving`).
-    /// `lobe`: glTF's BRDF, the lecture's glossy lobe, or the cosine lobe.
+    /// `from`: the primitive p lies on, where a shadow ray leaving on n_geo's side (`.0`) or
+    /// through the surface (`.1`) cannot meet it (`leaving`).
+    /// `lobe`: glTF's BRDF, the lecture's glossy lobe, or the cosine lobe. Where glTF's BRDF
+    /// transmits through a rough surface, a light below the surface is sampled too, its shadow
+    /// ray leaving on the other side (`shadow_side`).
     fn sample_light<const P: u32>(
         &mut self,
         p: Vec3A,
         n: Vec3A,
         n_geo: Vec3A,
-        from: u32,
+        from: (u32, u32),
         lobe: Weighed,
         rng: &mut Rng,
     ) -> Vec3A {
@@ -1295,11 +1335,11 @@ impl<'a> Tracer<'a> {
             material = q.material;
         }
         let cos_s = n.dot(dir);
-        if cos_s <= 0.0 || (self.s.shading_normals() && n_geo.dot(dir) <= 0.0) {
+        let Some((side, from)) = self.shadow_side(cos_s, n_geo, dir, lobe, from) else {
             return Vec3A::ZERO;
-        }
+        };
         let shadow = Ray {
-            origin: offset_ray(p, n_geo),
+            origin: offset_ray(p, side),
             dir,
         };
         let t_light = hit_primitive::<ANY>(self.s, light.prim, &shadow, T_FAR);
@@ -1332,6 +1372,8 @@ impl<'a> Tracer<'a> {
         let mut prev_pdf = 0.0;
         let mut prev_point = ray.origin;
         let mut prev_normal = Vec3A::Y;
+        // The last bounce drew its direction through the surface (glTF's transmission).
+        let mut prev_through = false;
         let mut bounce = 0;
         // The primitive the ray leaves, where it cannot meet it again.
         let mut skip = NONE;
@@ -1369,7 +1411,15 @@ impl<'a> Tracer<'a> {
             // A mirror sphere met from a lobe light sampling weighs: what it reflects from
             // the map next is weighed against `sample_mirror`.
             // The camera ray's density stands for a lobe's at the first hit.
-            let drawn = if bounce == 0 { view_pdf } else { prev_pdf };
+            // A ray drawn through a surface is none that those samplers find (they sample on
+            // the side of the normal).
+            let drawn = if bounce == 0 {
+                view_pdf
+            } else if prev_through {
+                0.0
+            } else {
+                prev_pdf
+            };
             mirrored = self.mirror_hit(hit, &ray, &point, drawn, prev_point);
             lensed = self.lens_step(lensed, hit, &ray, point.normal, drawn, prev_point, None);
             let (textured, mapped) = self.material_at(hit, local, material);
@@ -1398,6 +1448,7 @@ impl<'a> Tracer<'a> {
             let n_out = point.normal;
             let mut sc: Scatter;
             prev_pdf = 0.0;
+            prev_through = false;
             if self.f.dielectrics && m.smoothness < 0.0 {
                 sc = scatter_dielectric(m, ray.dir, n_out, rng);
                 lensed =
@@ -1457,11 +1508,13 @@ impl<'a> Tracer<'a> {
                         (None, true) => m.specular_color,
                         (None, false) => m.color,
                     };
-                    // The shadow ray leaves on the side of n.
+                    // The shadow ray leaves on the side of n (or, through a transmitting
+                    // surface, the other).
                     let from = self.leaving(hit.r, front);
+                    let back = self.leaving(hit.r, !front);
                     radiance += throughput
                         * tint
-                        * self.sample_light::<P>(point.position, ns, n, from, weighed, rng);
+                        * self.sample_light::<P>(point.position, ns, n, (from, back), weighed, rng);
                     // The map in the mirror spheres: its paths scatter here and at the
                     // mirror, and leave it, within the bounces allowed.
                     if self.f.mirror_nee
@@ -1501,12 +1554,18 @@ impl<'a> Tracer<'a> {
                 }
                 let mut pbr_pdf = 0.0;
                 let mut through = false;
+                // Light sampling found directions through the surface here too (`transmits`).
+                let lit_through = nee && light_lobe && self.transmits(weighed);
                 sc = match &lobe {
                     Some(l) => {
                         let s = pbr::sample(l, rng);
-                        // Light sampling finds no direction through the surface: a light
+                        // Where light sampling finds no direction through the surface, a light
                         // the transmitted ray meets counts fully.
-                        pbr_pdf = if s.through { 0.0 } else { s.pdf };
+                        pbr_pdf = if s.through && !lit_through {
+                            0.0
+                        } else {
+                            s.pdf
+                        };
                         through = s.through;
                         Scatter {
                             dir: s.dir,
@@ -1525,6 +1584,7 @@ impl<'a> Tracer<'a> {
                 if pbr {
                     prev_pdf = pbr_pdf;
                     prev_normal = ns;
+                    prev_through = through;
                 } else if light_lobe {
                     prev_pdf = lobe_pdf(weighed, sc.dir, ns);
                     prev_normal = ns;
