@@ -60,7 +60,7 @@ const FIREFLY_RUNS: u32 = 96;
 ///   at 256 (1.31): high. On `outdoor` at 256 spp (0.81): low in most runs, high in
 ///   expectation (1.27). In expectation every firefly scene's raw estimate reads 0.91–1.61
 ///   of the truth: a run's error there is mostly one pixel's rare bright samples (the sun
-///   seen at a glossy lobe's rim, the sun's caustic through `glass`'s polished ball, which
+///   seen at a glossy lobe's rim, the sun through `glass`'s polished ball, which
 ///   light sampling does not find), and the proxy,
 ///   which a spike in one half does not lift by the other half, counts them rather than
 ///   dividing them away; the runs without them read low;
