@@ -1511,7 +1511,12 @@ impl<'a> Tracer<'a> {
                     // The shadow ray leaves on the side of n (or, through a transmitting
                     // surface, the other).
                     let from = self.leaving(hit.r, front);
-                    let back = self.leaving(hit.r, !front);
+                    // Used only where a lobe transmits: no lookup in scenes without one.
+                    let back = if self.f.pbr_transmission {
+                        self.leaving(hit.r, !front)
+                    } else {
+                        NONE
+                    };
                     radiance += throughput
                         * tint
                         * self.sample_light::<P>(point.position, ns, n, (from, back), weighed, rng);
