@@ -1160,11 +1160,11 @@ fn sample_lens(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss
     if !f.ok {
         return vec3f(0.0);
     }
-    let radiance = s.radiance * scene.env_intensity * m.color * m.color;
+    let radiance = s.radiance * scene.env_intensity;
     var sum = vec3f(0.0);
     for (var reflections = 0u; reflections <= inner; reflections++) {
         f.inner = reflections;
-        // The glass's tint once more at the reflection.
+        // The lecture's glass: its tint at each interface, once more at the reflection.
         var tint = vec3f(1.0);
         if reflections > 0u {
             tint = m.color;
@@ -1188,7 +1188,9 @@ fn sample_lens(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss
             }
             let entry = p + x.dir * x.dist;
             let chord = x.turn - entry;
-            if occluded(Ray(entry, normalize(chord)), length(chord), prim) {
+            // The path's length inside, where the medium attenuates it.
+            var inside = length(chord);
+            if occluded(Ray(entry, normalize(chord)), inside, prim) {
                 continue;
             }
             if reflections > 0u {
@@ -1196,11 +1198,20 @@ fn sample_lens(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss
                 if occluded(Ray(x.turn, normalize(back)), length(back), prim) {
                     continue;
                 }
+                inside += length(back);
             }
             if occluded(Ray(offset_ray(x.exit, x.exit_normal), s.dir), T_FAR, prim) {
                 continue;
             }
-            sum += weighed(radiance * tint * lens_transmittance(m.ior, x.cos_i, x.cos_r, reflections), p, x.dir, cos_s, lens_pdf(s.pdf, x.spread), pbr, lobe, gloss, view);
+            var carried: vec3f;
+            if follows_pbr(m) {
+                // glTF's: its Fresnel, share and tint at each interface, and the medium's
+                // attenuation over the path inside (KHR_materials_volume).
+                carried = radiance * pbr_lens_transmittance(m, x.cos_i, x.cos_r, reflections) * exp(-m.attenuation * inside);
+            } else {
+                carried = radiance * m.color * m.color * tint * lens_transmittance(m.ior, x.cos_i, x.cos_r, reflections);
+            }
+            sum += weighed(carried, p, x.dir, cos_s, lens_pdf(s.pdf, x.spread), pbr, lobe, gloss, view);
         }
     }
     return sum;
@@ -1349,11 +1360,12 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         }
         // A lobe with a density light sampling can weigh: the Lambertian one, the lecture's
         // specular one at smoothness 0 (the same distribution, its own tint) or glossy, or
-        // glTF's but for its mirror.
+        // glTF's but for its mirror and, where it transmits wholly (no diffuse share), its
+        // glass; a rough clear coat has one over either.
         var light_lobe = !is_spec || m.smoothness == 0.0 || gloss.s > 0.0;
         if pbr {
             lobe = pbr_lobe(m, -ray.dir, ns, dot(ray.dir, n_out) < 0.0);
-            light_lobe = lobe.alpha >= PBR_ALPHA_MIN || lobe.p_spec < 1.0;
+            light_lobe = lobe.alpha >= PBR_ALPHA_MIN || (lobe.p_spec < 1.0 && lobe.transmission < 1.0) || (lobe.coat > 0.0 && lobe.coat_alpha >= PBR_ALPHA_MIN);
             tint = vec3f(1.0);
         }
         if nee && light_lobe {
@@ -1376,6 +1388,15 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         if pbr {
             let ps = pbr_sample(lobe, state);
             sc = Scatter(ps.dir, ps.weight, !ps.ok);
+            // A glass-sphere path goes on through glTF's smooth glass by its deltas alone
+            // (src/scene/model.rs: Material::is_lens).
+            if HAS_LENS_NEE {
+                if ps.pdf == 0.0 {
+                    lens_step(path, hit, ray, n_out, 0.0, true, ps.dir);
+                } else {
+                    (*path).lens_stage = 0u;
+                }
+            }
             // Where light sampling finds no direction through the surface (transmits), a
             // light the transmitted ray meets counts fully.
             pbr_pdf = select(ps.pdf, 0.0, ps.through && !(nee && light_lobe && transmits(pbr, lobe)));

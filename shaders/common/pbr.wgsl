@@ -373,13 +373,33 @@ fn pbr_mirror(l: PbrLobe, nv: f32, through: bool) -> PbrSample {
     if !through {
         return PbrSample(reflect(-l.wo, l.n), pbr_mirror_reflectance(l, nv) / l.p_spec, 0.0, true, false);
     }
-    let fd = pbr_fresnel(l.f0, pbr_dielectric_x5(nv, l.eta));
     var dir = vec4f(-l.wo, 1.0);
     if l.eta != 0.0 {
         dir = pbr_refract(-l.wo, l.n, nv, l.eta);
     }
-    let w = (1.0 - l.metallic) * l.transmission * (1.0 - l.weight * pbr_max3(fd)) * l.base;
-    return PbrSample(select(l.n, dir.xyz, dir.w != 0.0), w / l.p_trans, 0.0, dir.w != 0.0, true);
+    return PbrSample(select(l.n, dir.xyz, dir.w != 0.0), pbr_transmittance(l, nv) / l.p_trans, 0.0, dir.w != 0.0, true);
+}
+
+// What the smooth lobe (alpha below PBR_ALPHA_MIN) passes of the light that meets it at nv,
+// the weight of its transmitted delta times its probability (src/cpu/pbr.rs: transmittance).
+fn pbr_transmittance(l: PbrLobe, nv: f32) -> vec3f {
+    let fd = pbr_fresnel(l.f0, pbr_dielectric_x5(nv, l.eta));
+    return (1.0 - l.metallic) * l.transmission * (1.0 - l.weight * pbr_max3(fd)) * l.base;
+}
+
+// What a smooth transmitting ball of material m passes along a path through it that enters
+// at cos i, reflects `inner` times (0 or 1) inside and leaves at cos r' inside: the
+// expectation of pbr_sample's weights along the path (src/cpu/pbr.rs: lens_transmittance).
+fn pbr_lens_transmittance(m: Material, cos_i: f32, cos_r: f32, inner: u32) -> vec3f {
+    // Only the material and the side enter what these read, not the directions.
+    let z = vec3f(0.0, 0.0, 1.0);
+    let outside = pbr_lobe(m, z, z, true);
+    let inside = pbr_lobe(m, z, z, false);
+    let through = pbr_transmittance(outside, cos_i) * pbr_transmittance(inside, cos_r);
+    if inner == 0u {
+        return through;
+    }
+    return through * pbr_mirror_reflectance(inside, cos_r);
 }
 
 // What the mirror of a smooth lobe (alpha below PBR_ALPHA_MIN) reflects of the light that

@@ -402,16 +402,14 @@ fn mirror(l: &Lobe, nv: f32, through: bool) -> Sample {
             through: false,
         };
     }
-    let fd = fresnel(l.f0, dielectric_x5(nv, l.eta));
     let dir = if l.eta == 0.0 {
         Some(-l.wo)
     } else {
         refract(-l.wo, l.n, nv, l.eta)
     };
-    let weight = (1.0 - l.metallic) * l.transmission * (1.0 - l.weight * max3(fd)) * l.base;
     Sample {
         dir: dir.unwrap_or(l.n),
-        weight: weight / l.p_trans,
+        weight: transmittance(l, nv) / l.p_trans,
         pdf: 0.0,
         ok: dir.is_some(),
         through: true,
@@ -426,6 +424,32 @@ pub fn mirror_reflectance(l: &Lobe, nv: f32) -> Vec3A {
     let fd = fresnel(l.f0, dielectric_x5(nv, l.eta));
     let fm = fresnel(l.base, schlick_x5(nv));
     (1.0 - l.metallic) * l.weight * fd + l.metallic * fm
+}
+
+/// What the smooth lobe (α below [`ALPHA_MIN`]) passes of the light that meets it at `nv`, the
+/// weight of its transmitted delta times its probability: KHR_materials_transmission's share
+/// of the dielectric base, less what its Fresnel reflects, tinted by the base (pbr.wgsl:
+/// pbr_transmittance).
+pub fn transmittance(l: &Lobe, nv: f32) -> Vec3A {
+    let fd = fresnel(l.f0, dielectric_x5(nv, l.eta));
+    (1.0 - l.metallic) * l.transmission * (1.0 - l.weight * max3(fd)) * l.base
+}
+
+/// What a smooth transmitting ball of material `m` (`Material::is_lens`) passes along a path
+/// through it that enters at cos i, reflects `inner` times (0 or 1) inside and leaves at
+/// cos r′ inside: [`transmittance`] in and out, and [`mirror_reflectance`] from inside, the
+/// expectation of [`sample`]'s weights along the path. Light sampling through a glass ball
+/// tints the map's light by it (`trace::sample_lens`; pbr.wgsl: pbr_lens_transmittance).
+pub fn lens_transmittance(m: &Material, cos_i: f32, cos_r: f32, inner: u32) -> Vec3A {
+    // Only the material and the side enter what these read, not the directions.
+    let outside = lobe(m, Vec3A::Z, Vec3A::Z, true);
+    let inside = lobe(m, Vec3A::Z, Vec3A::Z, false);
+    let through = transmittance(&outside, cos_i) * transmittance(&inside, cos_r);
+    if inner == 0 {
+        through
+    } else {
+        through * mirror_reflectance(&inside, cos_r)
+    }
 }
 
 /// `d` refracted through a surface of normal `n` (on the side `d` comes from, `cos` = −d·n)

@@ -801,7 +801,9 @@ impl<'a> Tracer<'a> {
                     origin: entry,
                     dir: chord.normalize(),
                 };
-                if self.occluded::<P>(&across, chord.length(), i, i) {
+                // The path's length inside, where the medium attenuates it.
+                let mut inside = chord.length();
+                if self.occluded::<P>(&across, inside, i, i) {
                     continue;
                 }
                 if inner > 0 {
@@ -813,6 +815,7 @@ impl<'a> Tracer<'a> {
                     if self.occluded::<P>(&across, back.length(), i, i) {
                         continue;
                     }
+                    inside += back.length();
                 }
                 let to_map = Ray {
                     origin: offset_ray(x.exit, x.exit_normal),
@@ -822,15 +825,23 @@ impl<'a> Tracer<'a> {
                     continue;
                 }
                 let l = *radiance.get_or_insert_with(|| {
-                    Vec3A::from_array(map.radiance_at(smp.uv.0, smp.uv.1))
-                        * u.env_intensity
-                        * m.color
-                        * m.color
+                    Vec3A::from_array(map.radiance_at(smp.uv.0, smp.uv.1)) * u.env_intensity
                 });
-                // The glass's tint once more at the reflection.
-                let tint = if inner > 0 { m.color } else { Vec3A::ONE };
+                let carried = if self.follows_pbr(m) {
+                    // glTF's: its Fresnel, share and tint at each interface, and the
+                    // medium's attenuation over the path inside (KHR_materials_volume).
+                    l * pbr::lens_transmittance(m, x.cos_i, x.cos_r, inner)
+                        * (-m.attenuation * inside).exp()
+                } else {
+                    // The lecture's: its tint at each interface, once more at the reflection.
+                    let tint = if inner > 0 { m.color } else { Vec3A::ONE };
+                    l * m.color
+                        * m.color
+                        * tint
+                        * lens::transmittance(m.ior, x.cos_i, x.cos_r, inner)
+                };
                 sum += self.weighed(
-                    l * tint * lens::transmittance(m.ior, x.cos_i, x.cos_r, inner),
+                    carried,
                     p,
                     x.dir,
                     cos_s,
@@ -1479,9 +1490,14 @@ impl<'a> Tracer<'a> {
                 let gloss = glossy && !mixed;
                 // A lobe with a density light sampling can weigh: the Lambertian one, the
                 // lecture's specular one at smoothness 0 or glossy, or glTF's but for its
-                // mirror.
+                // mirror and, where it transmits wholly (no diffuse share), its glass; a
+                // rough clear coat has one over either.
                 let light_lobe = match &lobe {
-                    Some(l) => l.alpha >= pbr::ALPHA_MIN || l.p_spec < 1.0,
+                    Some(l) => {
+                        l.alpha >= pbr::ALPHA_MIN
+                            || (l.p_spec < 1.0 && l.transmission < 1.0)
+                            || (l.coat > 0.0 && l.coat_alpha >= pbr::ALPHA_MIN)
+                    }
                     None => !is_spec || m.smoothness == 0.0 || glossy,
                 };
                 let weighed = match &lobe {
@@ -1564,6 +1580,23 @@ impl<'a> Tracer<'a> {
                 sc = match &lobe {
                     Some(l) => {
                         let s = pbr::sample(l, rng);
+                        // A glass-sphere path goes on through glTF's smooth glass by its
+                        // deltas alone (`Material::is_lens`).
+                        if self.f.lens_nee {
+                            lensed = if s.pdf == 0.0 {
+                                self.lens_step(
+                                    lensed,
+                                    hit,
+                                    &ray,
+                                    n_out,
+                                    0.0,
+                                    prev_point,
+                                    Some(s.dir),
+                                )
+                            } else {
+                                None
+                            };
+                        }
                         // Where light sampling finds no direction through the surface, a light
                         // the transmitted ray meets counts fully.
                         pbr_pdf = if s.through && !lit_through {

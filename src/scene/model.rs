@@ -314,14 +314,21 @@ impl Material {
         mirror && !self.is_emitter() && self.textured.is_none()
     }
     /// A clear glass ball the map's light is sampled through (`common::arrays::lens_spheres`):
-    /// the lecture's dielectric without fuzz, denser than air (ior above 1), neither emitting
-    /// nor textured.
+    /// the lecture's dielectric without fuzz, or glTF's smooth transmitting volume
+    /// (roughness² below [`PBR_MIRROR_ALPHA`], transmission above 0, not metal through and
+    /// through, no clear coat, not a thin wall; its medium may attenuate); denser than air
+    /// (ior above 1), neither emitting nor textured.
     pub fn is_lens(&self) -> bool {
-        self.is_dielectric()
-            && self.ior > 1.0
-            && self.absorption == 0.0
-            && !self.is_emitter()
-            && self.textured.is_none()
+        let lens = if self.is_pbr() {
+            self.roughness * self.roughness < PBR_MIRROR_ALPHA
+                && self.transmission > 0.0
+                && self.metallic < 1.0
+                && self.clearcoat == 0.0
+                && !self.volume.thin_walled
+        } else {
+            self.is_dielectric() && self.absorption == 0.0
+        };
+        lens && self.ior > 1.0 && !self.is_emitter() && self.textured.is_none()
     }
     /// The lecture's glossy lobe: a specular lobe (specular > 0) blended with the diffuse
     /// direction (smoothness strictly between 0 and 1) and without fuzz, which light sampling
