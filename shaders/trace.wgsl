@@ -1195,10 +1195,11 @@ fn sample_lens(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss
             }
             if reflections > 0u {
                 let back = x.exit - x.turn;
-                if occluded(Ray(x.turn, normalize(back)), length(back), prim) {
+                let back_length = length(back);
+                if occluded(Ray(x.turn, normalize(back)), back_length, prim) {
                     continue;
                 }
-                inside += length(back);
+                inside += back_length;
             }
             if occluded(Ray(offset_ray(x.exit, x.exit_normal), s.dir), T_FAR, prim) {
                 continue;

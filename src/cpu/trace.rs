@@ -812,10 +812,11 @@ impl<'a> Tracer<'a> {
                         origin: x.turn,
                         dir: back.normalize(),
                     };
-                    if self.occluded::<P>(&across, back.length(), i, i) {
+                    let length = back.length();
+                    if self.occluded::<P>(&across, length, i, i) {
                         continue;
                     }
-                    inside += back.length();
+                    inside += length;
                 }
                 let to_map = Ray {
                     origin: offset_ray(x.exit, x.exit_normal),
