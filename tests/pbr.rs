@@ -245,6 +245,57 @@ fn the_wgsl_sampler_draws_from_the_density_it_reports() {
     }
 }
 
+#[test]
+fn rough_white_glass_never_gains_weight_on_the_wgsl_sampler() {
+    // src/cpu/pbr.rs's test of the same name on the WGSL sampler (pbr_probe.wgsl): a white,
+    // rough, fully transmitting dielectric draws reflection or transmission by the Fresnel of
+    // the facet it drew, so each draw carries at most 1 (G2/G1), on a thin wall and on either
+    // side of a volume's boundary, total internal reflection included (1e-3: two compilers'
+    // f32). Drawn by the macroscopic normal's Fresnel, a facet reflecting totally inside
+    // weighed 1.25, and a thin wall's grazing draws up to 3.8.
+    use termtrace::common::layout::{GpuMaterial, MODEL_PBR};
+    use termtrace::stability::probe::{GpuPbrProbeInput, PbrProbePass};
+    let ctx = ctx();
+    let pass = PbrProbePass::new(&ctx.device);
+    for (thin, front) in [(true, true), (false, true), (false, false)] {
+        for roughness in [0.1, 0.35, 0.7] {
+            for cos_theta in [0.05f32, 0.3, 0.7, 1.0] {
+                let m = GpuMaterial {
+                    color: [1.0; 3],
+                    specular_color: [1.0; 3],
+                    specular: 1.0,
+                    ior: 1.5,
+                    roughness,
+                    model: MODEL_PBR,
+                    transmission: 1.0,
+                    thin: thin as u32,
+                    ..Default::default()
+                };
+                let s = (1.0 - cos_theta * cos_theta).sqrt();
+                let input = GpuPbrProbeInput {
+                    material: m,
+                    wo: [s, 0.0, cos_theta],
+                    seed: 9,
+                    n: [0.0, 0.0, 1.0],
+                    front: front as u32,
+                };
+                let drawn = pass.run(&ctx, input, 4000);
+                let most = drawn.iter().flat_map(|o| o.weight).fold(0.0f32, f32::max);
+                let kept = drawn.iter().filter(|o| o.ok != 0).count();
+                assert!(
+                    most <= 1.001,
+                    "thin {thin} front {front} roughness {roughness} cos {cos_theta}: a draw \
+                     weighs {most}"
+                );
+                assert!(
+                    kept > 2000,
+                    "{thin} {front} {roughness} {cos_theta}: {kept} kept"
+                );
+            }
+        }
+    }
+}
+
 /// Draws from the WGSL sampler on material `m`, seen at `cos_theta` over +z (`front`: from
 /// the outer side), against the CPU twin's density: per draw, and by chi-square at
 /// 1e-3 / `cases`.

@@ -134,7 +134,8 @@ fn pbr_lobe(m: Material, wo: vec3f, n: vec3f, front: bool) -> PbrLobe {
     let rest = (1.0 - m.metallic) * (1.0 - fd);
     let diff_w = rest * (1.0 - transmission) * dot(m.color, PBR_LUMINANCE);
     // A rough boundary transmits where the macroscopic normal reflects totally (fd = 1): its
-    // lobe keeps a share there, so that the light is drawn.
+    // lobe keeps a share there, so that the facets that transmit are drawn (pbr_splits:
+    // within the boundary's share, each facet's own Fresnel chooses).
     var rest_t = rest;
     if m.roughness * m.roughness >= PBR_ALPHA_MIN {
         rest_t = (1.0 - m.metallic) * max(1.0 - fd, PBR_TRANSMISSION_FLOOR);
@@ -230,7 +231,11 @@ fn pbr_eval_base(l: PbrLobe, wi: vec3f) -> vec4f {
         let nxh = cross(l.n, h);
         let d = pbr_d(nh, dot(nxh, nxh), l.alpha);
         f += ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) * (d * pbr_v(nl, nv, l.alpha));
-        pdf += l.p_spec * d * pbr_g1(nv, l.alpha) / (4.0 * nv);
+        var p = l.p_spec;
+        if pbr_splits(l) {
+            p = (l.p_spec + l.p_trans) * pbr_facet_shares(l, l.weight * pbr_max3(fd)).x;
+        }
+        pdf += p * d * pbr_g1(nv, l.alpha) / (4.0 * nv);
     }
     return vec4f(f * nl, pdf);
 }
@@ -252,7 +257,8 @@ fn pbr_eval_through(l: PbrLobe, wi: vec3f, nl: f32, nv: f32) -> vec4f {
         let nxh = cross(l.n, h);
         let d = pbr_d(nh, dot(nxh, nxh), l.alpha);
         let f = tint * (1.0 - l.weight * pbr_max3(fd)) * (d * pbr_v(nl, nv, l.alpha));
-        return vec4f(f * nl, l.p_trans * d * pbr_g1(nv, l.alpha) / (4.0 * nv));
+        let p = pbr_through_share(l, l.weight * pbr_max3(fd));
+        return vec4f(f * nl, p * d * pbr_g1(nv, l.alpha) / (4.0 * nv));
     }
     var h = normalize_or(l.eta * l.wo + wi, l.n);
     if dot(h, l.n) < 0.0 {
@@ -270,7 +276,8 @@ fn pbr_eval_through(l: PbrLobe, wi: vec3f, nl: f32, nv: f32) -> vec4f {
     let d = pbr_d(nh, dot(nxh, nxh), l.alpha);
     let jacobian = -ih * oh / denom;
     let f = tint * (1.0 - l.weight * pbr_max3(fd)) * (4.0 * nl * pbr_v(nl, nv, l.alpha) * d * jacobian);
-    return vec4f(f, l.p_trans * pbr_g1(nv, l.alpha) / nv * d * jacobian);
+    let p = pbr_through_share(l, l.weight * pbr_max3(fd));
+    return vec4f(f, p * pbr_g1(nv, l.alpha) / nv * d * jacobian);
 }
 
 // A visible normal of the GGX distribution seen from `wo` (local frame, z the normal):
@@ -294,8 +301,9 @@ fn pbr_visible_normal(wo: vec3f, alpha: f32, u: vec2f) -> vec3f {
 
 // Draws a direction: the specular lobe with probability p_spec (a visible normal, or the
 // mirror direction below PBR_ALPHA_MIN), the transmission lobe with probability p_trans (the
-// visible normal refracted, or mirrored through a thin wall), else the cosine lobe. Three
-// draws either way.
+// visible normal refracted, or mirrored through a thin wall), else the cosine lobe; a rough
+// boundary that transmits draws the two together, a facet's Fresnel choosing
+// (pbr_sample_facet). Three draws either way.
 fn pbr_sample(l: PbrLobe, state: ptr<function, Rng>) -> PbrSample {
     var pick = rand(state);
     let u = rand2(state);
@@ -309,6 +317,9 @@ fn pbr_sample(l: PbrLobe, state: ptr<function, Rng>) -> PbrSample {
             return pbr_sample_coat(l, nv, u);
         }
         pick = (pick - l.coat) / (1.0 - l.coat);
+    }
+    if pbr_splits(l) && pick < l.p_spec + l.p_trans {
+        return pbr_sample_facet(l, nv, pick / (l.p_spec + l.p_trans), u);
     }
     let through = HAS_PBR_TRANSMISSION && l.p_trans > 0.0 && pick >= l.p_spec && pick < l.p_spec + l.p_trans;
     var wi: vec3f;
@@ -334,6 +345,57 @@ fn pbr_sample(l: PbrLobe, state: ptr<function, Rng>) -> PbrSample {
         let phi = 2.0 * PI * u.y;
         let r = sqrt(max(0.0, 1.0 - z * z));
         wi = normalize_or(l.n + vec3f(r * cos(phi), r * sin(phi), z), l.n);
+    }
+    return pbr_drawn(l, wi, through);
+}
+
+// Whether the lobe draws reflection or transmission by the Fresnel of the microfacet it draws
+// (pbr_sample_facet): a rough boundary that transmits (src/cpu/pbr.rs: splits).
+fn pbr_splits(l: PbrLobe) -> bool {
+    return HAS_PBR_TRANSMISSION && l.p_trans > 0.0 && l.alpha >= PBR_ALPHA_MIN;
+}
+
+// At a microfacet whose dielectric Fresnel is `fd` (specular · max F), the shares of the draw
+// that reflect (x) and that transmit (y): each lobe's weight there, the metal's Fresnel taken
+// as 1, as pbr_lobe's split does at the macroscopic normal.
+fn pbr_facet_shares(l: PbrLobe, fd: f32) -> vec2f {
+    let r = l.metallic + (1.0 - l.metallic) * fd;
+    let t = (1.0 - l.metallic) * (1.0 - fd) * l.transmission * dot(l.base, PBR_LUMINANCE);
+    let s = r + t;
+    if s > 0.0 {
+        return vec2f(r / s, t / s);
+    }
+    return vec2f(1.0, 0.0);
+}
+
+// The probability of the transmission lobe at a microfacet of Fresnel `fd`: its share of the
+// rough boundary's draw (pbr_splits), else p_trans.
+fn pbr_through_share(l: PbrLobe, fd: f32) -> f32 {
+    if pbr_splits(l) {
+        return (l.p_spec + l.p_trans) * pbr_facet_shares(l, fd).y;
+    }
+    return l.p_trans;
+}
+
+// A rough boundary's draw (pbr_splits): a visible normal, then reflection or transmission by
+// its own Fresnel (Walter et al. 2007, §5.3; PBRT 4th ed. §9.7.5); `pick` is uniform in
+// [0, 1). Each draw carries about G2/G1 (src/cpu/pbr.rs: sample_facet says why).
+fn pbr_sample_facet(l: PbrLobe, nv: f32, pick: f32, u: vec2f) -> PbrSample {
+    let h = pbr_half_vector(l, nv, l.alpha, u);
+    let c = dot(l.wo, h);
+    let fd = l.weight * pbr_max3(pbr_fresnel(l.f0, pbr_dielectric_x5(c, l.eta)));
+    let through = pick >= pbr_facet_shares(l, fd).x;
+    var wi = reflect(-l.wo, h);
+    if through {
+        if l.eta == 0.0 {
+            wi = wi - 2.0 * dot(wi, l.n) * l.n;
+        } else {
+            let t = pbr_refract(-l.wo, h, c, l.eta);
+            if t.w == 0.0 {
+                return PbrSample(h, vec3f(0.0), 0.0, false, false);
+            }
+            wi = t.xyz;
+        }
     }
     return pbr_drawn(l, wi, through);
 }

@@ -112,7 +112,8 @@ pub fn lobe(m: &Material, wo: Vec3A, n: Vec3A, front: bool) -> Lobe {
     let rest = (1.0 - m.metallic) * (1.0 - fd);
     let diff_w = rest * (1.0 - m.transmission) * m.color.dot(LUMINANCE);
     // A rough boundary transmits where the macroscopic normal reflects totally (fd = 1):
-    // its lobe keeps a share there, so that the light is drawn.
+    // its lobe keeps a share there, so that the facets that transmit are drawn (`splits`:
+    // within the boundary's share, each facet's own Fresnel chooses).
     let rest_t = if m.roughness * m.roughness >= ALPHA_MIN {
         (1.0 - m.metallic) * (1.0 - fd).max(TRANSMISSION_FLOOR)
     } else {
@@ -226,7 +227,12 @@ pub fn eval_base(l: &Lobe, wi: Vec3A) -> (Vec3A, f32) {
         let nh = l.n.dot(h).clamp(0.0, 1.0);
         let dh = d(nh, l.n.cross(h).length_squared(), l.alpha);
         f += ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) * (dh * v(nl, nv, l.alpha));
-        pdf += l.p_spec * dh * g1(nv, l.alpha) / (4.0 * nv);
+        let p = if splits(l) {
+            (l.p_spec + l.p_trans) * facet_shares(l, l.weight * max3(fd)).0
+        } else {
+            l.p_spec
+        };
+        pdf += p * dh * g1(nv, l.alpha) / (4.0 * nv);
     }
     (f * nl, pdf)
 }
@@ -249,7 +255,8 @@ pub fn eval_through(l: &Lobe, wi: Vec3A, nl: f32, nv: f32) -> (Vec3A, f32) {
         let nh = l.n.dot(h).clamp(0.0, 1.0);
         let dh = d(nh, l.n.cross(h).length_squared(), l.alpha);
         let f = tint * (1.0 - l.weight * max3(fd)) * (dh * v(nl, nv, l.alpha));
-        return (f * nl, l.p_trans * dh * g1(nv, l.alpha) / (4.0 * nv));
+        let p = through_share(l, l.weight * max3(fd));
+        return (f * nl, p * dh * g1(nv, l.alpha) / (4.0 * nv));
     }
     let mut h = normalize_or(l.eta * l.wo + wi, l.n);
     if h.dot(l.n) < 0.0 {
@@ -265,7 +272,8 @@ pub fn eval_through(l: &Lobe, wi: Vec3A, nl: f32, nv: f32) -> (Vec3A, f32) {
     let dh = d(nh, l.n.cross(h).length_squared(), l.alpha);
     let jacobian = -ih * oh / denom;
     let f = tint * (1.0 - l.weight * max3(fd)) * (4.0 * nl * v(nl, nv, l.alpha) * dh * jacobian);
-    (f, l.p_trans * g1(nv, l.alpha) / nv * dh * jacobian)
+    let p = through_share(l, l.weight * max3(fd));
+    (f, p * g1(nv, l.alpha) / nv * dh * jacobian)
 }
 
 /// A visible normal of GGX seen from `wo` (local frame): Heitz 2018, listing 1.
@@ -287,7 +295,10 @@ pub fn visible_normal(wo: Vec3A, alpha: f32, (u1, u2): (f32, f32)) -> Vec3A {
     Vec3A::new(alpha * nh.x, alpha * nh.y, nh.z.max(0.0)).normalize()
 }
 
-/// Draws a direction from the lobe (pbr.wgsl: pbr_sample); three draws either way.
+/// Draws a direction from the lobe (pbr.wgsl: pbr_sample): the specular lobe with
+/// probability p_spec, the transmission lobe with p_trans, else the cosine lobe; a rough
+/// boundary that transmits draws the two together, a facet's Fresnel choosing
+/// (`sample_facet`). Three draws either way.
 pub fn sample(l: &Lobe, rng: &mut Rng) -> Sample {
     let mut pick = rng.rand();
     let u = rng.rand2();
@@ -308,6 +319,9 @@ pub fn sample(l: &Lobe, rng: &mut Rng) -> Sample {
             return sample_coat(l, nv, u);
         }
         pick = (pick - l.coat) / (1.0 - l.coat);
+    }
+    if splits(l) && pick < l.p_spec + l.p_trans {
+        return sample_facet(l, nv, pick / (l.p_spec + l.p_trans), u);
     }
     let through = l.p_trans > 0.0 && pick >= l.p_spec && pick < l.p_spec + l.p_trans;
     let wi = if pick < l.p_spec || through {
@@ -331,6 +345,70 @@ pub fn sample(l: &Lobe, rng: &mut Rng) -> Sample {
         let r = (1.0 - z * z).max(0.0).sqrt();
         let (s, c) = sin_cos_turns(u.1);
         normalize_or(l.n + Vec3A::new(r * c, r * s, z), l.n)
+    };
+    drawn(l, wi, through)
+}
+
+/// Whether the lobe draws reflection or transmission by the Fresnel of the microfacet it
+/// draws (`sample_facet`): a rough boundary that transmits (pbr.wgsl: pbr_splits).
+#[inline(always)]
+fn splits(l: &Lobe) -> bool {
+    l.p_trans > 0.0 && l.alpha >= ALPHA_MIN
+}
+
+/// At a microfacet whose dielectric Fresnel is `fd` (specular · max F), the shares of the
+/// draw that reflect and that transmit: each lobe's weight there, the metal's Fresnel taken
+/// as 1, as the lobe's own split does at the macroscopic normal (`lobe`) (pbr.wgsl:
+/// pbr_facet_shares).
+#[inline(always)]
+fn facet_shares(l: &Lobe, fd: f32) -> (f32, f32) {
+    let r = l.metallic + (1.0 - l.metallic) * fd;
+    let t = (1.0 - l.metallic) * (1.0 - fd) * l.transmission * l.base.dot(LUMINANCE);
+    let s = r + t;
+    if s > 0.0 { (r / s, t / s) } else { (1.0, 0.0) }
+}
+
+/// The probability of the transmission lobe at a microfacet of Fresnel `fd`: its share of
+/// the rough boundary's draw (`splits`), else `p_trans`.
+#[inline(always)]
+fn through_share(l: &Lobe, fd: f32) -> f32 {
+    if splits(l) {
+        (l.p_spec + l.p_trans) * facet_shares(l, fd).1
+    } else {
+        l.p_trans
+    }
+}
+
+/// A rough boundary's draw (`splits`): a visible normal, then reflection or transmission by
+/// its own Fresnel (Walter, Marschner, Li and Torrance, "Microfacet Models for Refraction
+/// through Rough Surfaces", EGSR 2007, §5.3; PBRT 4th ed. §9.7.5). `pick` is uniform in
+/// [0, 1). Drawn by the macroscopic normal's Fresnel instead, a facet that reflects totally
+/// inside a ball was drawn with probability p_spec < 1 and weighed 1 / p_spec: a path caught
+/// inside gained 1.25 a bounce and came out as a firefly (BENCHMARKS.md, "Rough glass drawn by
+/// its facets"). Weighed so, each draw carries about G2/G1 (pbr.wgsl: pbr_sample_facet).
+fn sample_facet(l: &Lobe, nv: f32, pick: f32, u: (f32, f32)) -> Sample {
+    let h = half_vector(l, nv, l.alpha, u);
+    let c = l.wo.dot(h);
+    let fd = l.weight * max3(fresnel(l.f0, dielectric_x5(c, l.eta)));
+    let through = pick >= facet_shares(l, fd).0;
+    let wi = if !through {
+        reflect(-l.wo, h)
+    } else if l.eta == 0.0 {
+        let r = reflect(-l.wo, h);
+        r - 2.0 * r.dot(l.n) * l.n
+    } else {
+        match refract(-l.wo, h, c, l.eta) {
+            Some(d) => d,
+            None => {
+                return Sample {
+                    dir: h,
+                    weight: Vec3A::ZERO,
+                    pdf: 0.0,
+                    ok: false,
+                    through: false,
+                };
+            }
+        }
     };
     drawn(l, wi, through)
 }
@@ -696,6 +774,41 @@ mod tests {
         let l = lobe_at(&clear, 0.6);
         let s = sample(&l, &mut Rng::new(1, 0, 2));
         assert_eq!((s.dir, s.weight, s.through), (-l.wo, Vec3A::ONE, true));
+    }
+
+    #[test]
+    fn rough_white_glass_never_gains_weight() {
+        // A white, rough, fully transmitting dielectric: each draw, reflected or refracted,
+        // carries at most 1 (G2/G1 of its facet), on either side of a volume's boundary and on
+        // a thin wall, at grazing angles where the macroscopic normal reflects totally
+        // included. Drawn by the macroscopic normal's Fresnel, a facet reflecting totally
+        // inside was weighed 1 / 0.8 (a path caught in a ball gained 1.25 a bounce).
+        for (eta, front) in [(0.0, true), (1.0 / 1.5, true), (1.5, false)] {
+            for roughness in [0.1, 0.35, 0.7] {
+                for cos_theta in [0.05, 0.3, 0.7, 1.0] {
+                    let m = Material {
+                        color: Vec3A::ONE,
+                        transmission: 1.0,
+                        thin: eta == 0.0,
+                        ..material(1.0, 0.0, roughness)
+                    };
+                    let l = lobe_from(&m, cos_theta, front);
+                    let (mut most, mut sum) = (0.0f32, 0.0f64);
+                    for i in 0..4000 {
+                        let s = sample(&l, &mut Rng::new(3, i, 1));
+                        most = most.max(s.weight.max_element());
+                        sum += s.weight.y as f64;
+                    }
+                    assert!(
+                        most <= 1.0 + 1e-4,
+                        "eta {eta} roughness {roughness} cos {cos_theta}: a draw weighs {most}"
+                    );
+                    // What the draws carry on average is what the surface passes on, less
+                    // the single-scattering model's loss (rough and grazing: most of it).
+                    assert!(sum / 4000.0 > 0.5, "{eta} {roughness} {cos_theta}: {sum}");
+                }
+            }
+        }
     }
 
     /// Pearson's chi-square (`stability::chi2`) of 400 000 draws from `l` against the density
