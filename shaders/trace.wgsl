@@ -1255,8 +1255,9 @@ struct Path {
     prev_pdf: f32,
     prev_point: vec3f,
     prev_normal: vec3f,
-    // The last bounce drew the ray through the surface (glTF's transmission).
-    prev_through: bool,
+    // The last bounce ran no mirror or lens sampler for the ray it drew: drawn through the
+    // surface (glTF's transmission), or from inside a volume.
+    prev_unsampled: bool,
     // Where the ray leaves a mirror sphere that sample_mirror samples, met right after a lobe
     // light sampling weighs: (that lobe's density, the sphere's spread), else zeros.
     mirror: vec2f,
@@ -1299,8 +1300,8 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         drawn = pixel_at(ray.origin, ray.dir).z;
     }
     // A ray drawn through a surface is none that those samplers find (they sample on the
-    // side of the normal).
-    if HAS_PBR_TRANSMISSION && (*path).prev_through {
+    // side of the normal), nor one drawn inside a volume, where they do not run.
+    if HAS_PBR_TRANSMISSION && (*path).prev_unsampled {
         drawn = 0.0;
     }
     if HAS_MIRROR_NEE {
@@ -1331,7 +1332,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     let n_out = surf.point.normal;
     var sc: Scatter;
     (*path).prev_pdf = 0.0;
-    (*path).prev_through = false;
+    (*path).prev_unsampled = false;
     if HAS_DIELECTRICS && m.smoothness < 0.0 {
         sc = scatter_dielectric(m, ray.dir, n_out, state);
         if HAS_LENS_NEE {
@@ -1364,8 +1365,13 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         // glTF's but for its mirror and, where it transmits wholly (no diffuse share), its
         // glass; a rough clear coat has one over either.
         var light_lobe = !is_spec || m.smoothness == 0.0 || gloss.s > 0.0;
+        var inside = false;
         if pbr {
             lobe = pbr_lobe(m, -ray.dir, ns, dot(ray.dir, n_out) < 0.0);
+            // Inside a volume's boundary (a solid: closed, not nested) the mirror and lens
+            // spheres lie beyond the surface, which the shadow rays on this side meet first:
+            // those samplers would find nothing here, and do not run.
+            inside = HAS_PBR_TRANSMISSION && dot(ray.dir, n_out) > 0.0 && m.transmission > 0.0 && m.thin == 0u;
             light_lobe = lobe.alpha >= PBR_ALPHA_MIN || (lobe.p_spec < 1.0 && lobe.transmission < 1.0) || (lobe.coat > 0.0 && lobe.coat_alpha >= PBR_ALPHA_MIN);
             tint = vec3f(1.0);
         }
@@ -1373,13 +1379,13 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
             (*path).radiance += (*path).throughput * tint * sample_light(surf.point.position, ns, n, pbr, lobe, gloss, state);
             // The map in the mirror spheres: its paths scatter here and at the mirror, and
             // leave it, within the bounces allowed.
-            if HAS_MIRROR_NEE && scene.n_mirrors + scene.n_lenses > 0u && bounce + 2u <= scene.max_bounces {
+            if HAS_MIRROR_NEE && !inside && scene.n_mirrors + scene.n_lenses > 0u && bounce + 2u <= scene.max_bounces {
                 (*path).radiance += (*path).throughput * tint * sample_mirror(surf.point.position, ns, n, pbr, lobe, gloss, vec2i(-1), state);
             }
             // The map through the glass spheres: its paths scatter here, refract in and out,
             // and leave, within the bounces allowed.
             // With a reflection inside, one bounce more.
-            if HAS_LENS_NEE && scene.n_lenses > 0u && bounce + 3u <= scene.max_bounces {
+            if HAS_LENS_NEE && !inside && scene.n_lenses > 0u && bounce + 3u <= scene.max_bounces {
                 let inner = u32(bounce + 4u <= scene.max_bounces);
                 (*path).radiance += (*path).throughput * tint * sample_lens(surf.point.position, ns, n, pbr, lobe, gloss, vec2i(-1), inner, state);
             }
@@ -1415,7 +1421,7 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         if pbr {
             (*path).prev_pdf = pbr_pdf;
             (*path).prev_normal = ns;
-            (*path).prev_through = through;
+            (*path).prev_unsampled = through || inside;
         } else if light_lobe {
             (*path).prev_pdf = lobe_pdf(gloss, sc.dir, ns);
             (*path).prev_normal = ns;

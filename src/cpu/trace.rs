@@ -1384,8 +1384,9 @@ impl<'a> Tracer<'a> {
         let mut prev_pdf = 0.0;
         let mut prev_point = ray.origin;
         let mut prev_normal = Vec3A::Y;
-        // The last bounce drew its direction through the surface (glTF's transmission).
-        let mut prev_through = false;
+        // The last bounce ran no mirror or lens sampler for the direction it drew: drawn
+        // through the surface (glTF's transmission), or from inside a volume (`inside`).
+        let mut prev_unsampled = false;
         let mut bounce = 0;
         // The primitive the ray leaves, where it cannot meet it again.
         let mut skip = NONE;
@@ -1424,10 +1425,10 @@ impl<'a> Tracer<'a> {
             // the map next is weighed against `sample_mirror`.
             // The camera ray's density stands for a lobe's at the first hit.
             // A ray drawn through a surface is none that those samplers find (they sample on
-            // the side of the normal).
+            // the side of the normal), nor one drawn inside a volume, where they do not run.
             let drawn = if bounce == 0 {
                 view_pdf
-            } else if prev_through {
+            } else if prev_unsampled {
                 0.0
             } else {
                 prev_pdf
@@ -1460,7 +1461,7 @@ impl<'a> Tracer<'a> {
             let n_out = point.normal;
             let mut sc: Scatter;
             prev_pdf = 0.0;
-            prev_through = false;
+            prev_unsampled = false;
             if self.f.dielectrics && m.smoothness < 0.0 {
                 sc = scatter_dielectric(m, ray.dir, n_out, rng);
                 lensed =
@@ -1477,6 +1478,10 @@ impl<'a> Tracer<'a> {
                 // The shading normal, on the side of n.
                 let ns = self.shading_normal_at(hit, mapped, local, n_out, n);
                 let lobe = pbr.then(|| pbr::lobe(m, -ray.dir, ns, front));
+                // Inside a volume's boundary (a solid: closed, not nested) the mirror and lens
+                // spheres lie beyond the surface, which the shadow rays on this side meet first:
+                // those samplers would find nothing here, and do not run.
+                let inside = pbr && !front && m.transmission > 0.0 && !m.thin;
                 // The lecture's glossy lobe: the specular one blended with the diffuse
                 // direction, without fuzz (`Material::is_glossy`). Taken at a probability
                 // below 1, light sampling weighs its mixture with the cosine lobe whichever
@@ -1540,6 +1545,7 @@ impl<'a> Tracer<'a> {
                     // The map in the mirror spheres: its paths scatter here and at the
                     // mirror, and leave it, within the bounces allowed.
                     if self.f.mirror_nee
+                        && !inside
                         && !self.s.reflectors.is_empty()
                         && bounce + 2 <= u.max_bounces
                     {
@@ -1558,7 +1564,11 @@ impl<'a> Tracer<'a> {
                     // The map through the glass spheres: its paths scatter here, refract in
                     // and out, and leave, within the bounces allowed.
                     // With a reflection inside, one bounce more.
-                    if self.f.lens_nee && !self.s.lenses.is_empty() && bounce + 3 <= u.max_bounces {
+                    if self.f.lens_nee
+                        && !inside
+                        && !self.s.lenses.is_empty()
+                        && bounce + 3 <= u.max_bounces
+                    {
                         let inner = (bounce + 4 <= u.max_bounces) as u32;
                         radiance += throughput
                             * tint
@@ -1623,7 +1633,7 @@ impl<'a> Tracer<'a> {
                 if pbr {
                     prev_pdf = pbr_pdf;
                     prev_normal = ns;
-                    prev_through = through;
+                    prev_unsampled = through || inside;
                 } else if light_lobe {
                     prev_pdf = lobe_pdf(weighed, sc.dir, ns);
                     prev_normal = ns;
