@@ -25,7 +25,11 @@
 //! expectation: one candidate's firefly counted for another's image, `denoise::cross_fitted`).
 //! So the CPU tracer runs the `FIREFLY` scenes `FIREFLY_RUNS` times, and the light-tailed ones
 //! eight; the GPU tracer (lavapipe, slower) runs every scene four times and holds only the
-//! light-tailed ones to the bounds (its estimator is the host's: tests/denoise.rs).
+//! light-tailed ones to the bounds and to `EXPECTED_FLOOR` (its estimator is the host's:
+//! tests/denoise.rs, held on the firefly scenes by the CPU tracer's runs). A few runs'
+//! expectation on a firefly scene is one run's firefly: four runs read `glass`'s raw estimate
+//! at 64 spp 0.65 of the truth once its rough balls were drawn by their facets, twelve read
+//! `outdoor`'s at 256 spp 0.61, where the CPU tracer's 96 runs read 1.06 and 1.27.
 mod common;
 
 use common::{ctx, settings, snapshot_on};
@@ -207,28 +211,22 @@ fn mean(v: impl Iterator<Item = f64>) -> f64 {
 /// Prints the table per scene and checkpoint on `b` (a Markdown table, for BENCHMARKS.md):
 /// each cell the mean of the runs' estimated ÷ true, and in brackets the same in expectation
 /// (`summary`); returns the cells whose mean ratio is outside 0.8–1.25 and not `OPEN`, and
-/// those whose raw estimate counts less than `EXPECTED_FLOOR` in expectation.
-fn check_all(b: Backend, runs: u32, firefly_runs: Option<u32>) -> Vec<String> {
+/// those whose raw estimate counts less than `EXPECTED_FLOOR` in expectation (the firefly
+/// scenes' only where `held`).
+fn check_all(b: Backend, runs: u32, firefly_runs: u32, held: bool) -> Vec<String> {
     eprintln!(
-        "\n{} runs on {} ({} of each firefly scene)",
+        "\n{} runs on {} ({} of each firefly scene{})",
         runs,
         b.describe(),
-        firefly_runs.map_or("as many, not held to the bounds,".into(), |n| n.to_string())
+        firefly_runs,
+        if held { "" } else { ", not held to the bounds" }
     );
     eprintln!("| scene | raw 16 | raw 64 | raw 256 | shown 16 | shown 64 | shown 256 |");
     eprintln!("|---|---|---|---|---|---|---|");
     let mut failures = Vec::new();
     for (name, _) in BUILTIN_SCENES {
         let firefly = FIREFLY.contains(name);
-        let r = ratios(
-            &b,
-            name,
-            if firefly {
-                firefly_runs.unwrap_or(runs)
-            } else {
-                runs
-            },
-        );
+        let r = ratios(&b, name, if firefly { firefly_runs } else { runs });
         let raw: Vec<(f64, f64)> = r.iter().map(|c| summary(c.iter().map(|x| x.raw))).collect();
         let shown: Vec<(f64, f64)> = r
             .iter()
@@ -241,7 +239,7 @@ fn check_all(b: Backend, runs: u32, firefly_runs: Option<u32>) -> Vec<String> {
             .collect();
         eprintln!("| {name} | {} |", cells.join(" | "));
         for (i, spp) in SPPS.iter().enumerate() {
-            if raw[i].1 < EXPECTED_FLOOR {
+            if (held || !firefly) && raw[i].1 < EXPECTED_FLOOR {
                 failures.push(format!(
                     "{name} at {spp} spp, raw: the estimate counts {:.3} of the true relative \
                      MSE's root in expectation",
@@ -249,8 +247,10 @@ fn check_all(b: Backend, runs: u32, firefly_runs: Option<u32>) -> Vec<String> {
                 ));
             }
             for (what, (v, _)) in [("raw", raw[i]), ("shown", shown[i])] {
-                let held = !firefly || firefly_runs.is_some();
-                if !(0.8..=1.25).contains(&v) && held && !OPEN.contains(&(name, what, *spp)) {
+                if !(0.8..=1.25).contains(&v)
+                    && (held || !firefly)
+                    && !OPEN.contains(&(name, what, *spp))
+                {
                     failures.push(format!(
                         "{name} at {spp} spp, {what}: estimate ÷ true {v:.3}"
                     ));
@@ -263,13 +263,13 @@ fn check_all(b: Backend, runs: u32, firefly_runs: Option<u32>) -> Vec<String> {
 
 #[test]
 fn the_estimate_tracks_the_true_error_on_every_shipped_scene_on_the_cpu_tracer() {
-    let failures = check_all(Backend::Cpu, 8, Some(FIREFLY_RUNS));
+    let failures = check_all(Backend::Cpu, 8, FIREFLY_RUNS, true);
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 #[test]
 fn the_estimate_tracks_the_true_error_on_every_shipped_scene_on_the_gpu_tracer() {
-    let failures = check_all(Backend::Gpu(ctx()), 4, None);
+    let failures = check_all(Backend::Gpu(ctx()), 4, 4, false);
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
