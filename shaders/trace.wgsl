@@ -1346,7 +1346,8 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         let pbr = follows_pbr(m);
         // A certain lobe takes no draw.
         let is_spec = !pbr && (m.specular >= 1.0 || (m.specular > 0.0 && rand(state) < m.specular));
-        let n = select(-n_out, n_out, dot(ray.dir, n_out) < 0.0);
+        let front = dot(ray.dir, n_out) < 0.0;
+        let n = select(-n_out, n_out, front);
         let ns = shading_normal_at(sh, hit, surf.local, n_out, n);
         var lobe = PbrLobe();
         // The lecture's glossy lobe: the specular one blended with the diffuse direction,
@@ -1367,11 +1368,11 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
         var light_lobe = !is_spec || m.smoothness == 0.0 || gloss.s > 0.0;
         var inside = false;
         if pbr {
-            lobe = pbr_lobe(m, -ray.dir, ns, dot(ray.dir, n_out) < 0.0);
+            lobe = pbr_lobe(m, -ray.dir, ns, front);
             // Inside a volume's boundary (a solid: closed, not nested) the mirror and lens
             // spheres lie beyond the surface, which the shadow rays on this side meet first:
             // those samplers would find nothing here, and do not run.
-            inside = HAS_PBR_TRANSMISSION && dot(ray.dir, n_out) > 0.0 && m.transmission > 0.0 && m.thin == 0u;
+            inside = HAS_PBR_TRANSMISSION && !front && m.transmission > 0.0 && m.thin == 0u;
             light_lobe = lobe.alpha >= PBR_ALPHA_MIN || (lobe.p_spec < 1.0 && lobe.transmission < 1.0) || (lobe.coat > 0.0 && lobe.coat_alpha >= PBR_ALPHA_MIN);
             tint = vec3f(1.0);
         }

@@ -231,10 +231,7 @@ fn pbr_eval_base(l: PbrLobe, wi: vec3f) -> vec4f {
         let nxh = cross(l.n, h);
         let d = pbr_d(nh, dot(nxh, nxh), l.alpha);
         f += ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) * (d * pbr_v(nl, nv, l.alpha));
-        var p = l.p_spec;
-        if pbr_splits(l) {
-            p = (l.p_spec + l.p_trans) * pbr_facet_shares(l, l.weight * pbr_max3(fd)).x;
-        }
+        let p = pbr_lobe_shares(l, l.weight * pbr_max3(fd)).x;
         pdf += p * d * pbr_g1(nv, l.alpha) / (4.0 * nv);
     }
     return vec4f(f * nl, pdf);
@@ -257,7 +254,7 @@ fn pbr_eval_through(l: PbrLobe, wi: vec3f, nl: f32, nv: f32) -> vec4f {
         let nxh = cross(l.n, h);
         let d = pbr_d(nh, dot(nxh, nxh), l.alpha);
         let f = tint * (1.0 - l.weight * pbr_max3(fd)) * (d * pbr_v(nl, nv, l.alpha));
-        let p = pbr_through_share(l, l.weight * pbr_max3(fd));
+        let p = pbr_lobe_shares(l, l.weight * pbr_max3(fd)).y;
         return vec4f(f * nl, p * d * pbr_g1(nv, l.alpha) / (4.0 * nv));
     }
     var h = normalize_or(l.eta * l.wo + wi, l.n);
@@ -276,7 +273,7 @@ fn pbr_eval_through(l: PbrLobe, wi: vec3f, nl: f32, nv: f32) -> vec4f {
     let d = pbr_d(nh, dot(nxh, nxh), l.alpha);
     let jacobian = -ih * oh / denom;
     let f = tint * (1.0 - l.weight * pbr_max3(fd)) * (4.0 * nl * pbr_v(nl, nv, l.alpha) * d * jacobian);
-    let p = pbr_through_share(l, l.weight * pbr_max3(fd));
+    let p = pbr_lobe_shares(l, l.weight * pbr_max3(fd)).y;
     return vec4f(f, p * pbr_g1(nv, l.alpha) / nv * d * jacobian);
 }
 
@@ -327,19 +324,8 @@ fn pbr_sample(l: PbrLobe, state: ptr<function, Rng>) -> PbrSample {
         if l.alpha < PBR_ALPHA_MIN {
             return pbr_mirror(l, nv, through);
         }
-        let h = pbr_half_vector(l, nv, l.alpha, u);
-        wi = reflect(-l.wo, h);
-        if through {
-            if l.eta == 0.0 {
-                wi = wi - 2.0 * dot(wi, l.n) * l.n;
-            } else {
-                let t = pbr_refract(-l.wo, h, dot(l.wo, h), l.eta);
-                if t.w == 0.0 {
-                    return PbrSample(h, vec3f(0.0), 0.0, false, false);
-                }
-                wi = t.xyz;
-            }
-        }
+        // A rough lobe that transmits is drawn by pbr_sample_facet: this one reflects.
+        wi = reflect(-l.wo, pbr_half_vector(l, nv, l.alpha, u));
     } else {
         let z = 1.0 - 2.0 * u.x;
         let phi = 2.0 * PI * u.y;
@@ -368,13 +354,14 @@ fn pbr_facet_shares(l: PbrLobe, fd: f32) -> vec2f {
     return vec2f(1.0, 0.0);
 }
 
-// The probability of the transmission lobe at a microfacet of Fresnel `fd`: its share of the
-// rough boundary's draw (pbr_splits), else p_trans.
-fn pbr_through_share(l: PbrLobe, fd: f32) -> f32 {
+// The probabilities of the specular (x) and the transmission (y) lobe at a microfacet of
+// Fresnel `fd`: their shares of the rough boundary's draw (pbr_splits), else p_spec and
+// p_trans.
+fn pbr_lobe_shares(l: PbrLobe, fd: f32) -> vec2f {
     if pbr_splits(l) {
-        return (l.p_spec + l.p_trans) * pbr_facet_shares(l, fd).y;
+        return (l.p_spec + l.p_trans) * pbr_facet_shares(l, fd);
     }
-    return l.p_trans;
+    return vec2f(l.p_spec, l.p_trans);
 }
 
 // A rough boundary's draw (pbr_splits): a visible normal, then reflection or transmission by

@@ -227,11 +227,7 @@ pub fn eval_base(l: &Lobe, wi: Vec3A) -> (Vec3A, f32) {
         let nh = l.n.dot(h).clamp(0.0, 1.0);
         let dh = d(nh, l.n.cross(h).length_squared(), l.alpha);
         f += ((1.0 - l.metallic) * l.weight * fd + l.metallic * fm) * (dh * v(nl, nv, l.alpha));
-        let p = if splits(l) {
-            (l.p_spec + l.p_trans) * facet_shares(l, l.weight * max3(fd)).0
-        } else {
-            l.p_spec
-        };
+        let p = lobe_shares(l, l.weight * max3(fd)).0;
         pdf += p * dh * g1(nv, l.alpha) / (4.0 * nv);
     }
     (f * nl, pdf)
@@ -255,7 +251,7 @@ pub fn eval_through(l: &Lobe, wi: Vec3A, nl: f32, nv: f32) -> (Vec3A, f32) {
         let nh = l.n.dot(h).clamp(0.0, 1.0);
         let dh = d(nh, l.n.cross(h).length_squared(), l.alpha);
         let f = tint * (1.0 - l.weight * max3(fd)) * (dh * v(nl, nv, l.alpha));
-        let p = through_share(l, l.weight * max3(fd));
+        let p = lobe_shares(l, l.weight * max3(fd)).1;
         return (f * nl, p * dh * g1(nv, l.alpha) / (4.0 * nv));
     }
     let mut h = normalize_or(l.eta * l.wo + wi, l.n);
@@ -272,7 +268,7 @@ pub fn eval_through(l: &Lobe, wi: Vec3A, nl: f32, nv: f32) -> (Vec3A, f32) {
     let dh = d(nh, l.n.cross(h).length_squared(), l.alpha);
     let jacobian = -ih * oh / denom;
     let f = tint * (1.0 - l.weight * max3(fd)) * (4.0 * nl * v(nl, nv, l.alpha) * dh * jacobian);
-    let p = through_share(l, l.weight * max3(fd));
+    let p = lobe_shares(l, l.weight * max3(fd)).1;
     (f, p * g1(nv, l.alpha) / nv * dh * jacobian)
 }
 
@@ -328,18 +324,8 @@ pub fn sample(l: &Lobe, rng: &mut Rng) -> Sample {
         if l.alpha < ALPHA_MIN {
             return mirror(l, nv, through);
         }
-        let h = half_vector(l, nv, l.alpha, u);
-        if !through {
-            reflect(-l.wo, h)
-        } else if l.eta == 0.0 {
-            let r = reflect(-l.wo, h);
-            r - 2.0 * r.dot(l.n) * l.n
-        } else {
-            match refract(-l.wo, h, l.wo.dot(h), l.eta) {
-                Some(d) => d,
-                None => return none(h),
-            }
-        }
+        // A rough lobe that transmits is drawn by `sample_facet`: this one reflects.
+        reflect(-l.wo, half_vector(l, nv, l.alpha, u))
     } else {
         let z = 1.0 - 2.0 * u.0;
         let r = (1.0 - z * z).max(0.0).sqrt();
@@ -368,14 +354,17 @@ fn facet_shares(l: &Lobe, fd: f32) -> (f32, f32) {
     if s > 0.0 { (r / s, t / s) } else { (1.0, 0.0) }
 }
 
-/// The probability of the transmission lobe at a microfacet of Fresnel `fd`: its share of
-/// the rough boundary's draw (`splits`), else `p_trans`.
+/// The probabilities of the specular and the transmission lobe at a microfacet of Fresnel
+/// `fd`: their shares of the rough boundary's draw (`splits`), else `p_spec` and `p_trans`
+/// (pbr.wgsl: pbr_lobe_shares).
 #[inline(always)]
-fn through_share(l: &Lobe, fd: f32) -> f32 {
+fn lobe_shares(l: &Lobe, fd: f32) -> (f32, f32) {
     if splits(l) {
-        (l.p_spec + l.p_trans) * facet_shares(l, fd).1
+        let (r, t) = facet_shares(l, fd);
+        let p = l.p_spec + l.p_trans;
+        (p * r, p * t)
     } else {
-        l.p_trans
+        (l.p_spec, l.p_trans)
     }
 }
 
