@@ -393,7 +393,12 @@ impl Renderer {
         options: RenderOptions,
     ) -> Renderer {
         let features = Self::features_for(scene, &options, &settings);
-        let engine = match backend.into() {
+        let backend = backend.into();
+        let schedule = match &backend {
+            Backend::Gpu(ctx) if ctx.is_software() => Schedule::software(options.submission),
+            _ => Schedule::new(options.submission),
+        };
+        let engine = match backend {
             Backend::Gpu(ctx) => Engine::Gpu(Box::new(GpuEngine::new(
                 ctx,
                 scene,
@@ -413,7 +418,7 @@ impl Renderer {
             settings,
             options,
             features,
-            schedule: Schedule::new(options.submission),
+            schedule,
             samples: 0,
             round: None,
             fresh: true,

@@ -12,6 +12,16 @@ const PROBE_PIXELS: u64 = 4096;
 const MIN_PATHS: u64 = 4096;
 /// Most samples per pixel one round takes (keeps the preview's rounds short).
 const MAX_SAMPLES_PER_ROUND: u32 = 256;
+/// Most samples per pixel one round takes on a software adapter. llvmpipe (Mesa's gallivm)
+/// ends every loop of a shader invocation once the invocation's loops together have turned
+/// 65 535 times (`LP_MAX_TGSI_LOOP_ITERATIONS`, one counter per invocation, never reset
+/// between loops). The tracer loops over all the samples of its round in one invocation, so
+/// a long round was cut short silently: samples missing from some pixels, an intersection
+/// missed in the sample it stopped in. Measured on Mesa 22.3.6: the worst pixel of a mirror
+/// ball under a map (tests/envmap.rs's scene, 8 × 8) turned about 320 times per sample and
+/// kept 203 to 207 of each round of 250; its loss was intermittent in the tests because the
+/// rounds' sizes follow the measured speed. Eight samples leave 8 000 turns per sample.
+const MAX_SAMPLES_PER_ROUND_SOFTWARE: u32 = 8;
 
 #[derive(Clone, Debug)]
 pub struct Schedule {
@@ -19,11 +29,26 @@ pub struct Schedule {
     pub target: Duration,
     /// Seconds per pixel-sample, as an exponential moving average; `None` before any measure.
     cost: Option<f64>,
+    /// Most samples per pixel one round takes.
+    max_per_round: u32,
 }
 
 impl Schedule {
     pub fn new(target: Duration) -> Schedule {
-        Schedule { target, cost: None }
+        Schedule {
+            target,
+            cost: None,
+            max_per_round: MAX_SAMPLES_PER_ROUND,
+        }
+    }
+
+    /// A schedule for a software adapter: rounds of at most
+    /// `MAX_SAMPLES_PER_ROUND_SOFTWARE` samples, which llvmpipe's loop limit does not cut.
+    pub fn software(target: Duration) -> Schedule {
+        Schedule {
+            max_per_round: MAX_SAMPLES_PER_ROUND_SOFTWARE,
+            ..Schedule::new(target)
+        }
     }
 
     /// Records that `pixel_samples` paths took `elapsed`.
@@ -50,7 +75,7 @@ impl Schedule {
         };
         let full = cost * width as f64 * height as f64;
         let k = whole(self.target.as_secs_f64() / full);
-        (k as u32).clamp(1, MAX_SAMPLES_PER_ROUND).min(left.max(1))
+        (k as u32).clamp(1, self.max_per_round).min(left.max(1))
     }
 
     /// Rows of the next submission at `k` samples per pixel, at most `left`.
@@ -104,5 +129,10 @@ mod tests {
             "never past the samples left"
         );
         assert_eq!(fast.rows(1000, 100, 1000), 1000);
+        // A software adapter's rounds stay below llvmpipe's loop limit however fast it is.
+        let mut soft = Schedule::software(Duration::from_millis(100));
+        soft.observe(1_000_000, Duration::from_millis(1));
+        assert_eq!(soft.samples_per_round(1000, 1000, 500), 8);
+        assert_eq!(soft.samples_per_round(1000, 1000, 3), 3);
     }
 }

@@ -60,6 +60,14 @@ impl Snapshot {
         }
     }
 
+    /// Most samples any pixel holds (more than `min_samples` while a round is unfinished).
+    pub fn max_samples(&self) -> u64 {
+        (self.data.even.iter().zip(&self.data.odd))
+            .map(|(e, o)| (e[3] + o[3]) as u64)
+            .max()
+            .unwrap_or(0)
+    }
+
     /// Fewest samples any pixel holds (pixels in an unfinished round hold more).
     pub fn min_samples(&self) -> u64 {
         self.data

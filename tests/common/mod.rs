@@ -67,17 +67,23 @@ pub fn snapshot_on(
     let mut r = Renderer::new(b, scene, s, options);
     r.render_spp(spp);
     let snap = r.snapshot();
-    if snap.min_samples() != spp as u64 {
-        // Say enough to tell a discarded sample (NaN) from a lost dispatch: how many pixels
-        // fall short, and the pipeline of the last submission (the renderer times the
-        // specialized and the generic one against each other).
-        let short = (snap.data.even.iter().zip(&snap.data.odd))
-            .filter(|(e, o)| ((e[3] + o[3]) as u64) < spp as u64)
-            .count();
+    if snap.min_samples() != spp as u64 || snap.max_samples() != spp as u64 {
+        // Say enough to tell a discarded sample (NaN) from a cut invocation (llvmpipe's loop
+        // limit, `render::schedule`): which pixels miss how many samples, and the pipeline of
+        // the last submission.
+        let counts = (snap.data.even.iter().zip(&snap.data.odd)).map(|(e, o)| (e[3] + o[3]) as u64);
+        let off: Vec<(u32, u32, u64)> = counts
+            .enumerate()
+            .filter(|(_, n)| *n != spp as u64)
+            .map(|(i, n)| (i as u32 % s.width, i as u32 / s.width, n))
+            .collect();
         panic!(
-            "{} of {spp} samples in the poorest pixel; {short} pixels short, {} invalid \
-             samples, last pipeline {:?}",
+            "{} to {} of {spp} samples per pixel; {} pixels off (x, y, samples; the first 8: \
+             {:?}), {} invalid samples, last pipeline {:?}",
             snap.min_samples(),
+            snap.max_samples(),
+            off.len(),
+            &off[..off.len().min(8)],
             snap.invalid_samples(),
             r.last_pipeline().map(|f| f.summary())
         );
