@@ -18,9 +18,10 @@ const MAX_SAMPLES_PER_ROUND: u32 = 256;
 /// between loops). The tracer loops over all the samples of its round in one invocation, so
 /// a long round was cut short silently: samples missing from some pixels, an intersection
 /// missed in the sample it stopped in. Measured on Mesa 22.3.6: the worst pixel of a mirror
-/// ball under a map (tests/envmap.rs's scene, 8 × 8) turned about 320 times per sample and
-/// kept 203 to 207 of each round of 250; its loss was intermittent in the tests because the
-/// rounds' sizes follow the measured speed. Eight samples leave 8 000 turns per sample.
+/// ball under a map (tests/envmap.rs's scene, 8 × 8) turned about 320 times per sample: it
+/// kept every sample of rounds up to 206 and 203 to 239 of rounds of 217 to 281 (BENCHMARKS.md,
+/// "The lost dispatch found"). The loss was intermittent in the tests because the rounds'
+/// sizes follow the measured speed. Eight samples leave 8 000 turns per sample.
 const MAX_SAMPLES_PER_ROUND_SOFTWARE: u32 = 8;
 
 #[derive(Clone, Debug)]

@@ -60,23 +60,19 @@ impl Snapshot {
         }
     }
 
+    /// Each pixel's samples (both halves), row by row.
+    pub fn sample_counts(&self) -> impl Iterator<Item = u64> + '_ {
+        (self.data.even.iter().zip(&self.data.odd)).map(|(e, o)| (e[3] + o[3]) as u64)
+    }
+
     /// Most samples any pixel holds (more than `min_samples` while a round is unfinished).
     pub fn max_samples(&self) -> u64 {
-        (self.data.even.iter().zip(&self.data.odd))
-            .map(|(e, o)| (e[3] + o[3]) as u64)
-            .max()
-            .unwrap_or(0)
+        self.sample_counts().max().unwrap_or(0)
     }
 
     /// Fewest samples any pixel holds (pixels in an unfinished round hold more).
     pub fn min_samples(&self) -> u64 {
-        self.data
-            .even
-            .iter()
-            .zip(&self.data.odd)
-            .map(|(e, o)| (e[3] + o[3]) as u64)
-            .min()
-            .unwrap_or(0)
+        self.sample_counts().min().unwrap_or(0)
     }
 
     /// The estimated error of the image, from the difference of its two halves (no reference

@@ -71,9 +71,7 @@ pub fn snapshot_on(
         // Say enough to tell a discarded sample (NaN) from a cut invocation (llvmpipe's loop
         // limit, `render::schedule`): which pixels miss how many samples, and the pipeline of
         // the last submission.
-        let counts = (snap.data.even.iter().zip(&snap.data.odd)).map(|(e, o)| (e[3] + o[3]) as u64);
-        let off: Vec<(u32, u32, u64)> = counts
-            .enumerate()
+        let off: Vec<(u32, u32, u64)> = (snap.sample_counts().enumerate())
             .filter(|(_, n)| *n != spp as u64)
             .map(|(i, n)| (i as u32 % s.width, i as u32 / s.width, n))
             .collect();
