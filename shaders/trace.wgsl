@@ -952,14 +952,25 @@ fn sample_mirror(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, glo
     if !(spread > 0.0) {
         return vec3f(0.0);
     }
-    // To the sphere (the first thing the ray meets must be it), then from its point to the map.
+    // To the sphere (the first thing the ray meets must be it), then from its point to the map:
+    // two legs, one shadow-ray walk in the code (see sample_lens).
     let to_mirror = Ray(offset_ray(p, n_geo), x.dir);
-    let t_mirror = hit_primitive(prim, to_mirror, T_FAR);
-    if t_mirror <= 0.0 || occluded(to_mirror, t_mirror, prim) {
+    let t_mirror = hit_sphere(sphere, to_mirror, T_FAR);
+    if t_mirror <= 0.0 {
         return vec3f(0.0);
     }
-    if occluded(Ray(offset_ray(p + x.dir * x.dist, x.normal), s.dir), T_FAR, EMPTY_SLOT) {
-        return vec3f(0.0);
+    for (var leg = 0u; leg < 2u; leg++) {
+        var shadow = to_mirror;
+        var t = t_mirror;
+        var skip = prim;
+        if leg == 1u {
+            shadow = Ray(offset_ray(p + x.dir * x.dist, x.normal), s.dir);
+            t = T_FAR;
+            skip = EMPTY_SLOT;
+        }
+        if occluded(shadow, t, skip) {
+            return vec3f(0.0);
+        }
     }
     // What the mirror reflects: the lecture's specular tint, or glTF's Fresnel at the angle
     // of incidence; glass, the chance that scatter_dielectric reflects there and its tint.
@@ -1180,29 +1191,42 @@ fn sample_lens(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss
                 continue;
             }
             // To the sphere (the first thing the ray meets must be it), across it (twice, with a
-            // reflection inside), and from where it leaves to the map.
+            // reflection inside), and from where it leaves to the map: its legs in that order,
+            // through one call of the shadow-ray walk. (Each call site is a copy of the BVH walk
+            // in the compiled kernel; written out per leg, with sample_mirror's, they made
+            // `glass`'s kernel many times slower on an H100: BENCHMARKS.md.)
             let to_lens = Ray(offset_ray(p, n_geo), x.dir);
-            let t_lens = hit_primitive(prim, to_lens, T_FAR);
-            if t_lens <= 0.0 || occluded(to_lens, t_lens, prim) {
+            let t_lens = hit_sphere(sphere, to_lens, T_FAR);
+            if t_lens <= 0.0 {
                 continue;
             }
             let entry = p + x.dir * x.dist;
             let chord = x.turn - entry;
+            let back = x.exit - x.turn;
+            let legs = 3u + min(reflections, 1u);
+            var clear = true;
+            for (var leg = 0u; leg < legs && clear; leg++) {
+                var shadow = to_lens;
+                var t = t_lens;
+                if leg == 1u {
+                    shadow = Ray(entry, normalize(chord));
+                    t = length(chord);
+                } else if leg + 1u == legs {
+                    shadow = Ray(offset_ray(x.exit, x.exit_normal), s.dir);
+                    t = T_FAR;
+                } else if leg == 2u {
+                    shadow = Ray(x.turn, normalize(back));
+                    t = length(back);
+                }
+                clear = !occluded(shadow, t, prim);
+            }
+            if !clear {
+                continue;
+            }
             // The path's length inside, where the medium attenuates it.
             var inside = length(chord);
-            if occluded(Ray(entry, normalize(chord)), inside, prim) {
-                continue;
-            }
             if reflections > 0u {
-                let back = x.exit - x.turn;
-                let back_length = length(back);
-                if occluded(Ray(x.turn, normalize(back)), back_length, prim) {
-                    continue;
-                }
-                inside += back_length;
-            }
-            if occluded(Ray(offset_ray(x.exit, x.exit_normal), s.dir), T_FAR, prim) {
-                continue;
+                inside += length(back);
             }
             var carried: vec3f;
             if follows_pbr(m) {
