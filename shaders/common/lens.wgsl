@@ -179,52 +179,53 @@ fn lens_refine(f: LensFrame, lo_in: f32, hi_in: f32, glo: f32, ghi: f32) -> f32 
 
 // The sines of incidence of the paths from the frame's point through the sphere to its light:
 // bracketed on a grid, or with a reflection inside between β's folds and the ends.
+// One loop over the cut points of either case and one call of lens_refine, each offset
+// computed where it is needed (no arrays): the same numbers as src/cpu/lens.rs's roots, with
+// one copy of the Newton steps in the kernel instead of two and nothing in local memory
+// (the GPU's cost of lens sampling, BENCHMARKS.md).
 fn lens_roots(f: LensFrame) -> LensRoots {
     var out = LensRoots(vec3f(0.0), 0u);
     if !lens_reaches(f) {
         return out;
     }
+    // With a reflection inside: −1, the folds' mirror images, the folds, 1 (2n + 1
+    // intervals). Without: the grid's LENS_INTERVALS intervals, β on its half s ≥ 0
+    // (s = m / LENS_HALF), the other half 2π · inner less it.
+    var fold = LensRoots(vec3f(0.0), 0u);
+    var intervals = LENS_INTERVALS;
     if f.inner > 0u {
-        let fold = lens_folds(f);
-        let n = fold.count;
-        // −1, the folds' mirror images, the folds, 1.
-        var cuts: array<f32, 6>;
-        cuts[0] = -1.0;
-        for (var j = 0u; j < n; j++) {
-            cuts[1u + j] = -fold.s[n - 1u - j];
-            cuts[1u + n + j] = fold.s[j];
-        }
-        cuts[1u + 2u * n] = 1.0;
-        var glo = lens_offset(f, -1.0);
-        for (var j = 0u; j <= 2u * n; j++) {
-            let lo = cuts[j];
-            let hi = cuts[j + 1u];
-            let ghi = lens_offset(f, hi);
-            if (glo < 0.0) != (ghi < 0.0) && out.count < LENS_MAX_ROOTS {
-                out.s[out.count] = lens_refine(f, lo, hi, glo, ghi);
-                out.count += 1u;
-            }
-            glo = ghi;
-        }
-        return out;
+        fold = lens_folds(f);
+        intervals = 2u * fold.count + 1u;
     }
-    // β on the grid's half s ≥ 0 (s = m / LENS_HALF); the other half is 2π · inner less it.
-    var half: array<f32, 9>;
-    for (var m = 0u; m <= LENS_HALF; m++) {
-        half[m] = lens_deviation(f, f32(m) / f32(LENS_HALF));
-    }
+    let n = fold.count;
     let mirrored = 2.0 * PI * f32(f.inner);
-    var glo = mirrored - half[LENS_HALF] - f.beta;
-    for (var j = 0u; j < LENS_INTERVALS; j++) {
-        let lo = lens_grid(j);
-        let hi = lens_grid(j + 1u);
-        let m = i32(j + 1u) - i32(LENS_HALF);
-        let b = half[u32(abs(m))];
-        let ghi = select(b, mirrored - b, m < 0) - f.beta;
-        if (glo < 0.0) != (ghi < 0.0) && out.count < LENS_MAX_ROOTS {
+    var lo = -1.0;
+    var glo = 0.0;
+    for (var j = 0u; j <= intervals; j++) {
+        var hi: f32;
+        var ghi: f32;
+        if f.inner > 0u {
+            if j == 0u {
+                hi = -1.0;
+            } else if j <= n {
+                hi = -fold.s[n - j];
+            } else if j <= 2u * n {
+                hi = fold.s[j - n - 1u];
+            } else {
+                hi = 1.0;
+            }
+            ghi = lens_offset(f, hi);
+        } else {
+            hi = lens_grid(j);
+            let m = i32(j) - i32(LENS_HALF);
+            let b = lens_deviation(f, f32(u32(abs(m))) / f32(LENS_HALF));
+            ghi = select(b, mirrored - b, m < 0) - f.beta;
+        }
+        if j > 0u && (glo < 0.0) != (ghi < 0.0) && out.count < LENS_MAX_ROOTS {
             out.s[out.count] = lens_refine(f, lo, hi, glo, ghi);
             out.count += 1u;
         }
+        lo = hi;
         glo = ghi;
     }
     return out;
