@@ -80,6 +80,12 @@ pub struct RenderOptions {
 }
 
 impl RenderOptions {
+    /// Whether these options let the tuner time the scene's pipeline against the generic
+    /// one (on adapters where it runs: `Renderer::retune`).
+    fn tunes(&self) -> bool {
+        !self.generic && !self.no_tune && self.extra.is_none()
+    }
+
     /// The generic pipeline with these options' own switches (segment counting, BVH).
     fn generic_features(&self) -> Features {
         Features {
@@ -394,6 +400,14 @@ impl Renderer {
     ) -> Renderer {
         let features = Self::features_for(scene, &options, &settings);
         let backend = backend.into();
+        // Where the tuner will time the generic pipeline against the scene's own (a hardware
+        // GPU), the generic one compiles on another thread while the scene's own traces: a
+        // driver can take a minute over the generic kernel (NVIDIA's, `glass`: BENCHMARKS.md),
+        // which a headless render used to wait for before its second round.
+        let mut options = options;
+        if let Backend::Gpu(ctx) = &backend {
+            options.compile_in_background |= !ctx.is_software() && options.tunes();
+        }
         let schedule = match &backend {
             Backend::Gpu(ctx) if ctx.is_software() => Schedule::software(options.submission),
             _ => Schedule::new(options.submission),
@@ -448,11 +462,7 @@ impl Renderer {
             Engine::Gpu(g) => self.options.tune_on_software || !g.ctx.is_software(),
             Engine::Cpu(_) => false,
         };
-        self.tune = (!self.options.generic
-            && !self.options.no_tune
-            && self.options.extra.is_none()
-            && timed
-            && self.features != generic)
+        self.tune = (self.options.tunes() && timed && self.features != generic)
             .then(|| tune::Tune::new(self.features, generic));
         self.trial = None;
         self.tune_from = self.rounds + 1;
