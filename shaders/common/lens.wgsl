@@ -167,7 +167,8 @@ fn lens_refine(f: LensFrame, lo_in: f32, hi_in: f32, glo: f32, ghi: f32) -> f32 
             hi = s;
         }
         let next = s - g / lens_slope(f, s);
-        let to = select(0.5 * (lo + hi), next, next > lo && next < hi);
+        // A Newton step that rounds back to s has converged (src/cpu/lens.rs: refine).
+        let to = select(0.5 * (lo + hi), next, (next > lo && next < hi) || next == s);
         let step = abs(to - s);
         s = to;
         if step < 1e-7 {

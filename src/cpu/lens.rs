@@ -176,7 +176,12 @@ fn refine(f: &Frame, mut lo: f32, mut hi: f32, glo: f32, ghi: f32) -> f32 {
             hi = s;
         }
         let next = s - g / slope(f, s);
-        let to = if next > lo && next < hi {
+        // A Newton step that rounds back to s has converged: s is then an end of the
+        // bracket, and taken as outside it, the step became a halving, and the halvings ran
+        // to the bracket's width, up to all STEPS (measured on `glass` and `outdoor-caustics`:
+        // 10 and 12 steps on average, 6 % and 13 % of the roots all 24, where Newton's own
+        // steps settle in about 5).
+        let to = if (next > lo && next < hi) || next == s {
             next
         } else {
             0.5 * (lo + hi)
