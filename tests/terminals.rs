@@ -14,39 +14,63 @@ const SPP: u32 = 32;
 struct Display {
     server: Child,
     name: String,
+    log: PathBuf,
 }
 
 impl Drop for Display {
     fn drop(&mut self) {
         let _ = self.server.kill();
         let _ = self.server.wait();
+        let _ = std::fs::remove_file(&self.log);
     }
 }
 
 fn display() -> Display {
-    // A display number no other test (of this run or another) holds.
+    // A display number no other test (of this run or another) holds. An Xvfb that exits
+    // instead of opening its socket (a number taken meanwhile, a stale lock) is retried on
+    // the next number; the last one's own words are in the failure.
     static NEXT: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
     let base = 100 + std::process::id() % 300;
-    let n = (0..300)
-        .map(|_| base + NEXT.fetch_add(1, std::sync::atomic::Ordering::SeqCst))
-        .find(|n| {
-            !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
-                && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
-        })
-        .expect("a free display number");
-    let name = format!(":{n}");
-    let server = Command::new("Xvfb")
-        .args([&name, "-screen", "0", "1024x768x24", "-nolisten", "tcp"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("Xvfb (apt-get install xvfb)");
-    let deadline = Instant::now() + Duration::from_secs(60);
-    while !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
-        assert!(Instant::now() < deadline, "Xvfb did not start");
-        std::thread::sleep(Duration::from_millis(100));
+    let mut failures = Vec::new();
+    for _attempt in 0..5 {
+        let n = (0..300)
+            .map(|_| base + NEXT.fetch_add(1, std::sync::atomic::Ordering::SeqCst))
+            .find(|n| {
+                !Path::new(&format!("/tmp/.X11-unix/X{n}")).exists()
+                    && !Path::new(&format!("/tmp/.X{n}-lock")).exists()
+            })
+            .expect("a free display number");
+        let name = format!(":{n}");
+        // Its messages go to a file (a pipe nobody reads could fill and stall it).
+        let log = std::env::temp_dir().join(format!("termtrace-xvfb-{n}.log"));
+        let mut server = Command::new("Xvfb")
+            .args([&name, "-screen", "0", "1024x768x24", "-nolisten", "tcp"])
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(&log).expect("Xvfb's log file"))
+            .spawn()
+            .expect("Xvfb (apt-get install xvfb)");
+        let deadline = Instant::now() + Duration::from_secs(60);
+        loop {
+            if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
+                return Display { server, name, log };
+            }
+            if let Ok(Some(status)) = server.try_wait() {
+                let words = std::fs::read_to_string(&log).unwrap_or_default();
+                let _ = std::fs::remove_file(&log);
+                failures.push(format!("{name}: Xvfb exited ({status}): {}", words.trim()));
+                break;
+            }
+            if Instant::now() >= deadline {
+                let _ = server.kill();
+                let _ = server.wait();
+                let _ = std::fs::remove_file(&log);
+                failures.push(format!("{name}: no socket after 60 s"));
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
     }
-    Display { server, name }
+    panic!("Xvfb did not start:\n{}", failures.join("\n"));
 }
 
 struct Killed(Child);
