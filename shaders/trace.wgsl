@@ -1193,8 +1193,8 @@ fn sample_lens(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss
             // To the sphere (the first thing the ray meets must be it), across it (twice, with a
             // reflection inside), and from where it leaves to the map: its legs in that order,
             // through one call of the shadow-ray walk. (Each call site is a copy of the BVH walk
-            // in the compiled kernel; written out per leg, with sample_mirror's, they made
-            // `glass`'s kernel many times slower on an H100: BENCHMARKS.md.)
+            // in the compiled kernel; written out per leg, with sample_mirror's, they cost
+            // `glass` 1.7× in samples/s on an H100: BENCHMARKS.md, "Glass on the GPU".)
             let to_lens = Ray(offset_ray(p, n_geo), x.dir);
             let t_lens = hit_sphere(sphere, to_lens, T_FAR);
             if t_lens <= 0.0 {
