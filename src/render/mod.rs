@@ -80,10 +80,14 @@ pub struct RenderOptions {
 }
 
 impl RenderOptions {
-    /// Whether these options let the tuner time the scene's pipeline against the generic
-    /// one (on adapters where it runs: `Renderer::retune`).
-    fn tunes(&self) -> bool {
-        !self.generic && !self.no_tune && self.extra.is_none()
+    /// Whether the tuner times the pipeline of `features` against the generic one, on a GPU
+    /// adapter that is `software` or not (`Renderer::retune` says why not on the others).
+    fn tunes(&self, features: Features, software: bool) -> bool {
+        !self.generic
+            && !self.no_tune
+            && self.extra.is_none()
+            && (self.tune_on_software || !software)
+            && features != self.generic_features()
     }
 
     /// The generic pipeline with these options' own switches (segment counting, BVH).
@@ -396,7 +400,7 @@ impl Renderer {
         backend: impl Into<Backend>,
         scene: &Scene,
         settings: FrameSettings,
-        options: RenderOptions,
+        mut options: RenderOptions,
     ) -> Renderer {
         let features = Self::features_for(scene, &options, &settings);
         let backend = backend.into();
@@ -404,9 +408,8 @@ impl Renderer {
         // GPU), the generic one compiles on another thread while the scene's own traces: a
         // driver can take a minute over the generic kernel (NVIDIA's, `glass`: BENCHMARKS.md),
         // which a headless render used to wait for before its second round.
-        let mut options = options;
         if let Backend::Gpu(ctx) = &backend {
-            options.compile_in_background |= !ctx.is_software() && options.tunes();
+            options.compile_in_background |= !ctx.is_software() && options.tunes(features, false);
         }
         let schedule = match &backend {
             Backend::Gpu(ctx) if ctx.is_software() => Schedule::software(options.submission),
@@ -457,13 +460,11 @@ impl Renderer {
     /// measured at least as fast as the generic one on every shipped scene instead
     /// (BENCHMARKS.md). Nor on a software adapter unless asked (`tune_on_software`).
     fn retune(&mut self) {
-        let generic = self.generic_features();
         let timed = match &self.engine {
-            Engine::Gpu(g) => self.options.tune_on_software || !g.ctx.is_software(),
+            Engine::Gpu(g) => self.options.tunes(self.features, g.ctx.is_software()),
             Engine::Cpu(_) => false,
         };
-        self.tune = (self.options.tunes() && timed && self.features != generic)
-            .then(|| tune::Tune::new(self.features, generic));
+        self.tune = timed.then(|| tune::Tune::new(self.features, self.generic_features()));
         self.trial = None;
         self.tune_from = self.rounds + 1;
     }
