@@ -43,28 +43,30 @@ fn display() -> Display {
         let name = format!(":{n}");
         // Its messages go to a file (a pipe nobody reads could fill and stall it).
         let log = std::env::temp_dir().join(format!("termtrace-xvfb-{n}.log"));
-        let mut server = Command::new("Xvfb")
+        let server = Command::new("Xvfb")
             .args([&name, "-screen", "0", "1024x768x24", "-nolisten", "tcp"])
             .stdout(Stdio::null())
             .stderr(std::fs::File::create(&log).expect("Xvfb's log file"))
             .spawn()
             .expect("Xvfb (apt-get install xvfb)");
+        // Dropped on failure: the server killed and its log removed.
+        let mut d = Display { server, name, log };
         let deadline = Instant::now() + Duration::from_secs(60);
         loop {
             if Path::new(&format!("/tmp/.X11-unix/X{n}")).exists() {
-                return Display { server, name, log };
+                return d;
             }
-            if let Ok(Some(status)) = server.try_wait() {
-                let words = std::fs::read_to_string(&log).unwrap_or_default();
-                let _ = std::fs::remove_file(&log);
-                failures.push(format!("{name}: Xvfb exited ({status}): {}", words.trim()));
+            if let Ok(Some(status)) = d.server.try_wait() {
+                let words = std::fs::read_to_string(&d.log).unwrap_or_default();
+                failures.push(format!(
+                    "{}: Xvfb exited ({status}): {}",
+                    d.name,
+                    words.trim()
+                ));
                 break;
             }
             if Instant::now() >= deadline {
-                let _ = server.kill();
-                let _ = server.wait();
-                let _ = std::fs::remove_file(&log);
-                failures.push(format!("{name}: no socket after 60 s"));
+                failures.push(format!("{}: no socket after 60 s", d.name));
                 break;
             }
             std::thread::sleep(Duration::from_millis(100));
