@@ -1202,6 +1202,7 @@ fn sample_lens(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss
             }
             let entry = p + x.dir * x.dist;
             let chord = x.turn - entry;
+            // Legs: 0 to the sphere, 1 across it, (2 back, after a reflection,) the last out.
             let back = x.exit - x.turn;
             let legs = 3u + min(reflections, 1u);
             var clear = true;
