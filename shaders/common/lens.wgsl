@@ -6,21 +6,19 @@
 // of β(s) = ψ − 2 (i − r′) = β_w (+ π + 2r′ with a reflection inside: Descartes' rainbow ray)
 // in the plane of the point, the centre and the light (the
 // specular chain of manifold next-event estimation, Hanika, Droske & Fascione, EGSR 2015),
-// bracketed on a grid of s and refined by safeguarded Newton steps, and how much the sphere
-// spreads the light. The arithmetic is src/cpu/lens.rs's, which derives it.
+// bracketed between β's folds and refined by safeguarded Newton steps, and how much the
+// sphere spreads the light. The arithmetic is src/cpu/lens.rs's, which derives it.
 
-// Intervals of s ∈ [−1, 1] the roots are bracketed in; the most roots; the most Newton steps
-// per root; the least cosine of incidence of a path; how near (in s) lens_spread_of's root
-// must be to a path's own.
-const LENS_INTERVALS: u32 = 16u;
+// Intervals of s ∈ [0, 1] β′'s sign is read at to bracket β's folds; the most roots; the most
+// Newton steps per root or fold; the least cosine of incidence of a path; how near (in s)
+// lens_spread_of's root must be to a path's own.
 const LENS_HALF: u32 = 8u;
 const LENS_MAX_ROOTS: u32 = 3u;
 const LENS_STEPS: u32 = 24u;
 const LENS_GRAZING: f32 = 1e-2;
 const LENS_MATCH: f32 = 1e-3;
-// The most folds of β with a reflection inside on s ∈ (0, 1), and the bisection steps per fold.
+// The most folds of β on s ∈ (0, 1).
 const LENS_MAX_FOLDS: u32 = 2u;
-const LENS_FOLD_STEPS: u32 = 20u;
 
 // The plane of a point, a glass sphere and a light's direction: a (point to centre), e2 (in
 // the plane, on the light's side), k = r / D, the light's angle beta from a, the index, and
@@ -101,11 +99,22 @@ fn lens_slope(f: LensFrame, s: f32) -> f32 {
     return f.k / sqrt(1.0 - ks * ks) - 2.0 / sqrt(1.0 - s * s) + refracted * f32(1u + f.inner);
 }
 
+// The derivative in s of a / √(1 − a² s²): a³ s / (1 − a² s²)^{3/2}.
+fn lens_cubed(a: f32, s: f32) -> f32 {
+    let q = 1.0 / sqrt(1.0 - a * s * a * s);
+    return a * a * a * s * q * q * q;
+}
+
+// d²β / ds².
+fn lens_curvature(f: LensFrame, s: f32) -> f32 {
+    return lens_cubed(f.k, s) - 2.0 * lens_cubed(1.0, s) + 2.0 * f32(1u + f.inner) * lens_cubed(1.0 / f.ior, s);
+}
+
 // Whether the frame's light is within the angles its paths leave at (src/cpu/lens.rs:
 // reaches, which derives the bounds).
 fn lens_reaches(f: LensFrame) -> bool {
     if f.inner == 0u {
-        return f.beta <= asin(f.k) + 2.0 * (0.5 * PI - asin(1.0 / f.ior));
+        return f.beta <= max(asin(f.k), 2.0 * (0.5 * PI - asin(1.0 / f.ior)));
     }
     let s2 = (4.0 - f.ior * f.ior) / 3.0;
     var bow = 0.0;
@@ -114,11 +123,35 @@ fn lens_reaches(f: LensFrame) -> bool {
         bow = 4.0 * asin(s / f.ior) - 2.0 * asin(s);
     }
     let edge = PI - 4.0 * asin(1.0 / f.ior);
-    return f.beta >= PI - asin(f.k) - max(bow, edge) - 1e-4;
+    return f.beta >= PI - max(asin(f.k) + bow, edge) - 1e-4;
 }
 
-// The folds of β on s ∈ (0, 1) with a reflection inside (the first `count` of s), where β′
-// changes sign between the half grid's points, bisected (src/cpu/lens.rs: folds).
+// The fold of β in [lo, hi], where β′ turns from its sign at lo (rising: ≥ 0) to the other:
+// safeguarded Newton steps on β′ from the interval's middle (src/cpu/lens.rs: fold).
+fn lens_fold(f: LensFrame, lo_in: f32, hi_in: f32, rising: bool) -> f32 {
+    var lo = lo_in;
+    var hi = hi_in;
+    var s = 0.5 * (lo + hi);
+    for (var i = 0u; i < LENS_STEPS; i++) {
+        let g = lens_slope(f, s);
+        if (g >= 0.0) == rising {
+            lo = s;
+        } else {
+            hi = s;
+        }
+        let next = s - g / lens_curvature(f, s);
+        let to = select(0.5 * (lo + hi), next, (next > lo && next < hi) || next == s);
+        let step = abs(to - s);
+        s = to;
+        if step < 1e-7 {
+            break;
+        }
+    }
+    return s;
+}
+
+// The folds of β on s ∈ (0, 1) (the first `count` of s), where β′ changes sign between the
+// points 0, 1 / LENS_HALF, …, 1 (src/cpu/lens.rs: folds).
 fn lens_folds(f: LensFrame) -> LensRoots {
     var out = LensRoots(vec3f(0.0), 0u);
     var lo = 0.0;
@@ -128,28 +161,13 @@ fn lens_folds(f: LensFrame) -> LensRoots {
         // β′(1) is −∞ (the ray grazes in), not computed: WGSL may assume floats finite.
         let up = m < LENS_HALF && lens_slope(f, hi) >= 0.0;
         if up != rising && out.count < LENS_MAX_FOLDS {
-            var a = lo;
-            var b = hi;
-            for (var i = 0u; i < LENS_FOLD_STEPS; i++) {
-                let mid = 0.5 * (a + b);
-                if (lens_slope(f, mid) >= 0.0) == rising {
-                    a = mid;
-                } else {
-                    b = mid;
-                }
-            }
-            out.s[out.count] = 0.5 * (a + b);
+            out.s[out.count] = lens_fold(f, lo, hi, rising);
             out.count += 1u;
             rising = !rising;
         }
         lo = hi;
     }
     return out;
-}
-
-// The grid's s at index j of 0..=LENS_INTERVALS.
-fn lens_grid(j: u32) -> f32 {
-    return -1.0 + 2.0 * f32(j) / f32(LENS_INTERVALS);
 }
 
 // The root in [lo, hi], whose offsets glo and ghi differ in sign: Newton steps from the
@@ -178,50 +196,44 @@ fn lens_refine(f: LensFrame, lo_in: f32, hi_in: f32, glo: f32, ghi: f32) -> f32 
     return s;
 }
 
-// The sines of incidence of the paths from the frame's point through the sphere to its light:
-// bracketed on a grid, or with a reflection inside between β's folds and the ends.
-// One loop over the cut points of either case and one call of lens_refine, each offset
-// computed where it is needed (no arrays): the same numbers as src/cpu/lens.rs's roots, with
-// one copy of the Newton steps in the kernel instead of two and nothing in local memory
-// (measured even on an H200, 1–11 % faster on lavapipe: BENCHMARKS.md, "Glass on the GPU").
+// The sines of incidence of the paths from the frame's point through the sphere to its light,
+// bracketed between β's folds and the ends (src/cpu/lens.rs: roots), β evaluated at the folds
+// and at 1 only. One loop over the cut points and one call of lens_refine, with nothing in
+// local memory: the same numbers as src/cpu/lens.rs's roots, one copy of the Newton steps in
+// the kernel (BENCHMARKS.md, "Glass on the GPU").
 fn lens_roots(f: LensFrame) -> LensRoots {
     var out = LensRoots(vec3f(0.0), 0u);
     if !lens_reaches(f) {
         return out;
     }
-    // With a reflection inside: −1, the folds' mirror images, the folds, 1 (2n + 1
-    // intervals). Without: the grid's LENS_INTERVALS intervals, β on its half s ≥ 0
-    // (s = m / LENS_HALF), the other half 2π · inner less it.
-    var fold = LensRoots(vec3f(0.0), 0u);
-    var intervals = LENS_INTERVALS;
-    if f.inner > 0u {
-        fold = lens_folds(f);
-        intervals = 2u * fold.count + 1u;
-    }
+    // −1, the folds' mirror images, the folds, 1 (2n + 1 intervals); β(−s) = 2π · inner − β(s).
+    let fold = lens_folds(f);
     let n = fold.count;
     let mirrored = 2.0 * PI * f32(f.inner);
+    let end = lens_deviation(f, 1.0);
+    var b0 = 0.0;
+    var b1 = 0.0;
+    if n > 0u {
+        b0 = lens_deviation(f, fold.s.x);
+    }
+    if n > 1u {
+        b1 = lens_deviation(f, fold.s.y);
+    }
     var lo = -1.0;
     var glo = 0.0;
-    for (var j = 0u; j <= intervals; j++) {
-        var hi: f32;
-        var ghi: f32;
-        if f.inner > 0u {
-            if j == 0u {
-                hi = -1.0;
-            } else if j <= n {
-                hi = -fold.s[n - j];
-            } else if j <= 2u * n {
-                hi = fold.s[j - n - 1u];
-            } else {
-                hi = 1.0;
-            }
-            ghi = lens_offset(f, hi);
-        } else {
-            hi = lens_grid(j);
-            let m = i32(j) - i32(LENS_HALF);
-            let b = lens_deviation(f, f32(u32(abs(m))) / f32(LENS_HALF));
-            ghi = select(b, mirrored - b, m < 0) - f.beta;
+    for (var j = 0u; j <= 2u * n + 1u; j++) {
+        // The cut's s, β at |s|, and whether s < 0.
+        var hi = 1.0;
+        var b = end;
+        let below = j <= n;
+        if j == 0u {
+            hi = -1.0;
+        } else if j <= 2u * n {
+            let m = select(j - n - 1u, n - j, below);
+            hi = select(fold.s[m], -fold.s[m], below);
+            b = select(b0, b1, m == 1u);
         }
+        let ghi = select(b, mirrored - b, below) - f.beta;
         if j > 0u && (glo < 0.0) != (ghi < 0.0) && out.count < LENS_MAX_ROOTS {
             out.s[out.count] = lens_refine(f, lo, hi, glo, ghi);
             out.count += 1u;

@@ -776,7 +776,7 @@ impl<'a> Tracer<'a> {
         let mut sum = Vec3A::ZERO;
         for inner in 0..=inner {
             let f = lens::Frame { inner, ..through };
-            let (roots, found) = lens::roots(&f);
+            let (roots, found, _) = lens::roots(&f);
             for &s in &roots[..found] {
                 let Some(x) = lens::path(&f, p, c, r, s) else {
                     continue;
