@@ -1172,73 +1172,84 @@ fn sample_lens(p: vec3f, n: vec3f, n_geo: vec3f, pbr: bool, lobe: PbrLobe, gloss
         return vec3f(0.0);
     }
     let radiance = s.radiance * scene.env_intensity;
+    // The paths through the sphere, then those with a reflection inside, in one loop: a warp
+    // waits for its lanes' largest count of paths in all rather than for the largest of each
+    // kind in turn. (src/cpu's sample_lens loops over the kinds; the sum's order is the same.)
+    let through = lens_roots(f);
+    var bounced = LensRoots(vec3f(0.0), 0u);
+    if inner > 0u {
+        f.inner = 1u;
+        bounced = lens_roots(f);
+    }
     var sum = vec3f(0.0);
-    for (var reflections = 0u; reflections <= inner; reflections++) {
+    for (var k = 0u; k < through.count + bounced.count; k++) {
+        let reflections = select(0u, 1u, k >= through.count);
         f.inner = reflections;
+        var root: f32;
         // The lecture's glass: its tint at each interface, once more at the reflection.
         var tint = vec3f(1.0);
-        if reflections > 0u {
+        if reflections == 0u {
+            root = through.s[k];
+        } else {
+            root = bounced.s[k - through.count];
             tint = m.color;
         }
-        let found = lens_roots(f);
-        for (var k = 0u; k < found.count; k++) {
-            let x = lens_path(f, p, c, r, found.s[k]);
-            if !x.ok {
-                continue;
-            }
-            let cos_s = dot(n, x.dir);
-            if cos_s <= 0.0 || ((HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && dot(n_geo, x.dir) <= 0.0) {
-                continue;
-            }
-            // To the sphere (the first thing the ray meets must be it), across it (twice, with a
-            // reflection inside), and from where it leaves to the map: its legs in that order,
-            // through one call of the shadow-ray walk. (Each call site is a copy of the BVH walk
-            // in the compiled kernel; written out per leg, with sample_mirror's, they cost
-            // `glass` 1.7× in samples/s on an H100: BENCHMARKS.md, "Glass on the GPU".)
-            let to_lens = Ray(offset_ray(p, n_geo), x.dir);
-            let t_lens = hit_sphere(sphere, to_lens, T_FAR);
-            if t_lens <= 0.0 {
-                continue;
-            }
-            let entry = p + x.dir * x.dist;
-            let chord = x.turn - entry;
-            // Legs: 0 to the sphere, 1 across it, (2 back, after a reflection,) the last out.
-            let back = x.exit - x.turn;
-            let legs = 3u + min(reflections, 1u);
-            var clear = true;
-            for (var leg = 0u; leg < legs && clear; leg++) {
-                var shadow = to_lens;
-                var t = t_lens;
-                if leg == 1u {
-                    shadow = Ray(entry, normalize(chord));
-                    t = length(chord);
-                } else if leg + 1u == legs {
-                    shadow = Ray(offset_ray(x.exit, x.exit_normal), s.dir);
-                    t = T_FAR;
-                } else if leg == 2u {
-                    shadow = Ray(x.turn, normalize(back));
-                    t = length(back);
-                }
-                clear = !occluded(shadow, t, prim);
-            }
-            if !clear {
-                continue;
-            }
-            // The path's length inside, where the medium attenuates it.
-            var inside = length(chord);
-            if reflections > 0u {
-                inside += length(back);
-            }
-            var carried: vec3f;
-            if follows_pbr(m) {
-                // glTF's: its Fresnel, share and tint at each interface, and the medium's
-                // attenuation over the path inside (KHR_materials_volume).
-                carried = radiance * pbr_lens_transmittance(m, x.cos_i, x.cos_r, reflections) * exp(-m.attenuation * inside);
-            } else {
-                carried = radiance * m.color * m.color * tint * lens_transmittance(m.ior, x.cos_i, x.cos_r, reflections);
-            }
-            sum += weighed(carried, p, x.dir, cos_s, lens_pdf(s.pdf, x.spread), pbr, lobe, gloss, view);
+        let x = lens_path(f, p, c, r, root);
+        if !x.ok {
+            continue;
         }
+        let cos_s = dot(n, x.dir);
+        if cos_s <= 0.0 || ((HAS_NORMAL_MAPS || HAS_SMOOTH_NORMALS) && dot(n_geo, x.dir) <= 0.0) {
+            continue;
+        }
+        // To the sphere (the first thing the ray meets must be it), across it (twice, with a
+        // reflection inside), and from where it leaves to the map: its legs in that order,
+        // through one call of the shadow-ray walk. (Each call site is a copy of the BVH walk
+        // in the compiled kernel; written out per leg, with sample_mirror's, they cost
+        // `glass` 1.7× in samples/s on an H100: BENCHMARKS.md, "Glass on the GPU".)
+        let to_lens = Ray(offset_ray(p, n_geo), x.dir);
+        let t_lens = hit_sphere(sphere, to_lens, T_FAR);
+        if t_lens <= 0.0 {
+            continue;
+        }
+        let entry = p + x.dir * x.dist;
+        let chord = x.turn - entry;
+        // Legs: 0 to the sphere, 1 across it, (2 back, after a reflection,) the last out.
+        let back = x.exit - x.turn;
+        let legs = 3u + min(reflections, 1u);
+        var clear = true;
+        for (var leg = 0u; leg < legs && clear; leg++) {
+            var shadow = to_lens;
+            var t = t_lens;
+            if leg == 1u {
+                shadow = Ray(entry, normalize(chord));
+                t = length(chord);
+            } else if leg + 1u == legs {
+                shadow = Ray(offset_ray(x.exit, x.exit_normal), s.dir);
+                t = T_FAR;
+            } else if leg == 2u {
+                shadow = Ray(x.turn, normalize(back));
+                t = length(back);
+            }
+            clear = !occluded(shadow, t, prim);
+        }
+        if !clear {
+            continue;
+        }
+        // The path's length inside, where the medium attenuates it.
+        var inside = length(chord);
+        if reflections > 0u {
+            inside += length(back);
+        }
+        var carried: vec3f;
+        if follows_pbr(m) {
+            // glTF's: its Fresnel, share and tint at each interface, and the medium's
+            // attenuation over the path inside (KHR_materials_volume).
+            carried = radiance * pbr_lens_transmittance(m, x.cos_i, x.cos_r, reflections) * exp(-m.attenuation * inside);
+        } else {
+            carried = radiance * m.color * m.color * tint * lens_transmittance(m.ior, x.cos_i, x.cos_r, reflections);
+        }
+        sum += weighed(carried, p, x.dir, cos_s, lens_pdf(s.pdf, x.spread), pbr, lobe, gloss, view);
     }
     return sum;
 }
