@@ -126,20 +126,30 @@ fn lens_reaches(f: LensFrame) -> bool {
     return f.beta >= PI - max(asin(f.k) + bow, edge) - 1e-4;
 }
 
-// The fold of β in [lo, hi], where β′ turns from its sign at lo (rising: ≥ 0) to the other:
-// safeguarded Newton steps on β′ from the interval's middle (src/cpu/lens.rs: fold).
-fn lens_fold(f: LensFrame, lo_in: f32, hi_in: f32, rising: bool) -> f32 {
+// The zero in [lo, hi] of β′ (on_slope) or of β − β_w, negative at lo where lo_negative:
+// safeguarded Newton steps from start, kept in the shrinking bracket (src/cpu/lens.rs: newton).
+// One loop for the roots and the folds: one copy of the steps in the kernel.
+fn lens_newton(f: LensFrame, lo_in: f32, hi_in: f32, start: f32, lo_negative: bool, on_slope: bool) -> f32 {
     var lo = lo_in;
     var hi = hi_in;
-    var s = 0.5 * (lo + hi);
+    var s = start;
     for (var i = 0u; i < LENS_STEPS; i++) {
-        let g = lens_slope(f, s);
-        if (g >= 0.0) == rising {
+        var g: f32;
+        var dg: f32;
+        if on_slope {
+            g = lens_slope(f, s);
+            dg = lens_curvature(f, s);
+        } else {
+            g = lens_offset(f, s);
+            dg = lens_slope(f, s);
+        }
+        if (g < 0.0) == lo_negative {
             lo = s;
         } else {
             hi = s;
         }
-        let next = s - g / lens_curvature(f, s);
+        let next = s - g / dg;
+        // A Newton step that rounds back to s has converged (src/cpu/lens.rs: newton).
         let to = select(0.5 * (lo + hi), next, (next > lo && next < hi) || next == s);
         let step = abs(to - s);
         s = to;
@@ -148,6 +158,12 @@ fn lens_fold(f: LensFrame, lo_in: f32, hi_in: f32, rising: bool) -> f32 {
         }
     }
     return s;
+}
+
+// The fold of β in [lo, hi], where β′ turns from its sign at lo (rising: ≥ 0) to the other:
+// Newton's steps on β′ from the interval's middle (src/cpu/lens.rs: fold).
+fn lens_fold(f: LensFrame, lo: f32, hi: f32, rising: bool) -> f32 {
+    return lens_newton(f, lo, hi, 0.5 * (lo + hi), !rising, true);
 }
 
 // The folds of β on s ∈ (0, 1) (the first `count` of s), where β′ changes sign between the
@@ -170,30 +186,11 @@ fn lens_folds(f: LensFrame) -> LensRoots {
     return out;
 }
 
-// The root in [lo, hi], whose offsets glo and ghi differ in sign: Newton steps from the
-// chord's root, kept in the shrinking bracket.
-fn lens_refine(f: LensFrame, lo_in: f32, hi_in: f32, glo: f32, ghi: f32) -> f32 {
-    var lo = lo_in;
-    var hi = hi_in;
-    let rising = glo < 0.0;
-    var s = clamp(lo + (hi - lo) * glo / (glo - ghi), lo, hi);
-    for (var i = 0u; i < LENS_STEPS; i++) {
-        let g = lens_offset(f, s);
-        if (g < 0.0) == rising {
-            lo = s;
-        } else {
-            hi = s;
-        }
-        let next = s - g / lens_slope(f, s);
-        // A Newton step that rounds back to s has converged (src/cpu/lens.rs: refine).
-        let to = select(0.5 * (lo + hi), next, (next > lo && next < hi) || next == s);
-        let step = abs(to - s);
-        s = to;
-        if step < 1e-7 {
-            break;
-        }
-    }
-    return s;
+// The root in [lo, hi], whose offsets glo and ghi differ in sign: Newton's steps on β from
+// the chord's root (src/cpu/lens.rs: refine).
+fn lens_refine(f: LensFrame, lo: f32, hi: f32, glo: f32, ghi: f32) -> f32 {
+    let start = clamp(lo + (hi - lo) * glo / (glo - ghi), lo, hi);
+    return lens_newton(f, lo, hi, start, glo < 0.0, false);
 }
 
 // The sines of incidence of the paths from the frame's point through the sphere to its light,

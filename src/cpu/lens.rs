@@ -172,20 +172,26 @@ fn reaches(f: &Frame) -> bool {
     f.beta >= PI - (f.k.asin() + bow).max(edge) - 1e-4
 }
 
-/// The root in [lo, hi], whose offsets `glo` and `ghi` differ in sign: Newton steps from
-/// the chord's root, each kept in the shrinking bracket (else halving it); and the steps it
-/// took (for the tests).
-fn refine(f: &Frame, mut lo: f32, mut hi: f32, glo: f32, ghi: f32) -> (f32, u32) {
-    let rising = glo < 0.0;
-    let mut s = (lo + (hi - lo) * glo / (glo - ghi)).clamp(lo, hi);
+/// The zero in [lo, hi] of the function whose value and derivative at s `eval` gives,
+/// negative at `lo` where `lo_negative` (else not): safeguarded Newton steps from `start`,
+/// each kept in the shrinking bracket, else halving it; and the steps it took (for the
+/// tests). The roots (`refine`, on β) and the folds (`fold`, on β′) are both found by it.
+fn newton(
+    mut lo: f32,
+    mut hi: f32,
+    start: f32,
+    lo_negative: bool,
+    eval: impl Fn(f32) -> (f32, f32),
+) -> (f32, u32) {
+    let mut s = start;
     for taken in 1..=STEPS {
-        let g = offset(f, s);
-        if (g < 0.0) == rising {
+        let (g, dg) = eval(s);
+        if (g < 0.0) == lo_negative {
             lo = s;
         } else {
             hi = s;
         }
-        let next = s - g / slope(f, s);
+        let next = s - g / dg;
         // A Newton step that rounds back to s has converged: s is then an end of the
         // bracket, and taken as outside it, the step became a halving, and the halvings ran
         // to the bracket's width, up to all STEPS (measured on `glass` and `outdoor-caustics`:
@@ -205,33 +211,21 @@ fn refine(f: &Frame, mut lo: f32, mut hi: f32, glo: f32, ghi: f32) -> (f32, u32)
     (s, STEPS)
 }
 
+/// The root in [lo, hi], whose offsets `glo` and `ghi` differ in sign: Newton steps on β from
+/// the chord's root; and the steps it took.
+fn refine(f: &Frame, lo: f32, hi: f32, glo: f32, ghi: f32) -> (f32, u32) {
+    let start = (lo + (hi - lo) * glo / (glo - ghi)).clamp(lo, hi);
+    newton(lo, hi, start, glo < 0.0, |s| (offset(f, s), slope(f, s)))
+}
+
 /// The fold of β in [lo, hi], where β′ turns from the sign it has at `lo` (`rising`: ≥ 0)
-/// to the other: Newton's steps on β′ (with `curvature`) from the interval's middle, each
-/// kept in the shrinking bracket, else halving it, as `refine`'s are on β; and the steps it
-/// took (for the tests). Twenty halvings found it before (to 2⁻²³ of the interval); Newton's
-/// steps settle in about five.
-fn fold(f: &Frame, mut lo: f32, mut hi: f32, rising: bool) -> (f32, u32) {
-    let mut s = 0.5 * (lo + hi);
-    for taken in 1..=STEPS {
-        let g = slope(f, s);
-        if (g >= 0.0) == rising {
-            lo = s;
-        } else {
-            hi = s;
-        }
-        let next = s - g / curvature(f, s);
-        let to = if (next > lo && next < hi) || next == s {
-            next
-        } else {
-            0.5 * (lo + hi)
-        };
-        let step = (to - s).abs();
-        s = to;
-        if step < 1e-7 {
-            return (s, taken);
-        }
-    }
-    (s, STEPS)
+/// to the other: Newton's steps on β′ (with `curvature`) from the interval's middle; and the
+/// steps it took. Twenty halvings found it before (to 2⁻²³ of the interval); Newton's steps
+/// settle in about five.
+fn fold(f: &Frame, lo: f32, hi: f32, rising: bool) -> (f32, u32) {
+    newton(lo, hi, 0.5 * (lo + hi), !rising, |s| {
+        (slope(f, s), curvature(f, s))
+    })
 }
 
 /// The folds of β on s ∈ (0, 1): where β′ changes sign between the points 0, 1 / HALF, …, 1
