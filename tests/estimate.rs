@@ -371,8 +371,8 @@ fn the_reference_as_the_proxy() {
 /// reached it in none of 4 runs: its true error at 4096 spp is 10–16 % (the sun's caustics
 /// through its frosted balls, which only scattered paths find), and its estimate said so, so
 /// every run traced all 4096 samples (true ÷ target 1.9–3.3 there, the error of 4096 spp, not
-/// a stop). `outdoor-caustics` reached 5 % in 3209–3782 spp or not at all (half of 8 runs),
-/// and landed at 1.01–1.34 (mean 1.24). Measured (seeds 1–8, true ÷ target at the stop): `glass`
+/// a stop). `outdoor-caustics` reached 5 % in 3209–4096 spp, or in 3 of 8 runs not at all,
+/// and landed at 1.01–1.34 (mean 1.26). Measured (seeds 1–8, true ÷ target at the stop): `glass`
 /// at 20 % 0.83–1.23 (mean 0.99), 46–4096 spp; `outdoor-caustics` at 7 % 0.94–1.15 (mean 1.01),
 /// 1682–3016 spp (BENCHMARKS.md, "The stop at a target on the caustic scenes").
 fn stop_target(name: &str) -> f64 {
