@@ -134,14 +134,15 @@ fn lens_newton(f: LensFrame, lo_in: f32, hi_in: f32, start: f32, lo_negative: bo
     var hi = hi_in;
     var s = start;
     for (var i = 0u; i < LENS_STEPS; i++) {
-        var g: f32;
+        // β′ is the value on the folds and the derivative on the roots.
+        let d = lens_slope(f, s);
+        var g = d;
         var dg: f32;
         if on_slope {
-            g = lens_slope(f, s);
             dg = lens_curvature(f, s);
         } else {
             g = lens_offset(f, s);
-            dg = lens_slope(f, s);
+            dg = d;
         }
         if (g < 0.0) == lo_negative {
             lo = s;
