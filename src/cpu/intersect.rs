@@ -321,9 +321,9 @@ pub fn safe_inverse(dir: Vec3A) -> Vec3A {
 
 // Self-intersection avoidance (Wächter & Binder, Ray Tracing Gems ch. 6), with the constants
 // intersect.wgsl chose by `termtrace check --stress`.
-const OFFSET_ORIGIN: f32 = 1.0 / 32.0;
-const OFFSET_FLOAT_SCALE: f32 = 1.0 / 65536.0;
-const OFFSET_INT_SCALE: f32 = 32.0;
+pub(super) const OFFSET_ORIGIN: f32 = 1.0 / 32.0;
+pub(super) const OFFSET_FLOAT_SCALE: f32 = 1.0 / 65536.0;
+pub(super) const OFFSET_INT_SCALE: f32 = 32.0;
 
 /// Moves a hit point off its surface along `n` by a number of ulps (a fixed distance near
 /// the origin).

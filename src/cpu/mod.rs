@@ -5,7 +5,9 @@
 //! BVH, the latter collapsed to four-wide nodes in `cpu::bvh`, and to eight-wide ones in
 //! `cpu::bvh8` for single rays on a CPU with AVX, and where that is one node of a few quads
 //! and boxes, tested all at once in `cpu::few`), traces the same random streams (a group
-//! of eight pixels' samplers made at once: `rng::Rng::group`), and keeps the same exact
+//! of eight pixels' samplers made at once: `rng::Rng::group`; where the scene is a few
+//! spheres of the lecture's certain lobes under the sky, their eight paths side by side in
+//! AVX lanes, `cpu::lanes`), and keeps the same exact
 //! fixed-point sums of even and odd samples in the GPU's word layout (`cpu::fixed`), so that
 //! the renderer's rounds, the snapshot, the noise estimate, `converge`, `--target-error` and
 //! the preview work unchanged on it. A submission's rows are its tasks, or, where they are
@@ -20,6 +22,8 @@ pub mod bvh8;
 pub mod few;
 pub mod fixed;
 pub mod intersect;
+#[cfg(target_arch = "x86_64")]
+pub mod lanes;
 pub mod lens;
 pub mod material;
 pub mod mirror;
@@ -157,8 +161,12 @@ fn trace_row<const P: u32, const NEE: bool>(
     let width = sums.len() as u32;
     let mut t = Tracer::new(scene, f);
     let mut c = Counters::default();
+    // The paths in eight lanes where the scene allows (`lanes::Lanes::of`).
+    #[cfg(target_arch = "x86_64")]
+    let lanes = lanes::Lanes::of(scene, f);
     // Eight neighbouring pixels at a time: their camera rays are walked together where the
-    // scene allows (`Tracer::camera_hits`), each path then alone.
+    // scene allows (`Tracer::camera_hits`), each path then alone, or all eight paths in
+    // lanes.
     for x0 in (0..width).step_by(LANES) {
         let n = (width - x0).min(LANES as u32) as usize;
         let sums = &mut sums[x0 as usize..x0 as usize + n];
@@ -169,12 +177,28 @@ fn trace_row<const P: u32, const NEE: bool>(
             let rays: [Option<Ray>; LANES] = std::array::from_fn(|x| {
                 (x < n).then(|| t.camera_ray(x0 + x as u32, y, &mut rngs[x]))
             });
-            let first = t.camera_hits::<P>(&rays);
+            let mut traced = [(glam::Vec3A::ZERO, 0u32); LANES];
+            #[allow(unused_mut, unused_assignments)]
+            let mut in_lanes = false;
+            #[cfg(target_arch = "x86_64")]
+            if let Some(l) = &lanes {
+                // SAFETY: `Lanes::of` made it only where the CPU has AVX2.
+                let (paths, tests) = unsafe { l.trace(&rays, &mut rngs) };
+                traced = paths;
+                c.tests += tests;
+                in_lanes = true;
+            }
+            if !in_lanes {
+                let first = t.camera_hits::<P>(&rays);
+                for x in 0..n {
+                    let ray = rays[x].expect("a ray for every pixel of the group");
+                    let known = first.map(|h| h[x]);
+                    traced[x] =
+                        t.trace_path::<P, NEE>((x0 + x as u32, y), ray, known, &mut rngs[x]);
+                }
+            }
             for x in 0..n {
-                let ray = rays[x].expect("a ray for every pixel of the group");
-                let known = first.map(|h| h[x]);
-                let (radiance, segments) =
-                    t.trace_path::<P, NEE>((x0 + x as u32, y), ray, known, &mut rngs[x]);
+                let (radiance, segments) = traced[x];
                 c.segments += segments as u64;
                 c.drawn[rngs[x].taken() as usize] += 1;
                 if !radiance.is_finite() {
@@ -190,8 +214,8 @@ fn trace_row<const P: u32, const NEE: bool>(
             }
         }
     }
-    c.visits = t.tally.visits;
-    c.tests = t.tally.tests;
+    c.visits += t.tally.visits;
+    c.tests += t.tally.tests;
     c
 }
 
