@@ -161,12 +161,23 @@ fn trace_row<const P: u32, const NEE: bool>(
     let width = sums.len() as u32;
     let mut t = Tracer::new(scene, f);
     let mut c = Counters::default();
-    // The paths in eight lanes where the scene allows (`lanes::Lanes::of`).
+    // Where the scene allows (`lanes::Lanes::of`), eight pixels' paths side by side in lanes.
     #[cfg(target_arch = "x86_64")]
-    let lanes = lanes::Lanes::of(scene, f);
+    if let Some(l) = lanes::Lanes::of(scene, f) {
+        for x0 in (0..width).step_by(LANES) {
+            let n = (width - x0).min(LANES as u32) as usize;
+            let sums = &mut sums[x0 as usize..x0 as usize + n];
+            let done = |x: usize, sample: u32, (radiance, segments), rng: &Rng| {
+                c.record(&mut sums[x], sample, radiance, segments, rng);
+            };
+            let (at, seeds) = ((x0, y, width), (scene.u.seed, ahead));
+            // SAFETY: `Lanes::of` made it only where the CPU has AVX2.
+            c.tests += unsafe { l.trace(&t, at, n, samples.clone(), seeds, done) };
+        }
+        return c;
+    }
     // Eight neighbouring pixels at a time: their camera rays are walked together where the
-    // scene allows (`Tracer::camera_hits`), each path then alone, or all eight paths in
-    // lanes.
+    // scene allows (`Tracer::camera_hits`), each path then alone.
     for x0 in (0..width).step_by(LANES) {
         let n = (width - x0).min(LANES as u32) as usize;
         let sums = &mut sums[x0 as usize..x0 as usize + n];
@@ -177,46 +188,46 @@ fn trace_row<const P: u32, const NEE: bool>(
             let rays: [Option<Ray>; LANES] = std::array::from_fn(|x| {
                 (x < n).then(|| t.camera_ray(x0 + x as u32, y, &mut rngs[x]))
             });
-            let mut traced = [(glam::Vec3A::ZERO, 0u32); LANES];
-            #[allow(unused_mut, unused_assignments)]
-            let mut in_lanes = false;
-            #[cfg(target_arch = "x86_64")]
-            if let Some(l) = &lanes {
-                // SAFETY: `Lanes::of` made it only where the CPU has AVX2.
-                let (paths, tests) = unsafe { l.trace(&rays, &mut rngs) };
-                traced = paths;
-                c.tests += tests;
-                in_lanes = true;
-            }
-            if !in_lanes {
-                let first = t.camera_hits::<P>(&rays);
-                for x in 0..n {
-                    let ray = rays[x].expect("a ray for every pixel of the group");
-                    let known = first.map(|h| h[x]);
-                    traced[x] =
-                        t.trace_path::<P, NEE>((x0 + x as u32, y), ray, known, &mut rngs[x]);
-                }
-            }
+            let first = t.camera_hits::<P>(&rays);
             for x in 0..n {
-                let (radiance, segments) = traced[x];
-                c.segments += segments as u64;
-                c.drawn[rngs[x].taken() as usize] += 1;
-                if !radiance.is_finite() {
-                    c.invalid += 1;
-                    continue;
-                }
-                let half = if sample & 1 == 0 {
-                    &mut sums[x].0
-                } else {
-                    &mut sums[x].1
-                };
-                half.add(radiance.to_array());
+                let ray = rays[x].expect("a ray for every pixel of the group");
+                let known = first.map(|h| h[x]);
+                let (radiance, segments) =
+                    t.trace_path::<P, NEE>((x0 + x as u32, y), ray, known, &mut rngs[x]);
+                c.record(&mut sums[x], sample, radiance, segments, &rngs[x]);
             }
         }
     }
-    c.visits += t.tally.visits;
-    c.tests += t.tally.tests;
+    c.visits = t.tally.visits;
+    c.tests = t.tally.tests;
     c
+}
+
+impl Counters {
+    /// A path of sample `sample` traced: its radiance added to its pixel's half of the sums
+    /// (even or odd samples), or counted invalid; its segments and draws counted.
+    #[inline(always)]
+    fn record(
+        &mut self,
+        sums: &mut (Fixed, Fixed),
+        sample: u32,
+        radiance: glam::Vec3A,
+        segments: u32,
+        rng: &Rng,
+    ) {
+        self.segments += segments as u64;
+        self.drawn[rng.taken() as usize] += 1;
+        if !radiance.is_finite() {
+            self.invalid += 1;
+            return;
+        }
+        let half = if sample & 1 == 0 {
+            &mut sums.0
+        } else {
+            &mut sums.1
+        };
+        half.add(radiance.to_array());
+    }
 }
 
 impl CpuEngine {
