@@ -415,8 +415,8 @@ impl Lanes {
                     let mut segs = [0u32; 8];
                     // SAFETY: unaligned stores of eight lanes into arrays of eight.
                     unsafe {
-                        for c in 0..3 {
-                            _mm256_storeu_ps(out[c].as_mut_ptr(), p.radiance[c]);
+                        for (o, r) in out.iter_mut().zip(p.radiance) {
+                            _mm256_storeu_ps(o.as_mut_ptr(), r);
                         }
                         _mm256_storeu_si256(segs.as_mut_ptr() as *mut __m256i, p.segments);
                     }
@@ -540,8 +540,8 @@ impl Lanes {
         if nee {
             let cosine = _mm256_div_ps(_mm256_max_ps(dot(dir, nf), zero), set(PI));
             p.prev_pdf = _mm256_blendv_ps(p.prev_pdf, _mm256_and_ps(cosine, sampled), hit);
-            for c in 0..3 {
-                p.prev_normal[c] = _mm256_blendv_ps(p.prev_normal[c], nf[c], sampled);
+            for (prev, n) in p.prev_normal.iter_mut().zip(nf) {
+                *prev = _mm256_blendv_ps(*prev, n, sampled);
             }
         }
         for c in 0..3 {
