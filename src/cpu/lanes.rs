@@ -72,14 +72,16 @@ pub struct Lanes {
     half: Tables3,
     axes: [Tables3; 3],
     /// The material: whether it emits (1.0 or 0.0), its colour and light, whether its lobe
-    /// is the specular one, its smoothness s and 1 − s, the lobe's tint, and whether light
-    /// sampling weighs the lobe (the cosine lobe: `trace_path`'s `light_lobe`).
+    /// is the specular one, its smoothness s and 1 − s, the specular lobe's fuzz (its
+    /// `absorption`; 0 for the diffuse lobe), the lobe's tint, and whether light sampling
+    /// weighs the lobe (the cosine lobe: `trace_path`'s `light_lobe`).
     emits: Table,
     color: Tables3,
     light: Table,
     spec: Table,
     smooth: Table,
     rough: Table,
+    fuzz: Table,
     tint: Tables3,
     sampled: Table,
     /// The one light (`GpuLight`), where the scene has one and light sampling runs.
@@ -109,8 +111,8 @@ pub type Traced = (Vec3A, u32);
 impl Lanes {
     /// The lanes for `s` traced with features `f`, where they apply: a CPU with AVX2, one to
     /// `MAX_PRIMITIVES` spheres, quads and boxes (no triangles), every material an emitter
-    /// or the lecture's surface with a certain lobe (no draw picks it) and no fuzz, at most
-    /// one light and no map, no glossy lobe that light sampling weighs, and the sky without
+    /// or the lecture's surface with a certain lobe (no draw picks it; the specular one may
+    /// be fuzzed), at most one light and no map, no glossy lobe that light sampling weighs, and the sky without
     /// its sun. The camera rays, a lens's included, are the caller's.
     pub fn of(s: &CpuScene, f: Features) -> Option<Lanes> {
         if !std::arch::is_x86_feature_detected!("avx2") {
@@ -157,6 +159,7 @@ impl Lanes {
             spec: [0.0; 8],
             smooth: [0.0; 8],
             rough: [0.0; 8],
+            fuzz: [0.0; 8],
             tint: [[0.0; 8]; 3],
             sampled: [0.0; 8],
             lamp: None,
@@ -217,9 +220,9 @@ impl Lanes {
                 l.emits[k] = 1.0;
                 continue;
             }
-            // The lobe is certain (no draw picks it), and the specular one takes no fuzz.
+            // The lobe is certain (no draw picks it).
             let spec = m.specular >= 1.0;
-            if m.smoothness < 0.0 || !(spec || m.specular == 0.0) || (spec && m.absorption > 0.0) {
+            if m.smoothness < 0.0 || !(spec || m.specular == 0.0) {
                 return None;
             }
             for c in 0..3 {
@@ -232,6 +235,7 @@ impl Lanes {
             l.spec[k] = flag(spec);
             l.smooth[k] = m.smoothness;
             l.rough[k] = 1.0 - m.smoothness;
+            l.fuzz[k] = if spec { m.absorption } else { 0.0 };
             l.sampled[k] = flag(!spec || m.smoothness == 0.0);
         }
         // Light sampling runs where the scene has a light and the settings ask for it
@@ -518,7 +522,8 @@ impl Lanes {
             }
         }
         // The lobe's direction (`scatter_surface`): the diffuse one, or blended toward the
-        // mirror direction by the smoothness (`Vec3A::lerp`) and normalized again.
+        // mirror direction (fuzzed by a second draw where the lobe has fuzz) by the
+        // smoothness (`Vec3A::lerp`) and normalized again.
         let (u, v) = draw2(rngs, on);
         let unit = random_unit_vector(u, v);
         let diffuse = normalize_or(std::array::from_fn(|c| _mm256_add_ps(nf[c], unit[c])), nf);
@@ -526,9 +531,26 @@ impl Lanes {
         let dir = if _mm256_movemask_ps(spec) != 0 {
             let dn = _mm256_mul_ps(set(2.0), dot(*d, nf));
             let (s, rough) = (pick(&self.smooth), pick(&self.rough));
+            let mut mirror: V3 =
+                std::array::from_fn(|c| _mm256_sub_ps(d[c], _mm256_mul_ps(dn, nf[c])));
+            let fuzz = pick(&self.fuzz);
+            let fuzzed = _mm256_and_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(fuzz, zero), spec);
+            let fuzzy = _mm256_movemask_ps(fuzzed) as u32;
+            if fuzzy != 0 {
+                let (u, v) = draw2(rngs, fuzzy);
+                let unit = random_unit_vector(u, v);
+                let moved =
+                    std::array::from_fn(|c| _mm256_add_ps(mirror[c], _mm256_mul_ps(fuzz, unit[c])));
+                let moved = normalize_or(moved, nf);
+                for c in 0..3 {
+                    mirror[c] = _mm256_blendv_ps(mirror[c], moved[c], fuzzed);
+                }
+            }
             let blend: V3 = std::array::from_fn(|c| {
-                let mirror = _mm256_sub_ps(d[c], _mm256_mul_ps(dn, nf[c]));
-                _mm256_add_ps(_mm256_mul_ps(diffuse[c], rough), _mm256_mul_ps(mirror, s))
+                _mm256_add_ps(
+                    _mm256_mul_ps(diffuse[c], rough),
+                    _mm256_mul_ps(mirror[c], s),
+                )
             });
             let specular = normalize_or(blend, nf);
             std::array::from_fn(|c| _mm256_blendv_ps(diffuse[c], specular[c], spec))
@@ -1284,7 +1306,7 @@ mod tests {
     use crate::scene::Scene;
 
     /// Eight spheres: a hollow one (negative radius) behind the others, Lambertian and
-    /// specular lobes at smoothness 0, 0.3 and 1, a lens, a uniform sky, and few bounces, so
+    /// specular lobes at smoothness 0, 0.3 and 1 and a fuzzed one, a lens, a uniform sky, and few bounces, so
     /// that paths end at the bounce limit, by a miss and by absorption.
     const SHELL: &str = r##"
 [camera]
@@ -1326,6 +1348,8 @@ center = [0.5, 0.8, -1.8]
 radius = 0.3
 color = "#a0a0a0"
 specular = 1
+smoothness = 0.7
+absorption = 0.4
 [[sphere]]
 center = [-0.5, 0.9, -2.2]
 radius = 0.35
@@ -1398,7 +1422,7 @@ color = "#606060"
     #[test]
     fn lanes_trace_the_scalar_paths_bit_for_bit() {
         let mut cases = vec![];
-        for name in ["shell", "basic", "metal"] {
+        for name in ["shell", "basic", "metal", "fuzz", "dof"] {
             let scene = match name {
                 "shell" => Scene::from_toml(SHELL, "shell").unwrap(),
                 _ => Scene::load(name).unwrap(),
@@ -1426,11 +1450,10 @@ color = "#606060"
     fn lanes_trace_what_they_can_and_leave_out_the_rest() {
         let settings = FrameSettings::new(16, 16, 8, 1);
         let has = std::arch::is_x86_feature_detected!("avx2");
-        // Glass, fuzz, several lights, a map, triangles, glTF's BRDF.
+        // Glass, several lights, a map, triangles, glTF's BRDF.
         for name in [
             "weekend",
             "dielectric",
-            "fuzz",
             "emissive",
             "outdoor",
             "mesh",
@@ -1440,7 +1463,7 @@ color = "#606060"
             let s = CpuScene::new(&scene, &settings);
             assert!(Lanes::of(&s, Features::of(&scene)).is_none(), "{name}");
         }
-        for name in ["shell", "basic", "metal", "lamp", "cornell"] {
+        for name in ["shell", "basic", "metal", "fuzz", "dof", "lamp", "cornell"] {
             let scene = match name {
                 "shell" => Scene::from_toml(SHELL, "shell").unwrap(),
                 _ => Scene::load(name).unwrap(),
