@@ -163,7 +163,7 @@ fn trace_row<const P: u32, const NEE: bool>(
     let mut c = Counters::default();
     // Where the scene allows (`lanes::Lanes::of`), eight pixels' paths side by side in lanes.
     #[cfg(target_arch = "x86_64")]
-    if let Some(l) = lanes::Lanes::of(scene, f) {
+    if let Some(l) = lanes::Lanes::of(scene, f).filter(|_| !trace::recording()) {
         for x0 in (0..width).step_by(LANES) {
             let n = (width - x0).min(LANES as u32) as usize;
             let sums = &mut sums[x0 as usize..x0 as usize + n];

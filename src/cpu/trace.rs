@@ -1735,6 +1735,15 @@ thread_local! {
         const { std::cell::RefCell::new(None) };
 }
 
+/// Whether segments are being recorded (tests only): the paths are then traced one by one,
+/// where the recording is, not in lanes (`cpu::lanes`).
+pub(super) fn recording() -> bool {
+    #[cfg(test)]
+    return RECORD.with(|r| r.borrow().is_some());
+    #[cfg(not(test))]
+    false
+}
+
 /// Tests only: every segment (bounce, ray) that scene `name` traces at `w`×`h` and `spp`
 /// samples per pixel, in the row loop's order (one thread), and the scene as traced.
 /// (Its users, the packet and eight-wide walks, exist on x86-64 only.)
