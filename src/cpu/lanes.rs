@@ -40,9 +40,9 @@ const NONE: i32 = -1;
 /// A primitive's kind, as its reference's top bits say.
 #[derive(Clone, Copy, PartialEq)]
 enum Kind {
-    Sphere,
-    Quad,
-    Box,
+    Sphere = 0,
+    Quad = 1,
+    Box = 2,
 }
 
 type Table = [f32; 8];
@@ -54,6 +54,8 @@ type Tables3 = [Table; 3];
 /// in step with edits).
 pub struct Lanes {
     kinds: Vec<Kind>,
+    /// Per kind (sphere, quad, box), whether each primitive is of it (1.0 or 0.0).
+    of_kind: [Table; 3],
     /// Spheres: the anchor, the anchor normal, |radius| times it (`hit_sphere`'s r·n, the
     /// product of the same two floats), |radius|, 2·|radius|, and whether the radius is
     /// positive (the outside is where the normal points) or negative (the normal turned
@@ -142,6 +144,7 @@ impl Lanes {
         }
         let mut l = Lanes {
             kinds: Vec::with_capacity(count),
+            of_kind: [[0.0; 8]; 3],
             anchor: [[0.0; 8]; 3],
             normal: [[0.0; 8]; 3],
             r_normal: [[0.0; 8]; 3],
@@ -205,6 +208,9 @@ impl Lanes {
             }
             l.kinds.push(Kind::Box);
             materials.push(b.material);
+        }
+        for (k, &kind) in l.kinds.iter().enumerate() {
+            l.of_kind[kind as usize][k] = 1.0;
         }
         for (k, &mat) in materials.iter().enumerate() {
             let m = s.materials.get(mat as usize)?;
@@ -467,8 +473,8 @@ impl Lanes {
             return 0;
         }
         let idx = _mm256_max_epi32(index, _mm256_setzero_si256());
-        let pick = |t: &Table| _mm256_permutevar8x32_ps(load(t), idx);
-        let pick3 = |t: &Tables3| [pick(&t[0]), pick(&t[1]), pick(&t[2])];
+        let pick = |t: &Table| pick(t, idx);
+        let pick3 = |t: &Tables3| pick3(t, idx);
         let (position, n_out) = self.surface(*o, *d, best, idx);
         // An emitter: its light, weighed against light sampling where the last lobe's
         // density is known, and the path ends.
@@ -765,18 +771,10 @@ impl Lanes {
     #[inline]
     #[target_feature(enable = "avx,avx2")]
     fn surface(&self, o: V3, d: V3, t: __m256, idx: __m256i) -> (V3, V3) {
-        let pick = |x: &Table| _mm256_permutevar8x32_ps(load(x), idx);
-        let pick3 = |x: &Tables3| [pick(&x[0]), pick(&x[1]), pick(&x[2])];
+        let pick = |x: &Table| pick(x, idx);
+        let pick3 = |x: &Tables3| pick3(x, idx);
         let zero = _mm256_setzero_ps();
-        let kind_of = |kind: Kind| {
-            let mut m = [0.0f32; 8];
-            for (k, &kk) in self.kinds.iter().enumerate() {
-                if kk == kind {
-                    m[k] = 1.0;
-                }
-            }
-            _mm256_cmp_ps::<_CMP_GT_OQ>(pick(&m), zero)
-        };
+        let kind_of = |kind: Kind| self.is_kind(kind, idx);
         let has = |kind: Kind| self.kinds.contains(&kind);
         let (mut position, mut normal) = ([zero; 3], [zero; 3]);
         let mut put = |mask: __m256, p: V3, n: V3| {
@@ -860,31 +858,15 @@ impl Lanes {
     #[inline]
     #[target_feature(enable = "avx,avx2")]
     fn leaving(&self, idx: __m256i, out: __m256) -> __m256i {
-        let pick = |x: &Table| _mm256_permutevar8x32_ps(load(x), idx);
-        let zero = _mm256_setzero_ps();
-        let mut outward = [0.0f32; 8];
-        let mut plane = [0.0f32; 8];
-        for (k, kind) in self.kinds.iter().enumerate() {
-            match kind {
-                Kind::Sphere => outward[k] = self.outward[k],
-                Kind::Quad => plane[k] = 1.0,
-                Kind::Box => {}
-            }
-        }
-        let is_sphere = {
-            let mut m = [0.0f32; 8];
-            for (k, kind) in self.kinds.iter().enumerate() {
-                m[k] = if *kind == Kind::Sphere { 1.0 } else { 0.0 };
-            }
-            _mm256_cmp_ps::<_CMP_GT_OQ>(pick(&m), zero)
-        };
+        // (`outward` is 0 but for the spheres.)
+        let outward = _mm256_cmp_ps::<_CMP_GT_OQ>(pick(&self.outward, idx), _mm256_setzero_ps());
         let same = _mm256_xor_ps(
-            _mm256_xor_ps(out, _mm256_cmp_ps::<_CMP_GT_OQ>(pick(&outward), zero)),
+            _mm256_xor_ps(out, outward),
             _mm256_castsi256_ps(_mm256_set1_epi32(-1)),
         );
         let keeps = _mm256_or_ps(
-            _mm256_cmp_ps::<_CMP_GT_OQ>(pick(&plane), zero),
-            _mm256_blendv_ps(out, same, is_sphere),
+            self.is_kind(Kind::Quad, idx),
+            _mm256_blendv_ps(out, same, self.is_kind(Kind::Sphere, idx)),
         );
         _mm256_castps_si256(_mm256_blendv_ps(
             _mm256_castsi256_ps(_mm256_set1_epi32(NONE)),
@@ -899,17 +881,11 @@ impl Lanes {
     #[inline]
     #[target_feature(enable = "avx,avx2")]
     fn light_pdf(&self, idx: __m256i, origin: V3, at: V3) -> __m256 {
-        let pick = |x: &Table| _mm256_permutevar8x32_ps(load(x), idx);
-        let pick3 = |x: &Tables3| [pick(&x[0]), pick(&x[1]), pick(&x[2])];
+        let pick = |x: &Table| pick(x, idx);
+        let pick3 = |x: &Tables3| pick3(x, idx);
         let zero = _mm256_setzero_ps();
         let mut pdf = zero;
-        let mask = |kind: Kind| {
-            let mut m = [0.0f32; 8];
-            for (k, &kk) in self.kinds.iter().enumerate() {
-                m[k] = if kk == kind { 1.0 } else { 0.0 };
-            }
-            _mm256_cmp_ps::<_CMP_GT_OQ>(pick(&m), zero)
-        };
+        let mask = |kind: Kind| self.is_kind(kind, idx);
         if self.kinds.contains(&Kind::Sphere) {
             // sphere_center: anchor − |r|·normal.
             let (anc, an, r) = (pick3(&self.anchor), pick3(&self.normal), pick(&self.r));
@@ -1027,6 +1003,13 @@ impl Lanes {
         (l, tests)
     }
 
+    /// The lanes whose primitive `idx` is of `kind`.
+    #[inline]
+    #[target_feature(enable = "avx,avx2")]
+    fn is_kind(&self, kind: Kind, idx: __m256i) -> __m256 {
+        _mm256_cmp_ps::<_CMP_GT_OQ>(pick(&self.of_kind[kind as usize], idx), _mm256_setzero_ps())
+    }
+
     /// The sky in direction d (its y component): uniform, or the gradient (`Tracer::sky`).
     #[inline]
     #[target_feature(enable = "avx,avx2")]
@@ -1052,6 +1035,19 @@ impl Lanes {
 fn load(a: &Table) -> __m256 {
     // SAFETY: an unaligned load of eight floats from an array of eight.
     unsafe { _mm256_loadu_ps(a.as_ptr()) }
+}
+
+/// Each lane's entry `idx` of a table of eight.
+#[inline]
+#[target_feature(enable = "avx,avx2")]
+fn pick(t: &Table, idx: __m256i) -> __m256 {
+    _mm256_permutevar8x32_ps(load(t), idx)
+}
+
+#[inline]
+#[target_feature(enable = "avx,avx2")]
+fn pick3(t: &Tables3, idx: __m256i) -> V3 {
+    [pick(&t[0], idx), pick(&t[1], idx), pick(&t[2], idx)]
 }
 
 #[inline]
