@@ -1736,7 +1736,8 @@ thread_local! {
 }
 
 /// Whether segments are being recorded (tests only): the paths are then traced one by one,
-/// where the recording is, not in lanes (`cpu::lanes`).
+/// where the recording is, not in lanes (`cpu::lanes`, on x86-64 only).
+#[cfg(target_arch = "x86_64")]
 pub(super) fn recording() -> bool {
     #[cfg(test)]
     return RECORD.with(|r| r.borrow().is_some());
