@@ -8,8 +8,8 @@
 //! and square roots at a time; here eight run side by side, every primitive tested against
 //! eight rays at once (the wavefront of Laine, Karras and Aila, "Megakernels Considered
 //! Harmful", HPG 2013, kept in one kernel as Mitsuba 3's LLVM backend keeps it, sixteen lanes
-//! wide there). A lane whose path has ended idles until the group's last path ends. The
-//! draws stay each lane's own sampler's, taken in the order the scalar path takes them.
+//! wide there). A lane whose path has ended starts its pixel's next sample (`Lanes::trace`).
+//! The draws stay each lane's own sampler's, taken in the order the scalar path takes them.
 //!
 //! The one difference a path can show: where two primitives are hit at the same distance (a
 //! ray through the edge two quads share), the scalar walk keeps the one its BVH order tests
@@ -94,17 +94,20 @@ pub struct Lanes {
     max_bounces: u32,
 }
 
-/// The light that light sampling draws from: its primitive and what sampling it needs.
+/// The light that light sampling draws from: its primitive, its shape, and its material's
+/// colour times its light.
 struct Lamp {
     index: usize,
-    kind: Kind,
-    /// A sphere's centre and radius² (`sphere_center`), a quad's corner, edges and normal.
-    center: [f32; 3],
-    r2: f32,
-    q: [[f32; 3]; 4],
-    area: f32,
-    /// The material's colour times its light.
+    shape: LampShape,
     radiance: [f32; 3],
+}
+
+/// What sampling a light needs of its shape.
+enum LampShape {
+    /// The centre (`sphere_center`) and radius².
+    Sphere { center: [f32; 3], r2: f32 },
+    /// The corner, the edges and the normal, and the area (`GpuLight::area`).
+    Quad { q: [[f32; 3]; 4], area: f32 },
 }
 
 /// One lane's path: its radiance and its segments.
@@ -114,8 +117,8 @@ impl Lanes {
     /// The lanes for `s` traced with features `f`, where they apply: a CPU with AVX2, one to
     /// `MAX_PRIMITIVES` spheres, quads and boxes (no triangles), every material an emitter
     /// or the lecture's surface with a certain lobe (no draw picks it; the specular one may
-    /// be fuzzed), at most one light and no map, no glossy lobe that light sampling weighs, and the sky without
-    /// its sun. The camera rays, a lens's included, are the caller's.
+    /// be fuzzed), at most one light and no map, no glossy lobe that light sampling weighs,
+    /// and the sky without its sun. The camera rays, a lens's included, are the caller's.
     pub fn of(s: &CpuScene, f: Features) -> Option<Lanes> {
         if !std::arch::is_x86_feature_detected!("avx2") {
             return None;
@@ -249,40 +252,28 @@ impl Lanes {
         if f.nee && s.u.n_lights == 1 {
             let light = s.lights[0];
             let i = (light.prim & REF_INDEX) as usize;
-            let (index, lamp) = match light.prim >> 30 {
+            let (index, shape, material) = match light.prim >> 30 {
                 0 => {
                     let sp = &s.spheres[i];
-                    let center = sp.anchor - sp.radius.abs() * sp.anchor_normal;
-                    (
-                        i,
-                        (
-                            Kind::Sphere,
-                            center.to_array(),
-                            sp.radius * sp.radius,
-                            [[0.0; 3]; 4],
-                            sp.material,
-                        ),
-                    )
+                    let center = super::trace::sphere_center(sp).to_array();
+                    let r2 = sp.radius * sp.radius;
+                    (i, LampShape::Sphere { center, r2 }, sp.material)
                 }
                 1 => {
                     let q = &s.quads[i];
                     let corners = [q.q, q.u, q.v, q.normal].map(|v| v.to_array());
-                    (
-                        s.spheres.len() + i,
-                        (Kind::Quad, [0.0; 3], 0.0, corners, q.material),
-                    )
+                    let shape = LampShape::Quad {
+                        q: corners,
+                        area: light.area,
+                    };
+                    (s.spheres.len() + i, shape, q.material)
                 }
                 _ => return None,
             };
-            let (kind, center, r2, q, material) = lamp;
             let m = &s.materials[material as usize];
             l.lamp = Some(Lamp {
                 index,
-                kind,
-                center,
-                r2,
-                q,
-                area: light.area,
+                shape,
                 radiance: (m.color * m.light).to_array(),
             });
         }
@@ -346,8 +337,8 @@ const CHUNK: u32 = 16;
 
 impl Lanes {
     /// Traces samples `samples` of the `n` (up to eight) pixels of row `y` (of `width`) from
-    /// column `x0`, one pixel a lane, as `Tracer::trace_path` traces each path, and hands each path to `done`
-    /// when it ends: its lane (the pixel x0 + lane), its sample, its radiance and segments,
+    /// column `x0`, one pixel a lane, as `Tracer::trace_path` traces each path, and hands
+    /// each path to `done` when it ends: its lane (the pixel x0 + lane), its sample, its radiance and segments,
     /// and its sampler (`Rng::taken`). A lane whose path ends starts its pixel's next sample
     /// at once (path regeneration: Novák, Havran and Dachsbacher, "Path Regeneration for
     /// Interactive Path Tracing", Eurographics 2010), so the lanes stay busy while the
@@ -478,7 +469,7 @@ impl Lanes {
         let (position, n_out) = self.surface(*o, *d, best, idx);
         // An emitter: its light, weighed against light sampling where the last lobe's
         // density is known, and the path ends.
-        let emits = _mm256_and_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(pick(&self.emits), zero), hit);
+        let emits = _mm256_and_ps(flagged(&self.emits, idx), hit);
         if _mm256_movemask_ps(emits) != 0 {
             let mut w = one;
             if nee {
@@ -510,7 +501,7 @@ impl Lanes {
         let front = _mm256_cmp_ps::<_CMP_LT_OQ>(dot(*d, n_out), zero);
         let nf = n_out.map(|x| _mm256_blendv_ps(neg(x), x, front));
         let tint = pick3(&self.tint);
-        let sampled = _mm256_and_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(pick(&self.sampled), zero), hit);
+        let sampled = _mm256_and_ps(flagged(&self.sampled, idx), hit);
         // Light sampling at the lobes it weighs: the shadow ray leaves on the facing side, and
         // cannot meet the primitive it leaves (`leaving(hit, front)`).
         if let Some(lamp) = self
@@ -533,7 +524,7 @@ impl Lanes {
         let (u, v) = draw2(rngs, on);
         let unit = random_unit_vector(u, v);
         let diffuse = normalize_or(std::array::from_fn(|c| _mm256_add_ps(nf[c], unit[c])), nf);
-        let spec = _mm256_and_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(pick(&self.spec), zero), hit);
+        let spec = _mm256_and_ps(flagged(&self.spec, idx), hit);
         let dir = if _mm256_movemask_ps(spec) != 0 {
             let dn = _mm256_mul_ps(set(2.0), dot(*d, nf));
             let (s, rough) = (pick(&self.smooth), pick(&self.rough));
@@ -621,20 +612,13 @@ impl Lanes {
     #[inline]
     #[target_feature(enable = "avx,avx2")]
     fn closest(&self, o: V3, d: V3, skip: __m256i) -> (__m256, __m256i) {
-        let zero = _mm256_setzero_ps();
         let mut best = _mm256_set1_ps(T_FAR);
         let mut index = _mm256_set1_epi32(NONE);
         for k in 0..self.kinds.len() {
             let t = self.hit(k, o, d);
             let kk = _mm256_set1_epi32(k as i32);
             let skipped = _mm256_castsi256_ps(_mm256_cmpeq_epi32(skip, kk));
-            let nearer = _mm256_andnot_ps(
-                skipped,
-                _mm256_and_ps(
-                    _mm256_cmp_ps::<_CMP_GT_OQ>(t, zero),
-                    _mm256_cmp_ps::<_CMP_LT_OQ>(t, best),
-                ),
-            );
+            let nearer = _mm256_andnot_ps(skipped, between(t, best));
             best = _mm256_blendv_ps(best, t, nearer);
             index = _mm256_castps_si256(_mm256_blendv_ps(
                 _mm256_castsi256_ps(index),
@@ -654,11 +638,7 @@ impl Lanes {
         for k in (0..self.kinds.len()).filter(|&k| k != skip) {
             let t = self.hit(k, o, d);
             let left = _mm256_castsi256_ps(_mm256_cmpeq_epi32(from, _mm256_set1_epi32(k as i32)));
-            let meets = _mm256_and_ps(
-                _mm256_cmp_ps::<_CMP_GT_OQ>(t, zero),
-                _mm256_cmp_ps::<_CMP_LT_OQ>(t, t_max),
-            );
-            blocked = _mm256_or_ps(blocked, _mm256_andnot_ps(left, meets));
+            blocked = _mm256_or_ps(blocked, _mm256_andnot_ps(left, between(t, t_max)));
         }
         blocked
     }
@@ -745,18 +725,19 @@ impl Lanes {
         let axes = self.axes.map(|a| [0, 1, 2].map(|c| set(a[c][k])));
         let oc: V3 = std::array::from_fn(|c| _mm256_sub_ps(o[c], set(self.center[c][k])));
         let tiny = set(1e-30);
-        let (mut t1, mut t2) = ([tiny; 3], [tiny; 3]);
-        for a in 0..3 {
+        // Per axis, the slab's two planes' distances t1 and t2, nearer and farther.
+        let slabs: [(__m256, __m256); 3] = std::array::from_fn(|a| {
             let lo = dot(oc, axes[a]);
             let ld = dot(d, axes[a]);
             let safe = _mm256_blendv_ps(ld, tiny, _mm256_cmp_ps::<_CMP_LT_OQ>(abs(ld), tiny));
             let inv = _mm256_div_ps(set(1.0), safe);
             let h = set(self.half[a][k]);
-            t1[a] = _mm256_mul_ps(_mm256_sub_ps(neg(h), lo), inv);
-            t2[a] = _mm256_mul_ps(_mm256_sub_ps(h, lo), inv);
-        }
-        let lo: V3 = std::array::from_fn(|a| _mm256_min_ps(t1[a], t2[a]));
-        let hi: V3 = std::array::from_fn(|a| _mm256_max_ps(t1[a], t2[a]));
+            let t1 = _mm256_mul_ps(_mm256_sub_ps(neg(h), lo), inv);
+            let t2 = _mm256_mul_ps(_mm256_sub_ps(h, lo), inv);
+            (_mm256_min_ps(t1, t2), _mm256_max_ps(t1, t2))
+        });
+        let lo: V3 = slabs.map(|s| s.0);
+        let hi: V3 = slabs.map(|s| s.1);
         // glam's max_element and min_element: max(max(x, z), y).
         let enter = _mm256_max_ps(_mm256_max_ps(lo[0], lo[2]), lo[1]);
         let exit = _mm256_min_ps(_mm256_min_ps(hi[0], hi[2]), hi[1]);
@@ -799,7 +780,7 @@ impl Lanes {
             let p = std::array::from_fn(|c| {
                 _mm256_add_ps(anc[c], _mm256_sub_ps(q[c], _mm256_mul_ps(h, n[c])))
             });
-            let inward = _mm256_cmp_ps::<_CMP_GT_OQ>(pick(&self.inward), zero);
+            let inward = flagged(&self.inward, idx);
             put(
                 kind_of(Kind::Sphere),
                 p,
@@ -859,7 +840,7 @@ impl Lanes {
     #[target_feature(enable = "avx,avx2")]
     fn leaving(&self, idx: __m256i, out: __m256) -> __m256i {
         // (`outward` is 0 but for the spheres.)
-        let outward = _mm256_cmp_ps::<_CMP_GT_OQ>(pick(&self.outward, idx), _mm256_setzero_ps());
+        let outward = flagged(&self.outward, idx);
         let same = _mm256_xor_ps(
             _mm256_xor_ps(out, outward),
             _mm256_castsi256_ps(_mm256_set1_epi32(-1)),
@@ -937,11 +918,11 @@ impl Lanes {
         let one = set(1.0);
         let active = _mm256_movemask_ps(lanes) as u32;
         let (u1, u2) = draw2(rngs, active);
-        let (dir, pdf, ok) = match lamp.kind {
-            Kind::Sphere => {
-                let to: V3 = std::array::from_fn(|c| _mm256_sub_ps(set(lamp.center[c]), p[c]));
+        let (dir, pdf, ok) = match &lamp.shape {
+            LampShape::Sphere { center, r2 } => {
+                let to: V3 = std::array::from_fn(|c| _mm256_sub_ps(set(center[c]), p[c]));
                 let dist2 = dot(to, to);
-                let r2 = set(lamp.r2);
+                let r2 = set(*r2);
                 let one_minus = cone_one_minus_cos(r2, dist2);
                 let cos_t = _mm256_sub_ps(one, _mm256_mul_ps(u1, one_minus));
                 let sin_t = _mm256_sqrt_ps(_mm256_max_ps(
@@ -963,8 +944,8 @@ impl Lanes {
                 let pdf = _mm256_div_ps(one, _mm256_mul_ps(set(2.0 * PI), one_minus));
                 (dir, pdf, _mm256_cmp_ps::<_CMP_NLE_UQ>(dist2, r2))
             }
-            _ => {
-                let [q, u, v, nl] = lamp.q.map(|x| x.map(|c| set(c)));
+            LampShape::Quad { q, area } => {
+                let [q, u, v, nl] = q.map(|x| x.map(|c| set(c)));
                 let x: V3 = std::array::from_fn(|c| {
                     _mm256_add_ps(
                         _mm256_add_ps(q[c], _mm256_mul_ps(u1, u[c])),
@@ -976,7 +957,7 @@ impl Lanes {
                 let root = _mm256_sqrt_ps(dist2);
                 let dir = to.map(|x| _mm256_div_ps(x, root));
                 let cos_l = abs(dot(nl, dir));
-                let pdf = _mm256_div_ps(dist2, _mm256_mul_ps(set(lamp.area), cos_l));
+                let pdf = _mm256_div_ps(dist2, _mm256_mul_ps(set(*area), cos_l));
                 (dir, pdf, _mm256_cmp_ps::<_CMP_NLT_UQ>(cos_l, set(1e-6)))
             }
         };
@@ -1007,7 +988,7 @@ impl Lanes {
     #[inline]
     #[target_feature(enable = "avx,avx2")]
     fn is_kind(&self, kind: Kind, idx: __m256i) -> __m256 {
-        _mm256_cmp_ps::<_CMP_GT_OQ>(pick(&self.of_kind[kind as usize], idx), _mm256_setzero_ps())
+        flagged(&self.of_kind[kind as usize], idx)
     }
 
     /// The sky in direction d (its y component): uniform, or the gradient (`Tracer::sky`).
@@ -1035,6 +1016,13 @@ impl Lanes {
 fn load(a: &Table) -> __m256 {
     // SAFETY: an unaligned load of eight floats from an array of eight.
     unsafe { _mm256_loadu_ps(a.as_ptr()) }
+}
+
+/// The lanes whose entry `idx` of a table of flags (1.0 or 0.0) is set.
+#[inline]
+#[target_feature(enable = "avx,avx2")]
+fn flagged(t: &Table, idx: __m256i) -> __m256 {
+    _mm256_cmp_ps::<_CMP_GT_OQ>(pick(t, idx), _mm256_setzero_ps())
 }
 
 /// Each lane's entry `idx` of a table of eight.
@@ -1078,14 +1066,21 @@ fn sign(x: __m256) -> __m256 {
     _mm256_or_ps(pos, negative)
 }
 
+/// t in (0, t_max): a hit the tests count (`hit_except`, `occluded`).
+#[inline]
+#[target_feature(enable = "avx")]
+fn between(t: __m256, t_max: __m256) -> __m256 {
+    _mm256_and_ps(
+        _mm256_cmp_ps::<_CMP_GT_OQ>(t, _mm256_setzero_ps()),
+        _mm256_cmp_ps::<_CMP_LT_OQ>(t, t_max),
+    )
+}
+
 /// t in (0, T_FAR).
 #[inline]
 #[target_feature(enable = "avx")]
 fn within(t: __m256) -> __m256 {
-    _mm256_and_ps(
-        _mm256_cmp_ps::<_CMP_GT_OQ>(t, _mm256_setzero_ps()),
-        _mm256_cmp_ps::<_CMP_LT_OQ>(t, set(T_FAR)),
-    )
+    between(t, set(T_FAR))
 }
 
 /// a² / (a² + b²).
@@ -1356,6 +1351,14 @@ radius = 0.2
 color = "#606060"
 "##;
 
+    /// A shipped scene, or the test scene `SHELL`.
+    fn scene(name: &str) -> Scene {
+        match name {
+            "shell" => Scene::from_toml(SHELL, "shell").unwrap(),
+            _ => Scene::load(name).unwrap(),
+        }
+    }
+
     /// Every path the lanes trace (samples 5 to 40 of every pixel: three groups of
     /// samplers) against `Tracer::trace_path`'s, bit for bit: radiance, segments, and where
     /// its sampler's stream stands after it. Returns the paths compared and those that
@@ -1419,14 +1422,11 @@ color = "#606060"
     fn lanes_trace_the_scalar_paths_bit_for_bit() {
         let mut cases = vec![];
         for name in ["shell", "basic", "metal", "fuzz", "dof"] {
-            let scene = match name {
-                "shell" => Scene::from_toml(SHELL, "shell").unwrap(),
-                _ => Scene::load(name).unwrap(),
-            };
+            let scene = scene(name);
             cases.push((name, Features::of(&scene), scene));
         }
         for name in ["lamp", "cornell"] {
-            let scene = Scene::load(name).unwrap();
+            let scene = scene(name);
             let f = Features::of(&scene);
             cases.push((name, Features { nee: false, ..f }, scene.clone()));
             cases.push((name, f, scene));
@@ -1455,15 +1455,12 @@ color = "#606060"
             "mesh",
             "pbr",
         ] {
-            let scene = Scene::load(name).unwrap();
+            let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);
             assert!(Lanes::of(&s, Features::of(&scene)).is_none(), "{name}");
         }
         for name in ["shell", "basic", "metal", "fuzz", "dof", "lamp", "cornell"] {
-            let scene = match name {
-                "shell" => Scene::from_toml(SHELL, "shell").unwrap(),
-                _ => Scene::load(name).unwrap(),
-            };
+            let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);
             assert_eq!(Lanes::of(&s, Features::of(&scene)).is_some(), has, "{name}");
         }

@@ -5,9 +5,10 @@
 //! BVH, the latter collapsed to four-wide nodes in `cpu::bvh`, and to eight-wide ones in
 //! `cpu::bvh8` for single rays on a CPU with AVX, and where that is one node of a few quads
 //! and boxes, tested all at once in `cpu::few`), traces the same random streams (a group
-//! of eight pixels' samplers made at once: `rng::Rng::group`; where the scene is a few
-//! spheres of the lecture's certain lobes under the sky, their eight paths side by side in
-//! AVX lanes, `cpu::lanes`), and keeps the same exact
+//! of eight pixels' samplers made at once: `rng::Rng::group`; where the scene is at most
+//! eight spheres, quads and boxes of the lecture's certain lobes, lit by the sky and at most
+//! one light, their eight paths side by side in AVX lanes, `cpu::lanes`), and keeps the same
+//! exact
 //! fixed-point sums of even and odd samples in the GPU's word layout (`cpu::fixed`), so that
 //! the renderer's rounds, the snapshot, the noise estimate, `converge`, `--target-error` and
 //! the preview work unchanged on it. A submission's rows are its tasks, or, where they are

@@ -267,7 +267,7 @@ fn lobe_pdf(lobe: Weighed, dir: Vec3A, ns: Vec3A) -> f32 {
     }
 }
 
-fn sphere_center(s: &Sphere) -> Vec3A {
+pub(super) fn sphere_center(s: &Sphere) -> Vec3A {
     s.anchor - s.radius.abs() * s.anchor_normal
 }
 
