@@ -7,9 +7,8 @@
 //! and boxes, tested all at once in `cpu::few`), traces the same random streams (a group
 //! of eight pixels' samplers made at once: `rng::Rng::group`; where the scene is at most
 //! eight spheres, quads and boxes of the lecture's certain lobes, lit by the sky and at most
-//! one light, their eight paths side by side in AVX lanes, `cpu::lanes`), and keeps the same
-//! exact
-//! fixed-point sums of even and odd samples in the GPU's word layout (`cpu::fixed`), so that
+//! one light, their paths side by side in vector lanes, sixteen on AVX-512, eight on AVX2,
+//! `cpu::lanes` over `cpu::simd`), and keeps the same exact fixed-point sums of even and odd samples in the GPU's word layout (`cpu::fixed`), so that
 //! the renderer's rounds, the snapshot, the noise estimate, `converge`, `--target-error` and
 //! the preview work unchanged on it. A submission's rows are its tasks, or, where they are
 //! too few to keep every thread busy (the preview's small images on a many-core machine),
@@ -34,6 +33,8 @@ pub mod pbr;
 pub mod rng;
 pub mod sampling;
 pub mod scene;
+#[cfg(target_arch = "x86_64")]
+mod simd;
 pub mod texture;
 pub mod trace;
 
@@ -162,18 +163,19 @@ fn trace_row<const P: u32, const NEE: bool>(
     let width = sums.len() as u32;
     let mut t = Tracer::new(scene, f);
     let mut c = Counters::default();
-    // Where the scene allows (`lanes::Lanes::of`), eight pixels' paths side by side in lanes.
+    // Where the scene allows (`lanes::Lanes::of`), eight or sixteen pixels' paths side by
+    // side in lanes.
     #[cfg(target_arch = "x86_64")]
     if let Some(l) = lanes::Lanes::of(scene, f).filter(|_| !trace::recording()) {
-        for x0 in (0..width).step_by(LANES) {
-            let n = (width - x0).min(LANES as u32) as usize;
+        let lanes = l.width() as u32;
+        for x0 in (0..width).step_by(lanes as usize) {
+            let n = (width - x0).min(lanes) as usize;
             let sums = &mut sums[x0 as usize..x0 as usize + n];
             let done = |x: usize, sample: u32, (radiance, segments), rng: &Rng| {
                 c.record(&mut sums[x], sample, radiance, segments, rng);
             };
             let (at, seeds) = ((x0, y, width), (scene.u.seed, ahead));
-            // SAFETY: `Lanes::of` made it only where the CPU has AVX2.
-            c.tests += unsafe { l.trace(&t, at, n, samples.clone(), seeds, done) };
+            c.tests += l.trace(&t, at, n, samples.clone(), seeds, done);
         }
         return c;
     }

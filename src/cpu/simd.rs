@@ -1,0 +1,641 @@
+//! Lane vectors for `cpu::lanes`: N floats, N integers and an N-lane mask, over AVX2 (eight
+//! lanes) or AVX-512 (sixteen), with the operations the lanes' path loop takes. Each is one
+//! instruction, nothing fused, IEEE-exact where the scalar tracer is (add, mul, div, sqrt;
+//! min and max as x86's minps and maxps), so both widths compute each lane bit for bit as
+//! the scalar tracer does.
+//!
+//! A value exists only where its instruction set does: the one way to make one is through
+//! an `Isa` token (`Avx2::new`, `Avx512::new` check the CPU), so the operations on values are
+//! safe. They are `#[inline(always)]`: they compile into the caller that enables the
+//! instruction set (`lanes::Lanes::trace`'s entry points), the pattern of `pulp` and of
+//! `std::arch`'s own docs ("Dynamic CPU feature detection").
+
+use std::arch::x86_64::*;
+use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
+
+/// The most lanes of any width: the size of the arrays lanes are loaded from and stored to.
+pub const MAX_LANES: usize = 16;
+
+/// Floats as arrays of `MAX_LANES`, of which a width reads its first N.
+pub type Row = [f32; MAX_LANES];
+
+/// An instruction set's lanes. The methods are unsafe to call where the CPU lacks it; the
+/// safe types below call them only from values an `Isa` token made.
+///
+/// # Safety
+/// An implementation's `new` returns a token only where the CPU has what its methods use.
+pub unsafe trait Isa: Copy + 'static {
+    /// Lanes per vector.
+    const N: usize;
+    type F: Copy;
+    type I: Copy;
+    type M: Copy;
+    /// The token where the CPU has the instruction set.
+    fn new() -> Option<Self>;
+    unsafe fn splat(x: f32) -> Self::F;
+    unsafe fn load(a: &Row) -> Self::F;
+    unsafe fn store(a: Self::F, out: &mut Row);
+    unsafe fn add(a: Self::F, b: Self::F) -> Self::F;
+    unsafe fn sub(a: Self::F, b: Self::F) -> Self::F;
+    unsafe fn mul(a: Self::F, b: Self::F) -> Self::F;
+    unsafe fn div(a: Self::F, b: Self::F) -> Self::F;
+    unsafe fn sqrt(a: Self::F) -> Self::F;
+    unsafe fn min(a: Self::F, b: Self::F) -> Self::F;
+    unsafe fn max(a: Self::F, b: Self::F) -> Self::F;
+    /// The sign bit flipped (`xor -0.0`) and cleared (`andnot -0.0`).
+    unsafe fn neg(a: Self::F) -> Self::F;
+    unsafe fn abs(a: Self::F) -> Self::F;
+    /// Compare with one of `_CMP_*`'s predicates.
+    unsafe fn cmp<const P: i32>(a: Self::F, b: Self::F) -> Self::M;
+    /// `a`, replaced by `b` in the lanes of `m`.
+    unsafe fn blend(a: Self::F, b: Self::F, m: Self::M) -> Self::F;
+    /// `a` in the lanes of `m`, +0.0 elsewhere.
+    unsafe fn keep(a: Self::F, m: Self::M) -> Self::F;
+    /// Each lane's entry `idx` (0 to N − 1) of a table.
+    unsafe fn pick(t: &Row, idx: Self::I) -> Self::F;
+    unsafe fn to_bits(a: Self::F) -> Self::I;
+    unsafe fn from_bits(a: Self::I) -> Self::F;
+    /// Truncated toward zero, and back.
+    unsafe fn truncate(a: Self::F) -> Self::I;
+    unsafe fn to_float(a: Self::I) -> Self::F;
+    unsafe fn isplat(x: i32) -> Self::I;
+    unsafe fn istore(a: Self::I, out: &mut [i32; MAX_LANES]);
+    unsafe fn iadd(a: Self::I, b: Self::I) -> Self::I;
+    unsafe fn isub(a: Self::I, b: Self::I) -> Self::I;
+    unsafe fn iand(a: Self::I, b: Self::I) -> Self::I;
+    unsafe fn ixor(a: Self::I, b: Self::I) -> Self::I;
+    unsafe fn imax(a: Self::I, b: Self::I) -> Self::I;
+    /// Shifted left by 30 bits.
+    unsafe fn shl30(a: Self::I) -> Self::I;
+    unsafe fn ieq(a: Self::I, b: Self::I) -> Self::M;
+    unsafe fn igt(a: Self::I, b: Self::I) -> Self::M;
+    unsafe fn iblend(a: Self::I, b: Self::I, m: Self::M) -> Self::I;
+    /// All bits set where `bits`' bit k is, in lane k.
+    unsafe fn mask(bits: u32) -> Self::M;
+    unsafe fn bits(m: Self::M) -> u32;
+    unsafe fn mand(a: Self::M, b: Self::M) -> Self::M;
+    unsafe fn mor(a: Self::M, b: Self::M) -> Self::M;
+    unsafe fn mxor(a: Self::M, b: Self::M) -> Self::M;
+    /// `!a & b`.
+    unsafe fn mandnot(a: Self::M, b: Self::M) -> Self::M;
+}
+
+/// Eight lanes: AVX and AVX2.
+#[derive(Clone, Copy)]
+pub struct Avx2(());
+
+/// Sixteen lanes: AVX-512 F and DQ.
+#[derive(Clone, Copy)]
+pub struct Avx512(());
+
+/// `_mm256_movemask_ps`'s bits of lanes 0..N.
+const ALL8: u32 = 0xff;
+
+// SAFETY: `new` checks AVX and AVX2, all the methods use.
+unsafe impl Isa for Avx2 {
+    const N: usize = 8;
+    type F = __m256;
+    type I = __m256i;
+    type M = __m256;
+    fn new() -> Option<Self> {
+        (is_x86_feature_detected!("avx") && is_x86_feature_detected!("avx2")).then_some(Avx2(()))
+    }
+    #[inline(always)]
+    unsafe fn splat(x: f32) -> __m256 {
+        unsafe { _mm256_set1_ps(x) }
+    }
+    #[inline(always)]
+    unsafe fn load(a: &Row) -> __m256 {
+        unsafe { _mm256_loadu_ps(a.as_ptr()) }
+    }
+    #[inline(always)]
+    unsafe fn store(a: __m256, out: &mut Row) {
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), a) }
+    }
+    #[inline(always)]
+    unsafe fn add(a: __m256, b: __m256) -> __m256 {
+        unsafe { _mm256_add_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn sub(a: __m256, b: __m256) -> __m256 {
+        unsafe { _mm256_sub_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn mul(a: __m256, b: __m256) -> __m256 {
+        unsafe { _mm256_mul_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn div(a: __m256, b: __m256) -> __m256 {
+        unsafe { _mm256_div_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn sqrt(a: __m256) -> __m256 {
+        unsafe { _mm256_sqrt_ps(a) }
+    }
+    #[inline(always)]
+    unsafe fn min(a: __m256, b: __m256) -> __m256 {
+        unsafe { _mm256_min_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn max(a: __m256, b: __m256) -> __m256 {
+        unsafe { _mm256_max_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn neg(a: __m256) -> __m256 {
+        unsafe { _mm256_xor_ps(a, _mm256_set1_ps(-0.0)) }
+    }
+    #[inline(always)]
+    unsafe fn abs(a: __m256) -> __m256 {
+        unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), a) }
+    }
+    #[inline(always)]
+    unsafe fn cmp<const P: i32>(a: __m256, b: __m256) -> __m256 {
+        unsafe { _mm256_cmp_ps::<P>(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn blend(a: __m256, b: __m256, m: __m256) -> __m256 {
+        unsafe { _mm256_blendv_ps(a, b, m) }
+    }
+    #[inline(always)]
+    unsafe fn keep(a: __m256, m: __m256) -> __m256 {
+        unsafe { _mm256_and_ps(a, m) }
+    }
+    #[inline(always)]
+    unsafe fn pick(t: &Row, idx: __m256i) -> __m256 {
+        unsafe { _mm256_permutevar8x32_ps(<Self as Isa>::load(t), idx) }
+    }
+    #[inline(always)]
+    unsafe fn to_bits(a: __m256) -> __m256i {
+        unsafe { _mm256_castps_si256(a) }
+    }
+    #[inline(always)]
+    unsafe fn from_bits(a: __m256i) -> __m256 {
+        unsafe { _mm256_castsi256_ps(a) }
+    }
+    #[inline(always)]
+    unsafe fn truncate(a: __m256) -> __m256i {
+        unsafe { _mm256_cvttps_epi32(a) }
+    }
+    #[inline(always)]
+    unsafe fn to_float(a: __m256i) -> __m256 {
+        unsafe { _mm256_cvtepi32_ps(a) }
+    }
+    #[inline(always)]
+    unsafe fn isplat(x: i32) -> __m256i {
+        unsafe { _mm256_set1_epi32(x) }
+    }
+    #[inline(always)]
+    unsafe fn istore(a: __m256i, out: &mut [i32; MAX_LANES]) {
+        unsafe { _mm256_storeu_si256(out.as_mut_ptr() as *mut __m256i, a) }
+    }
+    #[inline(always)]
+    unsafe fn iadd(a: __m256i, b: __m256i) -> __m256i {
+        unsafe { _mm256_add_epi32(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn isub(a: __m256i, b: __m256i) -> __m256i {
+        unsafe { _mm256_sub_epi32(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn iand(a: __m256i, b: __m256i) -> __m256i {
+        unsafe { _mm256_and_si256(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn ixor(a: __m256i, b: __m256i) -> __m256i {
+        unsafe { _mm256_xor_si256(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn imax(a: __m256i, b: __m256i) -> __m256i {
+        unsafe { _mm256_max_epi32(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn shl30(a: __m256i) -> __m256i {
+        unsafe { _mm256_slli_epi32::<30>(a) }
+    }
+    #[inline(always)]
+    unsafe fn ieq(a: __m256i, b: __m256i) -> __m256 {
+        unsafe { _mm256_castsi256_ps(_mm256_cmpeq_epi32(a, b)) }
+    }
+    #[inline(always)]
+    unsafe fn igt(a: __m256i, b: __m256i) -> __m256 {
+        unsafe { _mm256_castsi256_ps(_mm256_cmpgt_epi32(a, b)) }
+    }
+    #[inline(always)]
+    unsafe fn iblend(a: __m256i, b: __m256i, m: __m256) -> __m256i {
+        unsafe { Self::to_bits(_mm256_blendv_ps(Self::from_bits(a), Self::from_bits(b), m)) }
+    }
+    #[inline(always)]
+    unsafe fn mask(bits: u32) -> __m256 {
+        unsafe {
+            let lanes = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+            let m = _mm256_and_si256(_mm256_set1_epi32(bits as i32), lanes);
+            _mm256_castsi256_ps(_mm256_cmpeq_epi32(m, lanes))
+        }
+    }
+    #[inline(always)]
+    unsafe fn bits(m: __m256) -> u32 {
+        unsafe { _mm256_movemask_ps(m) as u32 & ALL8 }
+    }
+    #[inline(always)]
+    unsafe fn mand(a: __m256, b: __m256) -> __m256 {
+        unsafe { _mm256_and_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn mor(a: __m256, b: __m256) -> __m256 {
+        unsafe { _mm256_or_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn mxor(a: __m256, b: __m256) -> __m256 {
+        unsafe { _mm256_xor_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn mandnot(a: __m256, b: __m256) -> __m256 {
+        unsafe { _mm256_andnot_ps(a, b) }
+    }
+}
+
+// SAFETY: `new` checks AVX-512 F and DQ, all the methods use.
+unsafe impl Isa for Avx512 {
+    const N: usize = 16;
+    type F = __m512;
+    type I = __m512i;
+    type M = __mmask16;
+    fn new() -> Option<Self> {
+        (is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512dq"))
+            .then_some(Avx512(()))
+    }
+    #[inline(always)]
+    unsafe fn splat(x: f32) -> __m512 {
+        unsafe { _mm512_set1_ps(x) }
+    }
+    #[inline(always)]
+    unsafe fn load(a: &Row) -> __m512 {
+        unsafe { _mm512_loadu_ps(a.as_ptr()) }
+    }
+    #[inline(always)]
+    unsafe fn store(a: __m512, out: &mut Row) {
+        unsafe { _mm512_storeu_ps(out.as_mut_ptr(), a) }
+    }
+    #[inline(always)]
+    unsafe fn add(a: __m512, b: __m512) -> __m512 {
+        unsafe { _mm512_add_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn sub(a: __m512, b: __m512) -> __m512 {
+        unsafe { _mm512_sub_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn mul(a: __m512, b: __m512) -> __m512 {
+        unsafe { _mm512_mul_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn div(a: __m512, b: __m512) -> __m512 {
+        unsafe { _mm512_div_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn sqrt(a: __m512) -> __m512 {
+        unsafe { _mm512_sqrt_ps(a) }
+    }
+    #[inline(always)]
+    unsafe fn min(a: __m512, b: __m512) -> __m512 {
+        unsafe { _mm512_min_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn max(a: __m512, b: __m512) -> __m512 {
+        unsafe { _mm512_max_ps(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn neg(a: __m512) -> __m512 {
+        unsafe { _mm512_xor_ps(a, _mm512_set1_ps(-0.0)) }
+    }
+    #[inline(always)]
+    unsafe fn abs(a: __m512) -> __m512 {
+        unsafe { _mm512_andnot_ps(_mm512_set1_ps(-0.0), a) }
+    }
+    #[inline(always)]
+    unsafe fn cmp<const P: i32>(a: __m512, b: __m512) -> __mmask16 {
+        unsafe { _mm512_cmp_ps_mask::<P>(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn blend(a: __m512, b: __m512, m: __mmask16) -> __m512 {
+        unsafe { _mm512_mask_blend_ps(m, a, b) }
+    }
+    #[inline(always)]
+    unsafe fn keep(a: __m512, m: __mmask16) -> __m512 {
+        unsafe { _mm512_maskz_mov_ps(m, a) }
+    }
+    #[inline(always)]
+    unsafe fn pick(t: &Row, idx: __m512i) -> __m512 {
+        unsafe { _mm512_permutexvar_ps(idx, <Self as Isa>::load(t)) }
+    }
+    #[inline(always)]
+    unsafe fn to_bits(a: __m512) -> __m512i {
+        unsafe { _mm512_castps_si512(a) }
+    }
+    #[inline(always)]
+    unsafe fn from_bits(a: __m512i) -> __m512 {
+        unsafe { _mm512_castsi512_ps(a) }
+    }
+    #[inline(always)]
+    unsafe fn truncate(a: __m512) -> __m512i {
+        unsafe { _mm512_cvttps_epi32(a) }
+    }
+    #[inline(always)]
+    unsafe fn to_float(a: __m512i) -> __m512 {
+        unsafe { _mm512_cvtepi32_ps(a) }
+    }
+    #[inline(always)]
+    unsafe fn isplat(x: i32) -> __m512i {
+        unsafe { _mm512_set1_epi32(x) }
+    }
+    #[inline(always)]
+    unsafe fn istore(a: __m512i, out: &mut [i32; MAX_LANES]) {
+        unsafe { _mm512_storeu_si512(out.as_mut_ptr() as *mut __m512i, a) }
+    }
+    #[inline(always)]
+    unsafe fn iadd(a: __m512i, b: __m512i) -> __m512i {
+        unsafe { _mm512_add_epi32(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn isub(a: __m512i, b: __m512i) -> __m512i {
+        unsafe { _mm512_sub_epi32(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn iand(a: __m512i, b: __m512i) -> __m512i {
+        unsafe { _mm512_and_si512(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn ixor(a: __m512i, b: __m512i) -> __m512i {
+        unsafe { _mm512_xor_si512(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn imax(a: __m512i, b: __m512i) -> __m512i {
+        unsafe { _mm512_max_epi32(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn shl30(a: __m512i) -> __m512i {
+        unsafe { _mm512_slli_epi32::<30>(a) }
+    }
+    #[inline(always)]
+    unsafe fn ieq(a: __m512i, b: __m512i) -> __mmask16 {
+        unsafe { _mm512_cmpeq_epi32_mask(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn igt(a: __m512i, b: __m512i) -> __mmask16 {
+        unsafe { _mm512_cmpgt_epi32_mask(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn iblend(a: __m512i, b: __m512i, m: __mmask16) -> __m512i {
+        unsafe { _mm512_mask_blend_epi32(m, a, b) }
+    }
+    #[inline(always)]
+    unsafe fn mask(bits: u32) -> __mmask16 {
+        bits as __mmask16
+    }
+    #[inline(always)]
+    unsafe fn bits(m: __mmask16) -> u32 {
+        m as u32
+    }
+    #[inline(always)]
+    unsafe fn mand(a: __mmask16, b: __mmask16) -> __mmask16 {
+        a & b
+    }
+    #[inline(always)]
+    unsafe fn mor(a: __mmask16, b: __mmask16) -> __mmask16 {
+        a | b
+    }
+    #[inline(always)]
+    unsafe fn mxor(a: __mmask16, b: __mmask16) -> __mmask16 {
+        a ^ b
+    }
+    #[inline(always)]
+    unsafe fn mandnot(a: __mmask16, b: __mmask16) -> __mmask16 {
+        !a & b
+    }
+}
+
+/// N floats.
+pub struct F<S: Isa>(S::F);
+/// N 32-bit integers.
+pub struct I<S: Isa>(S::I);
+/// N lanes' flags.
+pub struct M<S: Isa>(S::M);
+
+macro_rules! copy {
+    ($($t:ident),*) => {$(
+        impl<S: Isa> Clone for $t<S> {
+            #[inline(always)]
+            fn clone(&self) -> Self {
+                *self
+            }
+        }
+        impl<S: Isa> Copy for $t<S> {}
+    )*};
+}
+copy!(F, I, M);
+
+/// A safe operation on values: they exist only where the token that made them checked the
+/// CPU (`Isa::new`).
+macro_rules! op {
+    ($t:ident, $tr:ident, $f:ident, $isa:ident) => {
+        impl<S: Isa> $tr for $t<S> {
+            type Output = Self;
+            #[inline(always)]
+            fn $f(self, b: Self) -> Self {
+                // SAFETY: `self` exists, so the CPU has `S` (see the macro).
+                $t(unsafe { S::$isa(self.0, b.0) })
+            }
+        }
+    };
+}
+op!(F, Add, add, add);
+op!(F, Sub, sub, sub);
+op!(F, Mul, mul, mul);
+op!(F, Div, div, div);
+op!(I, Add, add, iadd);
+op!(I, Sub, sub, isub);
+op!(M, BitAnd, bitand, mand);
+op!(M, BitOr, bitor, mor);
+
+impl<S: Isa> Neg for F<S> {
+    type Output = Self;
+    #[inline(always)]
+    fn neg(self) -> Self {
+        // SAFETY: as in `op!`.
+        F(unsafe { S::neg(self.0) })
+    }
+}
+
+impl<S: Isa> Not for M<S> {
+    type Output = Self;
+    #[inline(always)]
+    fn not(self) -> Self {
+        // SAFETY: as in `op!`.
+        M(unsafe { S::mandnot(self.0, S::mask(u32::MAX)) })
+    }
+}
+
+/// What a token makes: constants, loads, masks. (SAFETY, for every method: the token
+/// exists, so the CPU has `S`.)
+pub trait Make: Isa {
+    #[inline(always)]
+    fn splat(self, x: f32) -> F<Self> {
+        F(unsafe { <Self as Isa>::splat(x) })
+    }
+    #[inline(always)]
+    fn zero(self) -> F<Self> {
+        self.splat(0.0)
+    }
+    #[inline(always)]
+    fn load(self, a: &Row) -> F<Self> {
+        F(unsafe { <Self as Isa>::load(a) })
+    }
+    #[inline(always)]
+    fn int(self, x: i32) -> I<Self> {
+        I(unsafe { <Self as Isa>::isplat(x) })
+    }
+    /// Lane k's flag set where bit k of `bits` is.
+    #[inline(always)]
+    fn mask(self, bits: u32) -> M<Self> {
+        M(unsafe { <Self as Isa>::mask(bits) })
+    }
+}
+impl<S: Isa> Make for S {}
+
+// SAFETY, in the methods below: as in `op!`.
+impl<S: Isa> F<S> {
+    #[inline(always)]
+    pub fn sqrt(self) -> Self {
+        F(unsafe { S::sqrt(self.0) })
+    }
+    /// x86's minps: `b` where either is NaN (f32::min's order of operands in glam).
+    #[inline(always)]
+    pub fn min(self, b: Self) -> Self {
+        F(unsafe { S::min(self.0, b.0) })
+    }
+    #[inline(always)]
+    pub fn max(self, b: Self) -> Self {
+        F(unsafe { S::max(self.0, b.0) })
+    }
+    #[inline(always)]
+    pub fn abs(self) -> Self {
+        F(unsafe { S::abs(self.0) })
+    }
+    #[inline(always)]
+    pub fn cmp<const P: i32>(self, b: Self) -> M<S> {
+        M(unsafe { S::cmp::<P>(self.0, b.0) })
+    }
+    #[inline(always)]
+    pub fn lt(self, b: Self) -> M<S> {
+        self.cmp::<_CMP_LT_OQ>(b)
+    }
+    #[inline(always)]
+    pub fn gt(self, b: Self) -> M<S> {
+        self.cmp::<_CMP_GT_OQ>(b)
+    }
+    #[inline(always)]
+    pub fn le(self, b: Self) -> M<S> {
+        self.cmp::<_CMP_LE_OQ>(b)
+    }
+    #[inline(always)]
+    pub fn ge(self, b: Self) -> M<S> {
+        self.cmp::<_CMP_GE_OQ>(b)
+    }
+    /// `self`, replaced by `b` in the lanes of `m` (`_mm256_blendv_ps(self, b, m)`).
+    #[inline(always)]
+    pub fn blend(self, b: Self, m: M<S>) -> Self {
+        F(unsafe { S::blend(self.0, b.0, m.0) })
+    }
+    /// `self` in the lanes of `m`, +0.0 elsewhere.
+    #[inline(always)]
+    pub fn keep(self, m: M<S>) -> Self {
+        F(unsafe { S::keep(self.0, m.0) })
+    }
+    #[inline(always)]
+    pub fn to_bits(self) -> I<S> {
+        I(unsafe { S::to_bits(self.0) })
+    }
+    #[inline(always)]
+    pub fn truncate(self) -> I<S> {
+        I(unsafe { S::truncate(self.0) })
+    }
+    #[inline(always)]
+    pub fn store(self, out: &mut Row) {
+        unsafe { S::store(self.0, out) }
+    }
+    /// Each lane's entry `idx` of table `t`.
+    #[inline(always)]
+    pub fn pick(t: &Row, idx: I<S>) -> Self {
+        F(unsafe { S::pick(t, idx.0) })
+    }
+}
+
+impl<S: Isa> I<S> {
+    #[inline(always)]
+    pub fn and(self, b: Self) -> Self {
+        I(unsafe { S::iand(self.0, b.0) })
+    }
+    #[inline(always)]
+    pub fn xor(self, b: Self) -> Self {
+        I(unsafe { S::ixor(self.0, b.0) })
+    }
+    #[inline(always)]
+    pub fn max(self, b: Self) -> Self {
+        I(unsafe { S::imax(self.0, b.0) })
+    }
+    #[inline(always)]
+    pub fn shl30(self) -> Self {
+        I(unsafe { S::shl30(self.0) })
+    }
+    #[inline(always)]
+    pub fn eq(self, b: Self) -> M<S> {
+        M(unsafe { S::ieq(self.0, b.0) })
+    }
+    #[inline(always)]
+    pub fn gt(self, b: Self) -> M<S> {
+        M(unsafe { S::igt(self.0, b.0) })
+    }
+    #[inline(always)]
+    pub fn blend(self, b: Self, m: M<S>) -> Self {
+        I(unsafe { S::iblend(self.0, b.0, m.0) })
+    }
+    /// Each lane plus one in the lanes of `m`.
+    #[inline(always)]
+    pub fn count(self, m: M<S>) -> Self {
+        let one = unsafe { S::isplat(1) };
+        I(unsafe { S::iblend(self.0, S::iadd(self.0, one), m.0) })
+    }
+    #[inline(always)]
+    pub fn to_float(self) -> F<S> {
+        F(unsafe { S::to_float(self.0) })
+    }
+    #[inline(always)]
+    pub fn float_of_bits(self) -> F<S> {
+        F(unsafe { S::from_bits(self.0) })
+    }
+    #[inline(always)]
+    pub fn store(self, out: &mut [i32; MAX_LANES]) {
+        unsafe { S::istore(self.0, out) }
+    }
+}
+
+impl<S: Isa> M<S> {
+    /// Bit k set where lane k's flag is.
+    #[inline(always)]
+    pub fn bits(self) -> u32 {
+        unsafe { S::bits(self.0) }
+    }
+    #[inline(always)]
+    pub fn any(self) -> bool {
+        self.bits() != 0
+    }
+    #[inline(always)]
+    pub fn xor(self, b: Self) -> Self {
+        M(unsafe { S::mxor(self.0, b.0) })
+    }
+    /// `self` without the lanes of `b` (`self & !b`).
+    #[inline(always)]
+    pub fn without(self, b: Self) -> Self {
+        M(unsafe { S::mandnot(b.0, self.0) })
+    }
+}
