@@ -6,8 +6,23 @@
 use crate::common::accum::ACCUM_WORDS;
 
 /// The largest f32 below 2^32: samples are clamped to it.
-const FIXED_MAX: f32 = 4294967040.0;
+pub const FIXED_MAX: f32 = 4294967040.0;
 const MASK_96: u128 = (1 << 96) - 1;
+
+/// A sample's channels as `Fixed::add` adds them (and `fixed_add`): clamped to
+/// [0, FIXED_MAX], each the 64-bit number whole << 32 | fraction, the fraction truncated to
+/// 32 bits. (`cpu::lanes` makes the same words in vector lanes.)
+#[inline(always)]
+pub fn words(v: [f32; 3]) -> [u64; 3] {
+    v.map(|x| {
+        let c = x.clamp(0.0, FIXED_MAX);
+        // Truncation is the floor of a non-negative number (`floor` is a libm call below
+        // SSE4.1), and the whole part converts back to f32 exactly.
+        let whole = c as u32;
+        let frac = ((c - whole as f32) * 4294967296.0) as u32;
+        (whole as u64) << 32 | frac as u64
+    })
+}
 
 /// One pixel's sums of one half, while it is being added to.
 #[derive(Clone, Copy, Default)]
@@ -40,13 +55,14 @@ impl Fixed {
     /// truncated to 32 bits, the 96-bit sum wrapping).
     #[inline]
     pub fn add(&mut self, v: [f32; 3]) {
-        for (acc, x) in self.channels.iter_mut().zip(v) {
-            let c = x.clamp(0.0, FIXED_MAX);
-            // Truncation is the floor of a non-negative number (`floor` is a libm call
-            // below SSE4.1), and the whole part converts back to f32 exactly.
-            let whole = c as u32;
-            let frac = ((c - whole as f32) * 4294967296.0) as u32 as u128;
-            *acc = (*acc + ((whole as u128) << 32 | frac)) & MASK_96;
+        self.add_words(words(v));
+    }
+
+    /// Adds one sample given as its `words`.
+    #[inline(always)]
+    pub fn add_words(&mut self, w: [u64; 3]) {
+        for (acc, x) in self.channels.iter_mut().zip(w) {
+            *acc = (*acc + x as u128) & MASK_96;
         }
         self.samples = self.samples.wrapping_add(1);
     }

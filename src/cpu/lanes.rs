@@ -16,6 +16,7 @@
 //! ray through the edge two quads share), the scalar walk keeps the one its BVH order tests
 //! first, and this the first in the scene's order (spheres, quads, boxes).
 
+use super::fixed::FIXED_MAX;
 use super::intersect::NO_HIT;
 use super::rng::{GROUP, Rng};
 use super::scene::CpuScene;
@@ -144,8 +145,13 @@ enum LampShape {
     Quad { q: [[f32; 3]; 4], area: f32 },
 }
 
-/// One lane's path: its radiance and its segments.
-pub type Traced = (Vec3A, u32);
+/// One lane's path: its radiance, its segments, and its radiance as the sums' fixed-point
+/// words (`fixed::words`; `None` where it is not finite).
+pub struct Traced {
+    pub radiance: Vec3A,
+    pub segments: u32,
+    pub words: Option<[u64; 3]>,
+}
 
 impl Lanes {
     /// The lanes for `s` traced with features `f`, where they apply: a CPU with AVX2, one to
@@ -456,20 +462,33 @@ impl Lanes {
                 active = self.step(s, &mut p, active, &mut rngs, &mut tests);
                 let ended = before & !active;
                 if ended != 0 {
-                    let mut out = [[0.0f32; MAX_LANES]; 3];
-                    let mut segments = [0i32; MAX_LANES];
-                    for (o, r) in out.iter_mut().zip(p.radiance) {
-                        r.store(o);
+                    let (mut out, mut whole, mut frac) = (
+                        [[0.0f32; MAX_LANES]; 3],
+                        [[0; MAX_LANES]; 3],
+                        [[0; MAX_LANES]; 3],
+                    );
+                    let mut finite = s.mask(u32::MAX);
+                    for c in 0..3 {
+                        let r = p.radiance[c];
+                        r.store(&mut out[c]);
+                        finite = finite & r.abs().lt(s.splat(f32::INFINITY));
+                        let (w, f) = fixed_words(s, r);
+                        w.store(&mut whole[c]);
+                        f.store(&mut frac[c]);
                     }
+                    let mut segments = [0i32; MAX_LANES];
                     p.segments.store(&mut segments);
-                    for k in (0..n).filter(|k| ended >> k & 1 != 0) {
-                        let radiance = Vec3A::new(out[0][k], out[1][k], out[2][k]);
-                        done(
-                            k,
-                            sample_of[k],
-                            (radiance, segments[k] as u32),
-                            rngs.lane(k),
-                        );
+                    let finite = finite.bits();
+                    for k in lanes_of(ended) {
+                        let words = (finite >> k & 1 != 0).then_some(each!(|c| {
+                            (whole[c][k] as u32 as u64) << 32 | frac[c][k] as u32 as u64
+                        }));
+                        let path = Traced {
+                            radiance: Vec3A::new(out[0][k], out[1][k], out[2][k]),
+                            segments: segments[k] as u32,
+                            words,
+                        };
+                        done(k, sample_of[k], path, rngs.lane(k));
                     }
                 }
             }
@@ -1136,6 +1155,18 @@ fn draw2<S: Isa>(s: S, rngs: &mut Samplers, active: u32) -> (F<S>, F<S>) {
     (s.load(&u), s.load(&v))
 }
 
+/// `fixed::words` in lanes: the whole part and the fraction of each lane's value clamped
+/// to [0, FIXED_MAX] (for a finite value the same words: a −0.0 that `f32::clamp` keeps and
+/// `max` makes +0.0 gives 0 either way).
+#[inline(always)]
+fn fixed_words<S: Isa>(s: S, x: F<S>) -> (I<S>, I<S>) {
+    let c = x.max(s.zero()).min(s.splat(FIXED_MAX));
+    let whole = c.truncate_unsigned();
+    // c − trunc(c) is `c - whole as f32`: the whole part is an f32 exactly.
+    let frac = ((c - c.trunc()) * s.splat(4294967296.0)).truncate_unsigned();
+    (whole, frac)
+}
+
 /// The lanes whose bits are set in `bits`, lowest first.
 #[inline(always)]
 fn lanes_of(mut bits: u32) -> impl Iterator<Item = usize> {
@@ -1230,6 +1261,7 @@ fn offset_ray<S: Isa>(s: S, p: V3<S>, n: V3<S>) -> V3<S> {
 mod tests {
     use super::*;
     use crate::common::FrameSettings;
+    use crate::cpu::fixed;
     use crate::cpu::rng::GROUP;
     use crate::cpu::trace::{ANY, Tracer};
     use crate::scene::Scene;
@@ -1326,7 +1358,12 @@ color = "#606060"
             for x0 in (0..w).step_by(width) {
                 let n = (w - x0).min(width as u32) as usize;
                 let mut got = std::collections::HashMap::new();
-                let done = |x: usize, sample: u32, (radiance, segments): Traced, rng: &Rng| {
+                let done = |x: usize, sample: u32, path: Traced, rng: &Rng| {
+                    let (radiance, segments) = (path.radiance, path.segments);
+                    let words = radiance
+                        .is_finite()
+                        .then(|| fixed::words(radiance.to_array()));
+                    assert_eq!(path.words, words, "the words of {radiance}");
                     let mut rng = *rng;
                     let after = (rng.taken(), rng.rand().to_bits());
                     got.insert((x, sample), (bits(radiance), segments, after));
@@ -1389,6 +1426,68 @@ color = "#606060"
                 assert!(paths == 0 || paths == 36 * 20 * 35);
                 assert_eq!(differ, 0);
             }
+        }
+    }
+
+    /// The words of `fixed_words` in lanes at both widths against `fixed::words`, at the
+    /// edges: zeros of both signs, subnormals, values with fraction bits below 2⁻³², the
+    /// whole parts about 2^24 and 2^31 (AVX2 converts signed), the clamp's ends and past.
+    fn words_in<S: Isa>(s: S) {
+        let values = [
+            0.0,
+            -0.0,
+            1.0e-45,
+            f32::MIN_POSITIVE,
+            1e-30,
+            1e-10,
+            2.3283064e-10,
+            0.1,
+            0.5,
+            0.99999994,
+            1.0,
+            1.5,
+            3.75,
+            16777215.5,
+            16777216.0,
+            2147483520.0,
+            2147483648.0,
+            2147483904.0,
+            3e9,
+            4294967040.0,
+            4294967296.0,
+            5e9,
+            1e38,
+            -3.0,
+            -1e-20,
+            123456.79,
+            7.0e-8,
+            0.33333334,
+            65535.996,
+            8388607.5,
+            1e9,
+            2.5e9,
+        ];
+        for chunk in values.chunks(S::N) {
+            let mut row = [0.0f32; MAX_LANES];
+            row[..chunk.len()].copy_from_slice(chunk);
+            let (w, f) = fixed_words(s, s.load(&row));
+            let (mut whole, mut frac) = ([0; MAX_LANES], [0; MAX_LANES]);
+            w.store(&mut whole);
+            f.store(&mut frac);
+            for (k, &x) in chunk.iter().enumerate() {
+                let lanes = (whole[k] as u32 as u64) << 32 | frac[k] as u32 as u64;
+                assert_eq!(lanes, fixed::words([x; 3])[0], "{x:e} in {} lanes", S::N);
+            }
+        }
+    }
+
+    #[test]
+    fn lanes_make_the_sums_words_as_the_scalar_tracer() {
+        if let Some(s) = Avx2::new() {
+            words_in(s);
+        }
+        if let Some(s) = Avx512::new() {
+            words_in(s);
         }
     }
 

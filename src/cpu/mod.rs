@@ -171,8 +171,8 @@ fn trace_row<const P: u32, const NEE: bool>(
         for x0 in (0..width).step_by(lanes as usize) {
             let n = (width - x0).min(lanes) as usize;
             let sums = &mut sums[x0 as usize..x0 as usize + n];
-            let done = |x: usize, sample: u32, (radiance, segments), rng: &Rng| {
-                c.record(&mut sums[x], sample, radiance, segments, rng);
+            let done = |x: usize, sample: u32, path: lanes::Traced, rng: &Rng| {
+                c.record_words(&mut sums[x], sample, path.words, path.segments, rng);
             };
             let (at, seeds) = ((x0, y, width), (scene.u.seed, ahead));
             c.tests += l.trace(&t, at, n, samples.clone(), seeds, done);
@@ -218,18 +218,35 @@ impl Counters {
         segments: u32,
         rng: &Rng,
     ) {
+        let words = radiance
+            .is_finite()
+            .then(|| fixed::words(radiance.to_array()));
+        self.record_words(sums, sample, words, segments, rng);
+    }
+
+    /// `record` of a path whose radiance is given as its `fixed::words` (`None` where it is
+    /// not finite).
+    #[inline(always)]
+    fn record_words(
+        &mut self,
+        sums: &mut (Fixed, Fixed),
+        sample: u32,
+        words: Option<[u64; 3]>,
+        segments: u32,
+        rng: &Rng,
+    ) {
         self.segments += segments as u64;
         self.drawn[rng.taken() as usize] += 1;
-        if !radiance.is_finite() {
+        let Some(words) = words else {
             self.invalid += 1;
             return;
-        }
+        };
         let half = if sample & 1 == 0 {
             &mut sums.0
         } else {
             &mut sums.1
         };
-        half.add(radiance.to_array());
+        half.add_words(words);
     }
 }
 

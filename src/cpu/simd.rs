@@ -57,6 +57,10 @@ pub unsafe trait Isa: Copy + 'static {
     unsafe fn from_bits(a: Self::I) -> Self::F;
     /// Truncated toward zero, and back.
     unsafe fn truncate(a: Self::F) -> Self::I;
+    /// Rounded toward zero, as a float.
+    unsafe fn trunc(a: Self::F) -> Self::F;
+    /// Truncated toward zero as an unsigned integer, for lanes in [0, 2^32).
+    unsafe fn truncate_unsigned(a: Self::F) -> Self::I;
     unsafe fn to_float(a: Self::I) -> Self::F;
     unsafe fn isplat(x: i32) -> Self::I;
     unsafe fn istore(a: Self::I, out: &mut [i32; MAX_LANES]);
@@ -175,6 +179,22 @@ unsafe impl Isa for Avx2 {
     #[inline(always)]
     unsafe fn truncate(a: __m256) -> __m256i {
         unsafe { _mm256_cvttps_epi32(a) }
+    }
+    #[inline(always)]
+    unsafe fn trunc(a: __m256) -> __m256 {
+        unsafe { _mm256_round_ps::<{ _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC }>(a) }
+    }
+    #[inline(always)]
+    unsafe fn truncate_unsigned(a: __m256) -> __m256i {
+        // AVX2 converts to signed integers only: a lane of 2^31 or more is converted less
+        // 2^31 (exact: both are multiples of its spacing, at least 256) and the bit set.
+        unsafe {
+            let half = _mm256_set1_ps(2147483648.0);
+            let big = _mm256_cmp_ps::<_CMP_GE_OQ>(a, half);
+            let low = _mm256_cvttps_epi32(_mm256_sub_ps(a, _mm256_and_ps(half, big)));
+            let top = _mm256_and_si256(_mm256_castps_si256(big), _mm256_set1_epi32(i32::MIN));
+            _mm256_xor_si256(low, top)
+        }
     }
     #[inline(always)]
     unsafe fn to_float(a: __m256i) -> __m256 {
@@ -339,6 +359,14 @@ unsafe impl Isa for Avx512 {
     #[inline(always)]
     unsafe fn truncate(a: __m512) -> __m512i {
         unsafe { _mm512_cvttps_epi32(a) }
+    }
+    #[inline(always)]
+    unsafe fn trunc(a: __m512) -> __m512 {
+        unsafe { _mm512_roundscale_ps::<{ _MM_FROUND_TO_ZERO | _MM_FROUND_NO_EXC }>(a) }
+    }
+    #[inline(always)]
+    unsafe fn truncate_unsigned(a: __m512) -> __m512i {
+        unsafe { _mm512_cvttps_epu32(a) }
     }
     #[inline(always)]
     unsafe fn to_float(a: __m512i) -> __m512 {
@@ -550,6 +578,14 @@ impl<S: Isa> F<S> {
     #[inline(always)]
     pub fn keep(self, m: M<S>) -> Self {
         F(unsafe { S::keep(self.0, m.0) })
+    }
+    #[inline(always)]
+    pub fn trunc(self) -> Self {
+        F(unsafe { S::trunc(self.0) })
+    }
+    #[inline(always)]
+    pub fn truncate_unsigned(self) -> I<S> {
+        I(unsafe { S::truncate_unsigned(self.0) })
     }
     #[inline(always)]
     pub fn to_bits(self) -> I<S> {
