@@ -9,20 +9,20 @@
 //! worth run side by side, every primitive tested against all their rays at once (the
 //! wavefront of Laine, Karras and Aila, "Megakernels Considered Harmful", HPG 2013, kept in
 //! one kernel as Mitsuba 3's LLVM backend keeps it). A lane whose path has ended starts its
-//! pixel's next sample (`Lanes::trace`). The draws stay each lane's own sampler's, taken in
-//! the order the scalar path takes them. The code is written once over `simd::Isa`.
+//! pixel's next sample (`Lanes::trace`): its sampler and camera ray made in lanes too. The
+//! draws are each lane's own sampler's (`cpu::draws`, `Rng`'s in lanes), taken in the order
+//! the scalar path takes them. The code is written once over `simd::Isa`.
 //!
 //! The one difference a path can show: where two primitives are hit at the same distance (a
 //! ray through the edge two quads share), the scalar walk keeps the one its BVH order tests
 //! first, and this the first in the scene's order (spheres, quads, boxes).
 
+use super::draws::Draws;
 use super::fixed::FIXED_MAX;
 use super::intersect::NO_HIT;
-use super::rng::{GROUP, Rng};
 use super::scene::CpuScene;
 use super::simd::{Avx2, Avx512, F, I, Isa, M, MAX_LANES, Make, Row};
 use super::trace::T_FAR;
-use super::trace::Tracer;
 use crate::common::Features;
 use crate::common::arrays::REF_INDEX;
 use glam::Vec3A;
@@ -62,9 +62,6 @@ const RR_MAX_SURVIVAL: f32 = 0.95;
 
 /// No primitive (a lane's index where it hit none, or leaves none behind).
 const NONE: i32 = -1;
-
-/// The widest vector's lanes are made from two groups of samplers (`Rng::group`).
-const _: () = assert!(MAX_LANES == 2 * GROUP);
 
 /// A primitive's kind, as its reference's top bits say.
 #[derive(Clone, Copy, PartialEq)]
@@ -127,6 +124,21 @@ pub struct Lanes {
     sky_bottom: [f32; 3],
     sky_top: [f32; 3],
     max_bounces: u32,
+    camera: Camera,
+}
+
+/// The camera as `Tracer::camera_ray` reads it (`GpuUniforms`): the image's size, the
+/// corner, the edges and origin of the view, and the lens (its radius 0 without depth of
+/// field).
+struct Camera {
+    size: [f32; 2],
+    corner: [f32; 3],
+    horizontal: [f32; 3],
+    vertical: [f32; 3],
+    origin: [f32; 3],
+    u: [f32; 3],
+    v: [f32; 3],
+    lens_radius: f32,
 }
 
 /// The light that light sampling draws from: its primitive, its shape, and its material's
@@ -151,6 +163,9 @@ pub struct Traced {
     pub radiance: Vec3A,
     pub segments: u32,
     pub words: Option<[u64; 3]>,
+    /// Where its sampler stands: the Sobol draws taken (`Rng::taken`) and the stream's state.
+    pub taken: u32,
+    pub state: u32,
 }
 
 impl Lanes {
@@ -214,6 +229,16 @@ impl Lanes {
             sky_bottom: s.u.sky_bottom.to_array(),
             sky_top: s.u.sky_top.to_array(),
             max_bounces: s.u.max_bounces,
+            camera: Camera {
+                size: [s.u.width as f32, s.u.height as f32],
+                corner: s.u.cam_to_corner.to_array(),
+                horizontal: s.u.cam_horizontal.to_array(),
+                vertical: s.u.cam_vertical.to_array(),
+                origin: s.u.cam_origin.to_array(),
+                u: s.u.cam_u.to_array(),
+                v: s.u.cam_v.to_array(),
+                lens_radius: if f.dof { s.u.lens_radius.max(0.0) } else { 0.0 },
+            },
         };
         let flag = |b: bool| if b { 1.0 } else { 0.0 };
         let mut materials = Vec::with_capacity(count);
@@ -335,24 +360,23 @@ impl Lanes {
     /// Traces samples `samples` of the `n` (up to `width()`) pixels of row `y` (of `width`)
     /// from column `x0`, one pixel a lane, as `Tracer::trace_path` traces each path, and
     /// hands each path to `done` when it ends: its lane (the pixel x0 + lane), its sample,
-    /// its radiance and segments, and its sampler (`Rng::taken`). A lane whose path ends
+    /// and the path (`Traced`), with seed `seed`'s samplers. A lane whose path ends
     /// starts its pixel's next sample at once (path regeneration: Novák, Havran and
     /// Dachsbacher, "Path Regeneration for Interactive Path Tracing", Eurographics 2010), so
     /// the lanes stay busy while the paths' lengths differ. Returns the primitive tests made.
     pub fn trace(
         &self,
-        tracer: &Tracer,
         at: (u32, u32, u32),
         n: usize,
         samples: std::ops::Range<u32>,
-        seeds: (u32, usize),
-        done: impl FnMut(usize, u32, Traced, &Rng),
+        seed: u32,
+        done: impl FnMut(usize, u32, Traced),
     ) -> u64 {
         match self.wide {
             // SAFETY: the token says the CPU has AVX-512 F and DQ, `narrow` AVX and AVX2.
-            Some(s) => unsafe { self.trace_avx512(s, tracer, at, n, samples, seeds, done) },
+            Some(s) => unsafe { self.trace_avx512(s, at, n, samples, seed, done) },
             // SAFETY: the token says the CPU has AVX and AVX2.
-            None => unsafe { self.trace_avx2(self.narrow, tracer, at, n, samples, seeds, done) },
+            None => unsafe { self.trace_avx2(self.narrow, at, n, samples, seed, done) },
         }
     }
 
@@ -362,14 +386,13 @@ impl Lanes {
     fn trace_avx2(
         &self,
         s: Avx2,
-        tracer: &Tracer,
         at: (u32, u32, u32),
         n: usize,
         samples: std::ops::Range<u32>,
-        seeds: (u32, usize),
-        done: impl FnMut(usize, u32, Traced, &Rng),
+        seed: u32,
+        done: impl FnMut(usize, u32, Traced),
     ) -> u64 {
-        self.trace_in(s, tracer, at, n, samples, seeds, done)
+        self.trace_in(s, at, n, samples, seed, done)
     }
 
     /// `trace` compiled for AVX-512, sixteen lanes.
@@ -378,14 +401,13 @@ impl Lanes {
     fn trace_avx512(
         &self,
         s: Avx512,
-        tracer: &Tracer,
         at: (u32, u32, u32),
         n: usize,
         samples: std::ops::Range<u32>,
-        seeds: (u32, usize),
-        done: impl FnMut(usize, u32, Traced, &Rng),
+        seed: u32,
+        done: impl FnMut(usize, u32, Traced),
     ) -> u64 {
-        self.trace_in(s, tracer, at, n, samples, seeds, done)
+        self.trace_in(s, at, n, samples, seed, done)
     }
 
     /// `trace` in the lanes of `S`, inlined into the entry point that enables it (as is
@@ -395,16 +417,16 @@ impl Lanes {
     fn trace_in<S: Isa>(
         &self,
         s: S,
-        tracer: &Tracer,
         (x0, y, width): (u32, u32, u32),
         n: usize,
         samples: std::ops::Range<u32>,
-        (seed, ahead): (u32, usize),
-        mut done: impl FnMut(usize, u32, Traced, &Rng),
+        seed: u32,
+        mut done: impl FnMut(usize, u32, Traced),
     ) -> u64 {
         debug_assert!(n <= S::N);
         let (zero, one) = (s.zero(), s.splat(1.0));
-        let pixels: [u32; MAX_LANES] = from_fn(|k| y * width + x0 + k as u32);
+        let pixel = s.ints(&from_fn(|k| (y * width + x0 + k as u32) as i32));
+        let column = s.ints(&from_fn(|k| (x0 + k as u32) as i32));
         let mut tests = 0u64;
         let mut p = Paths {
             o: [zero; 3],
@@ -417,97 +439,105 @@ impl Lanes {
             prev_pdf: zero,
             prev_point: [zero; 3],
             prev_normal: [zero, one, zero],
+            rng: Draws::new(s),
         };
-        let mut rngs = Samplers {
-            all: Vec::with_capacity(CHUNK as usize * n),
-            at: [0; MAX_LANES],
-        };
-        let mut start = samples.start;
-        while start < samples.end {
-            let end = (start + CHUNK).min(samples.end);
-            rngs.all.clear();
-            for sample in start..end {
-                rngs.make(&pixels[..n], sample, seed, ahead);
-            }
-            let mut next = [start; MAX_LANES];
-            let mut sample_of = [start; MAX_LANES];
-            let mut active = 0u32;
-            loop {
-                // Each idle lane starts its pixel's next sample: its camera ray.
-                let mut starts = 0u32;
-                let (mut o, mut d) = ([[0.0f32; MAX_LANES]; 3], [[0.0f32; MAX_LANES]; 3]);
-                for k in 0..n {
-                    if active >> k & 1 != 0 || next[k] >= end {
-                        continue;
-                    }
-                    rngs.at[k] = (next[k] - start) as usize * n + k;
-                    sample_of[k] = next[k];
+        let mut next = [samples.start; MAX_LANES];
+        let mut sample_of = [0i32; MAX_LANES];
+        let mut active = 0u32;
+        loop {
+            // Each idle lane starts its pixel's next sample: its sampler and camera ray.
+            let mut starts = 0u32;
+            for k in 0..n {
+                if active >> k & 1 == 0 && next[k] < samples.end {
+                    sample_of[k] = next[k] as i32;
                     next[k] += 1;
-                    let ray = tracer.camera_ray(x0 + k as u32, y, rngs.lane(k));
-                    for c in 0..3 {
-                        o[c][k] = ray.origin[c];
-                        d[c][k] = ray.dir[c];
-                    }
                     starts |= 1 << k;
                 }
-                if starts != 0 {
-                    let (o, d) = (each!(|c| s.load(&o[c])), each!(|c| s.load(&d[c])));
-                    p.start(s, s.mask(starts), o, d);
-                    active |= starts;
+            }
+            if starts != 0 {
+                let m = s.mask(starts);
+                p.rng.start(s, m, pixel, s.ints(&sample_of), seed);
+                let (o, d) = self.camera(s, m, column, y, &mut p.rng);
+                p.start(s, m, o, d);
+                active |= starts;
+            }
+            if active == 0 {
+                break;
+            }
+            let before = active;
+            active = self.step(s, &mut p, active, &mut tests);
+            let ended = before & !active;
+            if ended != 0 {
+                let (mut out, mut whole, mut frac) = (
+                    [[0.0f32; MAX_LANES]; 3],
+                    [[0; MAX_LANES]; 3],
+                    [[0; MAX_LANES]; 3],
+                );
+                let mut finite = s.mask(u32::MAX);
+                for c in 0..3 {
+                    let r = p.radiance[c];
+                    r.store(&mut out[c]);
+                    finite = finite & r.abs().lt(s.splat(f32::INFINITY));
+                    let (w, f) = fixed_words(s, r);
+                    w.store(&mut whole[c]);
+                    f.store(&mut frac[c]);
                 }
-                if active == 0 {
-                    break;
-                }
-                let before = active;
-                active = self.step(s, &mut p, active, &mut rngs, &mut tests);
-                let ended = before & !active;
-                if ended != 0 {
-                    let (mut out, mut whole, mut frac) = (
-                        [[0.0f32; MAX_LANES]; 3],
-                        [[0; MAX_LANES]; 3],
-                        [[0; MAX_LANES]; 3],
-                    );
-                    let mut finite = s.mask(u32::MAX);
-                    for c in 0..3 {
-                        let r = p.radiance[c];
-                        r.store(&mut out[c]);
-                        finite = finite & r.abs().lt(s.splat(f32::INFINITY));
-                        let (w, f) = fixed_words(s, r);
-                        w.store(&mut whole[c]);
-                        f.store(&mut frac[c]);
-                    }
-                    let mut segments = [0i32; MAX_LANES];
-                    p.segments.store(&mut segments);
-                    let finite = finite.bits();
-                    for k in lanes_of(ended) {
-                        let words = (finite >> k & 1 != 0).then_some(each!(|c| {
-                            (whole[c][k] as u32 as u64) << 32 | frac[c][k] as u32 as u64
-                        }));
-                        let path = Traced {
-                            radiance: Vec3A::new(out[0][k], out[1][k], out[2][k]),
-                            segments: segments[k] as u32,
-                            words,
-                        };
-                        done(k, sample_of[k], path, rngs.lane(k));
-                    }
+                let (mut segments, mut taken, mut state) =
+                    ([0; MAX_LANES], [0; MAX_LANES], [0; MAX_LANES]);
+                p.segments.store(&mut segments);
+                let (t, st) = p.rng.taken_and_state();
+                t.store(&mut taken);
+                st.store(&mut state);
+                let finite = finite.bits();
+                for k in lanes_of(ended) {
+                    let words = (finite >> k & 1 != 0).then_some(each!(|c| {
+                        (whole[c][k] as u32 as u64) << 32 | frac[c][k] as u32 as u64
+                    }));
+                    let path = Traced {
+                        radiance: Vec3A::new(out[0][k], out[1][k], out[2][k]),
+                        segments: segments[k] as u32,
+                        words,
+                        taken: taken[k] as u32,
+                        state: state[k] as u32,
+                    };
+                    done(k, sample_of[k] as u32, path);
                 }
             }
-            start = end;
         }
         tests
+    }
+
+    /// `Tracer::camera_ray` of the lanes of `m`, at columns `x` of row `y`: the jitter in the
+    /// pixel, the lens's point where it has one, the ray normalized as glam's `normalize`
+    /// (a division by the square root).
+    #[inline(always)]
+    fn camera<S: Isa>(&self, s: S, m: M<S>, x: I<S>, y: u32, rng: &mut Draws<S>) -> (V3<S>, V3<S>) {
+        let c = &self.camera;
+        let (jx, jy) = rng.draw2(s, m);
+        let sx = (x.to_float() + jx) / s.splat(c.size[0]);
+        let ty = (s.splat(y as f32) + jy) / s.splat(c.size[1]);
+        let target = each!(|k| (s.splat(c.corner[k]) + sx * s.splat(c.horizontal[k]))
+            - ty * s.splat(c.vertical[k]));
+        let mut lens = [s.zero(); 3];
+        if c.lens_radius > 0.0 {
+            // sampling::random_in_disk, scaled by the lens's radius.
+            let (u, v) = rng.draw2(s, m);
+            let r = u.sqrt();
+            let (sin, cos) = sin_cos_turns(s, v);
+            let radius = s.splat(c.lens_radius);
+            let (px, py) = ((r * cos) * radius, (r * sin) * radius);
+            lens = each!(|k| px * s.splat(c.u[k]) + py * s.splat(c.v[k]));
+        }
+        let origin = each!(|k| s.splat(c.origin[k]) + lens[k]);
+        let to = each!(|k| target[k] - lens[k]);
+        let len = dot(to, to).sqrt();
+        (origin, each!(|k| to[k] / len))
     }
 
     /// One bounce of the paths in lanes `active` (`trace_path`'s loop body); returns the
     /// lanes whose paths go on.
     #[inline(always)]
-    fn step<S: Isa>(
-        &self,
-        s: S,
-        p: &mut Paths<S>,
-        active: u32,
-        rngs: &mut Samplers,
-        tests: &mut u64,
-    ) -> u32 {
+    fn step<S: Isa>(&self, s: S, p: &mut Paths<S>, active: u32, tests: &mut u64) -> u32 {
         let zero = s.zero();
         let one = s.splat(1.0);
         let nee = self.lamp.is_some();
@@ -572,7 +602,7 @@ impl Lanes {
             && sampled.any()
         {
             let from = self.leaving(s, idx, front);
-            let (l, t) = self.sample_light(s, lamp, position, nf, from, sampled, rngs);
+            let (l, t) = self.sample_light(s, lamp, (position, nf), from, sampled, &mut p.rng);
             *tests += t;
             for c in 0..3 {
                 let add = (throughput[c] * tint[c]) * l[c];
@@ -582,7 +612,7 @@ impl Lanes {
         // The lobe's direction (`scatter_surface`): the diffuse one, or blended toward the
         // mirror direction (fuzzed by a second draw where the lobe has fuzz) by the
         // smoothness (`Vec3A::lerp`) and normalized again.
-        let (u, v) = draw2(s, rngs, on);
+        let (u, v) = p.rng.draw2(s, hit);
         let unit = random_unit_vector(s, u, v);
         let diffuse = normalize_or(s, each!(|c| nf[c] + unit[c]), nf);
         let spec = flagged(s, &self.spec, idx) & hit;
@@ -594,7 +624,7 @@ impl Lanes {
             let fuzzed = fuzz.gt(zero) & spec;
             let fuzzy = fuzzed.bits();
             if fuzzy != 0 {
-                let (u, v) = draw2(s, rngs, fuzzy);
+                let (u, v) = p.rng.draw2(s, fuzzed);
                 let unit = random_unit_vector(s, u, v);
                 let moved = normalize_or(s, each!(|c| mirror[c] + fuzz * unit[c]), nf);
                 for c in 0..3 {
@@ -628,7 +658,7 @@ impl Lanes {
             if playing != 0 {
                 let (x, y, z) = (throughput[0], throughput[1], throughput[2]);
                 let q = x.max(z).max(y).min(s.splat(RR_MAX_SURVIVAL));
-                let u = draw(s, rngs, playing);
+                let u = p.rng.draw(s, plays);
                 let lost = plays.without(u.cmp::<_CMP_NGE_UQ>(q));
                 kept = kept.without(lost);
                 let divided = plays.without(lost);
@@ -897,15 +927,14 @@ impl Lanes {
         &self,
         s: S,
         lamp: &Lamp,
-        p: V3<S>,
-        n: V3<S>,
+        (p, n): (V3<S>, V3<S>),
         from: I<S>,
         lanes: M<S>,
-        rngs: &mut Samplers,
+        rng: &mut Draws<S>,
     ) -> (V3<S>, u64) {
         let zero = s.zero();
         let one = s.splat(1.0);
-        let (u1, u2) = draw2(s, rngs, lanes.bits());
+        let (u1, u2) = rng.draw2(s, lanes);
         let (dir, pdf, ok) = match &lamp.shape {
             LampShape::Sphere { center, r2 } => {
                 let to: V3<S> = each!(|c| s.splat(center[c]) - p[c]);
@@ -988,6 +1017,8 @@ struct Paths<S: Isa> {
     prev_pdf: F<S>,
     prev_point: V3<S>,
     prev_normal: V3<S>,
+    /// The paths' samplers.
+    rng: Draws<S>,
 }
 
 impl<S: Isa> Paths<S> {
@@ -1011,42 +1042,11 @@ impl<S: Isa> Paths<S> {
     }
 }
 
-/// Samples a lane's pixel takes in turn before the next pixel group's samplers are made: the
-/// lanes' samplers are made eight pixels at once (`Rng::group`) for this many samples ahead.
-const CHUNK: u32 = 16;
-
 /// Whether `TERMTRACE_CPU_LANES=8` asks for eight lanes where sixteen could run (to
 /// compare the widths on one machine: BENCHMARKS.md).
 fn eight_lanes() -> bool {
     static EIGHT: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *EIGHT.get_or_init(|| std::env::var("TERMTRACE_CPU_LANES").is_ok_and(|v| v.trim() == "8"))
-}
-
-/// The lanes' samplers: those of a chunk of samples of the pixels, sample after sample, and
-/// the one each lane draws from (its pixel's, of the sample it traces), used where they are
-/// (a lane's sampler is not copied when its path starts).
-struct Samplers {
-    all: Vec<Rng>,
-    at: [usize; MAX_LANES],
-}
-
-impl Samplers {
-    /// Adds the samplers of sample `sample` of `pixels`, eight at a time (`Rng::group`; each
-    /// pixel's is its own alone, whatever the others).
-    fn make(&mut self, pixels: &[u32], sample: u32, seed: u32, ahead: usize) {
-        for eight in pixels.chunks(GROUP) {
-            let mut group = [eight[0]; GROUP];
-            group[..eight.len()].copy_from_slice(eight);
-            let made = Rng::group(&group, sample, seed, ahead);
-            self.all.extend_from_slice(&made[..eight.len()]);
-        }
-    }
-
-    /// Lane k's sampler.
-    #[inline(always)]
-    fn lane(&mut self, k: usize) -> &mut Rng {
-        &mut self.all[self.at[k]]
-    }
 }
 
 /// Primitive k's entries of three tables, in every lane.
@@ -1133,26 +1133,6 @@ fn basis<S: Isa>(s: S, n: V3<S>) -> [V3<S>; 3] {
         [b, sg + (n[1] * n[1]) * a, -n[1]],
         n,
     ]
-}
-
-/// A draw of each lane in `active` from its sampler (0 elsewhere).
-#[inline(always)]
-fn draw<S: Isa>(s: S, rngs: &mut Samplers, active: u32) -> F<S> {
-    let mut u = [0.0f32; MAX_LANES];
-    for k in lanes_of(active) {
-        u[k] = rngs.lane(k).rand();
-    }
-    s.load(&u)
-}
-
-/// A point of [0, 1)² for each lane in `active`, from its sampler.
-#[inline(always)]
-fn draw2<S: Isa>(s: S, rngs: &mut Samplers, active: u32) -> (F<S>, F<S>) {
-    let (mut u, mut v) = ([0.0f32; MAX_LANES], [0.0f32; MAX_LANES]);
-    for k in lanes_of(active) {
-        (u[k], v[k]) = rngs.lane(k).rand2();
-    }
-    (s.load(&u), s.load(&v))
 }
 
 /// `fixed::words` in lanes: the whole part and the fraction of each lane's value clamped
@@ -1262,7 +1242,7 @@ mod tests {
     use super::*;
     use crate::common::FrameSettings;
     use crate::cpu::fixed;
-    use crate::cpu::rng::GROUP;
+    use crate::cpu::rng::{GROUP, Rng};
     use crate::cpu::trace::{ANY, Tracer};
     use crate::scene::Scene;
 
@@ -1358,17 +1338,18 @@ color = "#606060"
             for x0 in (0..w).step_by(width) {
                 let n = (w - x0).min(width as u32) as usize;
                 let mut got = std::collections::HashMap::new();
-                let done = |x: usize, sample: u32, path: Traced, rng: &Rng| {
+                let done = |x: usize, sample: u32, path: Traced| {
                     let (radiance, segments) = (path.radiance, path.segments);
                     let words = radiance
                         .is_finite()
                         .then(|| fixed::words(radiance.to_array()));
                     assert_eq!(path.words, words, "the words of {radiance}");
-                    let mut rng = *rng;
+                    let pixel = y * w + x0 + x as u32;
+                    let mut rng = Rng::resumed(pixel, sample, s.u.seed, path.taken, path.state);
                     let after = (rng.taken(), rng.rand().to_bits());
                     got.insert((x, sample), (bits(radiance), segments, after));
                 };
-                lanes.trace(&t, (x0, y, w), n, samples.clone(), (s.u.seed, 3), done);
+                lanes.trace((x0, y, w), n, samples.clone(), s.u.seed, done);
                 assert_eq!(got.len(), n * samples.len());
                 for sample in samples.clone() {
                     for x in 0..n {

@@ -19,6 +19,8 @@ pub mod bvh;
 #[cfg(target_arch = "x86_64")]
 pub mod bvh8;
 #[cfg(target_arch = "x86_64")]
+mod draws;
+#[cfg(target_arch = "x86_64")]
 pub mod few;
 pub mod fixed;
 pub mod intersect;
@@ -171,11 +173,10 @@ fn trace_row<const P: u32, const NEE: bool>(
         for x0 in (0..width).step_by(lanes as usize) {
             let n = (width - x0).min(lanes) as usize;
             let sums = &mut sums[x0 as usize..x0 as usize + n];
-            let done = |x: usize, sample: u32, path: lanes::Traced, rng: &Rng| {
-                c.record_words(&mut sums[x], sample, path.words, path.segments, rng);
+            let done = |x: usize, sample: u32, path: lanes::Traced| {
+                c.record_words(&mut sums[x], sample, path.words, path.segments, path.taken);
             };
-            let (at, seeds) = ((x0, y, width), (scene.u.seed, ahead));
-            c.tests += l.trace(&t, at, n, samples.clone(), seeds, done);
+            c.tests += l.trace((x0, y, width), n, samples.clone(), scene.u.seed, done);
         }
         return c;
     }
@@ -221,11 +222,11 @@ impl Counters {
         let words = radiance
             .is_finite()
             .then(|| fixed::words(radiance.to_array()));
-        self.record_words(sums, sample, words, segments, rng);
+        self.record_words(sums, sample, words, segments, rng.taken());
     }
 
     /// `record` of a path whose radiance is given as its `fixed::words` (`None` where it is
-    /// not finite).
+    /// not finite), and its sampler's Sobol draws taken (`Rng::taken`).
     #[inline(always)]
     fn record_words(
         &mut self,
@@ -233,10 +234,10 @@ impl Counters {
         sample: u32,
         words: Option<[u64; 3]>,
         segments: u32,
-        rng: &Rng,
+        taken: u32,
     ) {
         self.segments += segments as u64;
-        self.drawn[rng.taken() as usize] += 1;
+        self.drawn[taken as usize] += 1;
         let Some(words) = words else {
             self.invalid += 1;
             return;

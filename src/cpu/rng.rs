@@ -251,6 +251,17 @@ impl Rng {
         group_lanes(pixels, sample, seed, 0)
     }
 
+    /// The sampler of (pixel, sample, seed) after `taken` Sobol draws, its stream at
+    /// `state`: where a path traced in lanes left it (`cpu::lanes`' tests).
+    #[cfg(test)]
+    pub fn resumed(pixel: u32, sample: u32, seed: u32, taken: u32, state: u32) -> Rng {
+        Rng {
+            taken,
+            state,
+            ..Rng::new(pixel, sample, seed)
+        }
+    }
+
     /// The Sobol draws taken so far (at most `QMC_SLOTS`).
     #[inline(always)]
     pub fn taken(&self) -> u32 {

@@ -11,7 +11,7 @@
 //! `std::arch`'s own docs ("Dynamic CPU feature detection").
 
 use std::arch::x86_64::*;
-use std::ops::{Add, BitAnd, BitOr, Div, Mul, Neg, Not, Sub};
+use std::ops::{Add, BitAnd, BitOr, BitXor, Div, Mul, Neg, Not, Sub};
 
 /// The most lanes of any width: the size of the arrays lanes are loaded from and stored to.
 pub const MAX_LANES: usize = 16;
@@ -63,6 +63,16 @@ pub unsafe trait Isa: Copy + 'static {
     unsafe fn truncate_unsigned(a: Self::F) -> Self::I;
     unsafe fn to_float(a: Self::I) -> Self::F;
     unsafe fn isplat(x: i32) -> Self::I;
+    unsafe fn iload(a: &[i32; MAX_LANES]) -> Self::I;
+    /// The low 32 bits of the product (wrapping).
+    unsafe fn imul(a: Self::I, b: Self::I) -> Self::I;
+    unsafe fn ior(a: Self::I, b: Self::I) -> Self::I;
+    /// Shifted right (logical) by k bits, and by each lane's own count.
+    unsafe fn ishr(a: Self::I, k: i32) -> Self::I;
+    unsafe fn ishrv(a: Self::I, b: Self::I) -> Self::I;
+    /// Each lane's bits reversed (`u32::reverse_bits`): each byte's by two table lookups of
+    /// its nibbles, then the bytes'.
+    unsafe fn reverse_bits(a: Self::I) -> Self::I;
     unsafe fn istore(a: Self::I, out: &mut [i32; MAX_LANES]);
     unsafe fn iadd(a: Self::I, b: Self::I) -> Self::I;
     unsafe fn isub(a: Self::I, b: Self::I) -> Self::I;
@@ -88,9 +98,24 @@ pub unsafe trait Isa: Copy + 'static {
 #[derive(Clone, Copy)]
 pub struct Avx2(());
 
-/// Sixteen lanes: AVX-512 F and DQ.
+/// Sixteen lanes: AVX-512 F, DQ and BW.
 #[derive(Clone, Copy)]
 pub struct Avx512(());
+
+/// `reverse_bits`' tables, for two 128-bit halves: a nibble's bits reversed and moved to the
+/// byte's high half, a nibble's bits reversed, and the bytes of each 32-bit lane reversed.
+const REVERSE: [[i8; 32]; 3] = {
+    const R: [i8; 16] = [0, 8, 4, 12, 2, 10, 6, 14, 1, 9, 5, 13, 3, 11, 7, 15];
+    let mut t = [[0i8; 32]; 3];
+    let mut i = 0;
+    while i < 32 {
+        t[0][i] = ((R[i % 16] as u8) << 4) as i8;
+        t[1][i] = R[i % 16];
+        t[2][i] = ((i % 16) / 4 * 4 + 3 - i % 4) as i8;
+        i += 1;
+    }
+    t
+};
 
 /// `_mm256_movemask_ps`'s bits of lanes 0..N.
 const ALL8: u32 = 0xff;
@@ -205,6 +230,43 @@ unsafe impl Isa for Avx2 {
         unsafe { _mm256_set1_epi32(x) }
     }
     #[inline(always)]
+    unsafe fn iload(a: &[i32; MAX_LANES]) -> __m256i {
+        unsafe { _mm256_loadu_si256(a.as_ptr() as *const __m256i) }
+    }
+    #[inline(always)]
+    unsafe fn imul(a: __m256i, b: __m256i) -> __m256i {
+        unsafe { _mm256_mullo_epi32(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn ior(a: __m256i, b: __m256i) -> __m256i {
+        unsafe { _mm256_or_si256(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn ishr(a: __m256i, k: i32) -> __m256i {
+        unsafe { _mm256_srl_epi32(a, _mm_cvtsi32_si128(k)) }
+    }
+    #[inline(always)]
+    unsafe fn ishrv(a: __m256i, b: __m256i) -> __m256i {
+        unsafe { _mm256_srlv_epi32(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn reverse_bits(a: __m256i) -> __m256i {
+        unsafe {
+            let t = REVERSE.as_ptr() as *const __m256i;
+            let (low, high, swap) = (
+                _mm256_loadu_si256(t),
+                _mm256_loadu_si256(t.add(1)),
+                _mm256_loadu_si256(t.add(2)),
+            );
+            let nibbles = _mm256_set1_epi8(0x0f);
+            let lo = _mm256_and_si256(a, nibbles);
+            let hi = _mm256_and_si256(_mm256_srli_epi16::<4>(a), nibbles);
+            let bytes =
+                _mm256_or_si256(_mm256_shuffle_epi8(low, lo), _mm256_shuffle_epi8(high, hi));
+            _mm256_shuffle_epi8(bytes, swap)
+        }
+    }
+    #[inline(always)]
     unsafe fn istore(a: __m256i, out: &mut [i32; MAX_LANES]) {
         unsafe { _mm256_storeu_si256(out.as_mut_ptr() as *mut __m256i, a) }
     }
@@ -274,15 +336,17 @@ unsafe impl Isa for Avx2 {
     }
 }
 
-// SAFETY: `new` checks AVX-512 F and DQ, all the methods use.
+// SAFETY: `new` checks AVX-512 F, DQ and BW, all the methods use.
 unsafe impl Isa for Avx512 {
     const N: usize = 16;
     type F = __m512;
     type I = __m512i;
     type M = __mmask16;
     fn new() -> Option<Self> {
-        (is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("avx512dq"))
-            .then_some(Avx512(()))
+        (is_x86_feature_detected!("avx512f")
+            && is_x86_feature_detected!("avx512dq")
+            && is_x86_feature_detected!("avx512bw"))
+        .then_some(Avx512(()))
     }
     #[inline(always)]
     unsafe fn splat(x: f32) -> __m512 {
@@ -375,6 +439,43 @@ unsafe impl Isa for Avx512 {
     #[inline(always)]
     unsafe fn isplat(x: i32) -> __m512i {
         unsafe { _mm512_set1_epi32(x) }
+    }
+    #[inline(always)]
+    unsafe fn iload(a: &[i32; MAX_LANES]) -> __m512i {
+        unsafe { _mm512_loadu_si512(a.as_ptr() as *const __m512i) }
+    }
+    #[inline(always)]
+    unsafe fn imul(a: __m512i, b: __m512i) -> __m512i {
+        unsafe { _mm512_mullo_epi32(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn ior(a: __m512i, b: __m512i) -> __m512i {
+        unsafe { _mm512_or_si512(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn ishr(a: __m512i, k: i32) -> __m512i {
+        unsafe { _mm512_srl_epi32(a, _mm_cvtsi32_si128(k)) }
+    }
+    #[inline(always)]
+    unsafe fn ishrv(a: __m512i, b: __m512i) -> __m512i {
+        unsafe { _mm512_srlv_epi32(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn reverse_bits(a: __m512i) -> __m512i {
+        unsafe {
+            let t = REVERSE.as_ptr() as *const __m256i;
+            let (low, high, swap) = (
+                _mm512_broadcast_i64x4(_mm256_loadu_si256(t)),
+                _mm512_broadcast_i64x4(_mm256_loadu_si256(t.add(1))),
+                _mm512_broadcast_i64x4(_mm256_loadu_si256(t.add(2))),
+            );
+            let nibbles = _mm512_set1_epi8(0x0f);
+            let lo = _mm512_and_si512(a, nibbles);
+            let hi = _mm512_and_si512(_mm512_srli_epi16::<4>(a), nibbles);
+            let bytes =
+                _mm512_or_si512(_mm512_shuffle_epi8(low, lo), _mm512_shuffle_epi8(high, hi));
+            _mm512_shuffle_epi8(bytes, swap)
+        }
     }
     #[inline(always)]
     unsafe fn istore(a: __m512i, out: &mut [i32; MAX_LANES]) {
@@ -481,6 +582,9 @@ op!(F, Sub, sub, sub);
 op!(F, Mul, mul, mul);
 op!(F, Div, div, div);
 op!(I, Add, add, iadd);
+op!(I, Mul, mul, imul);
+op!(I, BitOr, bitor, ior);
+op!(I, BitXor, bitxor, ixor);
 op!(I, Sub, sub, isub);
 op!(M, BitAnd, bitand, mand);
 op!(M, BitOr, bitor, mor);
@@ -514,6 +618,7 @@ pub trait Make: Isa {
     fn zero(self) -> F<Self> {
         self.splat(0.0)
     }
+    #[cfg(test)]
     #[inline(always)]
     fn load(self, a: &Row) -> F<Self> {
         F(unsafe { <Self as Isa>::load(a) })
@@ -521,6 +626,15 @@ pub trait Make: Isa {
     #[inline(always)]
     fn int(self, x: i32) -> I<Self> {
         I(unsafe { <Self as Isa>::isplat(x) })
+    }
+    /// An unsigned integer in every lane (its bits).
+    #[inline(always)]
+    fn uint(self, x: u32) -> I<Self> {
+        self.int(x as i32)
+    }
+    #[inline(always)]
+    fn ints(self, a: &[i32; MAX_LANES]) -> I<Self> {
+        I(unsafe { <Self as Isa>::iload(a) })
     }
     /// Lane k's flag set where bit k of `bits` is.
     #[inline(always)]
@@ -618,6 +732,20 @@ impl<S: Isa> I<S> {
     #[inline(always)]
     pub fn max(self, b: Self) -> Self {
         I(unsafe { S::imax(self.0, b.0) })
+    }
+    /// Shifted right (logical) by k bits.
+    #[inline(always)]
+    pub fn shr(self, k: i32) -> Self {
+        I(unsafe { S::ishr(self.0, k) })
+    }
+    /// Shifted right (logical) by each lane's count in `b`.
+    #[inline(always)]
+    pub fn shr_each(self, b: Self) -> Self {
+        I(unsafe { S::ishrv(self.0, b.0) })
+    }
+    #[inline(always)]
+    pub fn reverse_bits(self) -> Self {
+        I(unsafe { S::reverse_bits(self.0) })
     }
     #[inline(always)]
     pub fn shl30(self) -> Self {
