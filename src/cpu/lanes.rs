@@ -52,6 +52,26 @@ macro_rules! each {
     };
 }
 
+/// An entry point: `Lanes::trace_in` for one instruction set, compiled with its features
+/// (everything the lanes do is inlined into it; `Isa::new` checks the same features).
+macro_rules! entry {
+    ($name:ident, $isa:ty, $features:literal, $doc:literal) => {
+        #[doc = $doc]
+        #[target_feature(enable = $features)]
+        fn $name(
+            &self,
+            s: $isa,
+            at: (u32, u32, u32),
+            n: usize,
+            samples: std::ops::Range<u32>,
+            seed: u32,
+            done: impl FnMut(usize, u32, Traced),
+        ) -> u64 {
+            self.trace_in(s, at, n, samples, seed, done)
+        }
+    };
+}
+
 /// The most primitives a scene may have here: their parameters are permuted into the lanes
 /// from one register of eight (AVX2's widest permute).
 pub const MAX_PRIMITIVES: usize = 8;
@@ -380,35 +400,18 @@ impl Lanes {
         }
     }
 
-    /// `trace` compiled for AVX2, eight lanes.
-    #[allow(clippy::too_many_arguments)]
-    #[target_feature(enable = "avx,avx2")]
-    fn trace_avx2(
-        &self,
-        s: Avx2,
-        at: (u32, u32, u32),
-        n: usize,
-        samples: std::ops::Range<u32>,
-        seed: u32,
-        done: impl FnMut(usize, u32, Traced),
-    ) -> u64 {
-        self.trace_in(s, at, n, samples, seed, done)
-    }
-
-    /// `trace` compiled for AVX-512, sixteen lanes.
-    #[allow(clippy::too_many_arguments)]
-    #[target_feature(enable = "avx,avx2,avx512f,avx512dq")]
-    fn trace_avx512(
-        &self,
-        s: Avx512,
-        at: (u32, u32, u32),
-        n: usize,
-        samples: std::ops::Range<u32>,
-        seed: u32,
-        done: impl FnMut(usize, u32, Traced),
-    ) -> u64 {
-        self.trace_in(s, at, n, samples, seed, done)
-    }
+    entry!(
+        trace_avx2,
+        Avx2,
+        "avx,avx2",
+        "`trace` compiled for AVX2, eight lanes."
+    );
+    entry!(
+        trace_avx512,
+        Avx512,
+        "avx,avx2,avx512f,avx512dq,avx512bw",
+        "`trace` compiled for AVX-512, sixteen lanes."
+    );
 
     /// `trace` in the lanes of `S`, inlined into the entry point that enables it (as is
     /// everything below).
