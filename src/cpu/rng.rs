@@ -253,7 +253,7 @@ impl Rng {
 
     /// The sampler of (pixel, sample, seed) after `taken` Sobol draws, its stream at
     /// `state`: where a path traced in lanes left it (`cpu::lanes`' tests).
-    #[cfg(test)]
+    #[cfg(all(test, target_arch = "x86_64"))]
     pub fn resumed(pixel: u32, sample: u32, seed: u32, taken: u32, state: u32) -> Rng {
         Rng {
             taken,
