@@ -68,9 +68,11 @@ const TWINS: &[Twin] = &[
         prefix: "fixed_",
         // WGSL passes values; the host's type has methods over the words. `mean`: a half's
         // mean for the passes that read the accumulation (resolve, denoise); the host's is
-        // `common::estimate::half_mean`, over decoded sums.
+        // `common::estimate::half_mean`, over decoded sums. The host's `add` is `words` then
+        // `add_words` (`fixed_add` in two), so that the CPU's lanes make the words in vector
+        // lanes (`cpu::lanes`).
         wgsl_only: &["from_words", "to_words", "value", "zero", "mean"],
-        rust_only: &["load", "store"],
+        rust_only: &["load", "store", "words", "add_words"],
     },
     Twin {
         wgsl: "shaders/common/intersect.wgsl",
@@ -101,7 +103,8 @@ const TWINS: &[Twin] = &[
         rust: "src/cpu/rng.rs",
         prefix: "rng_",
         // The host also draws points ahead, in AVX lanes (`group*`, `next_point`; AVX-512
-        // where the CPU has it, `has_avx512`).
+        // where the CPU has it, `has_avx512`), and resumes a sampler where a path in lanes
+        // left it, for the lanes' tests (`resumed`).
         wgsl_only: &["init", "seed_mix", "slot", "unit_float"],
         rust_only: &[
             "group",
@@ -112,6 +115,7 @@ const TWINS: &[Twin] = &[
             "mix",
             "new",
             "next_point",
+            "resumed",
             "root",
             "sample_index",
             "shuffle",
