@@ -393,7 +393,7 @@ impl Lanes {
         done: impl FnMut(usize, u32, Traced),
     ) -> u64 {
         match self.wide {
-            // SAFETY: the token says the CPU has AVX-512 F and DQ, `narrow` AVX and AVX2.
+            // SAFETY: the token says the CPU has AVX-512 F, DQ and BW, `narrow` AVX and AVX2.
             Some(s) => unsafe { self.trace_avx512(s, at, n, samples, seed, done) },
             // SAFETY: the token says the CPU has AVX and AVX2.
             None => unsafe { self.trace_avx2(self.narrow, at, n, samples, seed, done) },

@@ -8,9 +8,10 @@
 //! of eight pixels' samplers made at once: `rng::Rng::group`; where the scene is at most
 //! eight spheres, quads and boxes of the lecture's certain lobes, lit by the sky and at most
 //! one light, their paths side by side in vector lanes, sixteen on AVX-512, eight on AVX2,
-//! `cpu::lanes` over `cpu::simd`), and keeps the same exact fixed-point sums of even and odd samples in the GPU's word layout (`cpu::fixed`), so that
-//! the renderer's rounds, the snapshot, the noise estimate, `converge`, `--target-error` and
-//! the preview work unchanged on it. A submission's rows are its tasks, or, where they are
+//! `cpu::lanes` over `cpu::simd`), and keeps the same exact fixed-point sums of even and
+//! odd samples in the GPU's word layout (`cpu::fixed`), so that the renderer's rounds, the
+//! snapshot, the noise estimate, `converge`, `--target-error` and the preview work
+//! unchanged on it. A submission's rows are its tasks, or, where they are
 //! too few to keep every thread busy (the preview's small images on a many-core machine),
 //! ranges of each row's samples (`parts_per_row`). Its modules mirror the WGSL files: `rng`,
 //! `fixed`, `sampling`, `intersect`, `material`, `trace`.
@@ -163,7 +164,6 @@ fn trace_row<const P: u32, const NEE: bool>(
     sums: &mut [(Fixed, Fixed)],
 ) -> Counters {
     let width = sums.len() as u32;
-    let mut t = Tracer::new(scene, f);
     let mut c = Counters::default();
     // Where the scene allows (`lanes::Lanes::of`), eight or sixteen pixels' paths side by
     // side in lanes.
@@ -180,6 +180,7 @@ fn trace_row<const P: u32, const NEE: bool>(
         }
         return c;
     }
+    let mut t = Tracer::new(scene, f);
     // Eight neighbouring pixels at a time: their camera rays are walked together where the
     // scene allows (`Tracer::camera_hits`), each path then alone.
     for x0 in (0..width).step_by(LANES) {
