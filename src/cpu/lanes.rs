@@ -125,21 +125,31 @@ pub struct Lanes {
     center: Tables3,
     half: Tables3,
     axes: [Tables3; 3],
-    /// The material: whether it emits (1.0 or 0.0), its colour and light, whether its lobe
-    /// is the specular one, its smoothness s and 1 − s, the specular lobe's fuzz (its
-    /// `absorption`; 0 for the diffuse lobe), the lobe's tint, and whether light sampling
-    /// weighs the lobe (the cosine lobe: `trace_path`'s `light_lobe`).
+    /// The material: whether it emits (1.0 or 0.0), its colour and light; whether its
+    /// specular lobe is certain (`specular` ≥ 1) or drawn (0 < `specular` < 1, with that
+    /// probability), its smoothness s and 1 − s, whether s is 0 (light sampling then weighs
+    /// its specular lobe too: `trace_path`'s `light_lobe`), the specular lobe's tint, and the
+    /// fuzz of its specular lobe or of its glass (`absorption`).
     emits: Row,
     color: Tables3,
     light: Row,
-    spec: Row,
+    certain: Row,
+    maybe: Row,
+    p_spec: Row,
     smooth: Row,
     rough: Row,
+    flat: Row,
+    spec_color: Tables3,
     fuzz: Row,
-    tint: Tables3,
-    sampled: Row,
+    /// Glass (`scatter_dielectric`): whether the material is, its index of refraction and
+    /// 1 / it.
+    glass: Row,
+    ior: Row,
+    inv_ior: Row,
     /// The one light (`GpuLight`), where the scene has one and light sampling runs.
     lamp: Option<Lamp>,
+    /// The sky's sun (`Tracer::sky`), where the scene has one.
+    sun: Option<Sun>,
     sky_uniform: bool,
     sky_bottom: [f32; 3],
     sky_top: [f32; 3],
@@ -159,6 +169,13 @@ struct Camera {
     u: [f32; 3],
     v: [f32; 3],
     lens_radius: f32,
+}
+
+/// The sun of the gradient sky: its direction, its radiance and the exponent of its falloff.
+struct Sun {
+    dir: [f32; 3],
+    radiance: [f32; 3],
+    size: f32,
 }
 
 /// The light that light sampling draws from: its primitive, its shape, and its material's
@@ -198,8 +215,6 @@ impl Lanes {
         let narrow = Avx2::new()?;
         let plain = !(f.triangles
             || f.instances
-            || f.dielectrics
-            || f.sun
             || f.textures
             || f.env_map
             || f.pbr
@@ -238,13 +253,23 @@ impl Lanes {
             emits: row,
             color: [row; 3],
             light: row,
-            spec: row,
+            certain: row,
+            maybe: row,
+            p_spec: row,
             smooth: row,
             rough: row,
+            flat: row,
+            spec_color: [row; 3],
             fuzz: row,
-            tint: [row; 3],
-            sampled: row,
+            glass: row,
+            ior: row,
+            inv_ior: row,
             lamp: None,
+            sun: f.sun.then(|| Sun {
+                dir: s.u.sun_dir.to_array(),
+                radiance: s.u.sun_radiance.to_array(),
+                size: s.u.sun_size,
+            }),
             sky_uniform: s.u.sky_uniform,
             sky_bottom: s.u.sky_bottom.to_array(),
             sky_top: s.u.sky_top.to_array(),
@@ -315,23 +340,25 @@ impl Lanes {
                 l.emits[k] = 1.0;
                 continue;
             }
-            // The lobe is certain (no draw picks it).
-            let spec = m.specular >= 1.0;
-            if m.smoothness < 0.0 || !(spec || m.specular == 0.0) {
+            l.fuzz[k] = m.absorption;
+            if f.dielectrics && m.smoothness < 0.0 {
+                l.glass[k] = 1.0;
+                l.ior[k] = m.ior;
+                l.inv_ior[k] = 1.0 / m.ior;
+                continue;
+            }
+            if m.smoothness < 0.0 {
                 return None;
             }
             for c in 0..3 {
-                l.tint[c][k] = if spec {
-                    m.specular_color[c]
-                } else {
-                    m.color[c]
-                };
+                l.spec_color[c][k] = m.specular_color[c];
             }
-            l.spec[k] = flag(spec);
+            l.certain[k] = flag(m.specular >= 1.0);
+            l.maybe[k] = flag(m.specular > 0.0 && m.specular < 1.0);
+            l.p_spec[k] = m.specular;
             l.smooth[k] = m.smoothness;
             l.rough[k] = 1.0 - m.smoothness;
-            l.fuzz[k] = if spec { m.absorption } else { 0.0 };
-            l.sampled[k] = flag(!spec || m.smoothness == 0.0);
+            l.flat[k] = flag(m.smoothness == 0.0);
         }
         // Light sampling runs where the scene has a light and the settings ask for it
         // (`trace_path`'s `nee`).
@@ -558,7 +585,7 @@ impl Lanes {
         let found = index.gt(s.int(NONE));
         let missed = live.without(found);
         if missed.any() {
-            let sky = self.sky(s, d[1]);
+            let sky = self.sky(s, *d, missed);
             for c in 0..3 {
                 let add = radiance[c] + throughput[c] * sky[c];
                 radiance[c] = radiance[c].blend(add, missed);
@@ -597,8 +624,21 @@ impl Lanes {
         // The facing normal.
         let front = dot(*d, n_out).lt(zero);
         let nf = each!(|c| (-n_out[c]).blend(n_out[c], front));
-        let tint = pick3(&self.tint, idx);
-        let sampled = flagged(s, &self.sampled, idx) & hit;
+        let glass = flagged(s, &self.glass, idx) & hit;
+        let surface = hit.without(glass);
+        // The lobe (`trace_path`'s is_spec): the specular one where it is certain, or drawn
+        // with the material's probability; its tint.
+        let mut spec = flagged(s, &self.certain, idx) & surface;
+        let maybe = flagged(s, &self.maybe, idx) & surface;
+        if maybe.any() {
+            let u = p.rng.draw(s, maybe);
+            spec = spec | (maybe & u.lt(F::pick(&self.p_spec, idx)));
+        }
+        let (color, spec_color) = (pick3(&self.color, idx), pick3(&self.spec_color, idx));
+        let tint = each!(|c| color[c].blend(spec_color[c], spec));
+        // The lobes light sampling weighs: the diffuse one, and the specular one at
+        // smoothness 0.
+        let sampled = surface.without(spec.without(flagged(s, &self.flat, idx)));
         // Light sampling at the lobes it weighs: the shadow ray leaves on the facing side, and
         // cannot meet the primitive it leaves (`leaving(hit, front)`).
         if let Some(lamp) = self.lamp.as_ref()
@@ -615,11 +655,10 @@ impl Lanes {
         // The lobe's direction (`scatter_surface`): the diffuse one, or blended toward the
         // mirror direction (fuzzed by a second draw where the lobe has fuzz) by the
         // smoothness (`Vec3A::lerp`) and normalized again.
-        let (u, v) = p.rng.draw2(s, hit);
+        let (u, v) = p.rng.draw2(s, surface);
         let unit = random_unit_vector(s, u, v);
         let diffuse = normalize_or(s, each!(|c| nf[c] + unit[c]), nf);
-        let spec = flagged(s, &self.spec, idx) & hit;
-        let dir = if spec.any() {
+        let mut dir = if spec.any() {
             let dn = s.splat(2.0) * dot(*d, nf);
             let (smooth, rough) = (F::pick(&self.smooth, idx), F::pick(&self.rough, idx));
             let mut mirror: V3<S> = each!(|c| d[c] - dn * nf[c]);
@@ -640,8 +679,14 @@ impl Lanes {
         } else {
             diffuse
         };
-        // Absorbed where dir·n <= 0 (a NaN goes on, as in `scatter_surface`).
-        let mut kept = dot(dir, nf).cmp::<_CMP_NLE_UQ>(zero) & hit;
+        if glass.any() {
+            let through = self.refract(s, (*d, nf, front), idx, glass, &mut p.rng);
+            for c in 0..3 {
+                dir[c] = dir[c].blend(through[c], glass);
+            }
+        }
+        // Absorbed where dir·n <= 0 (a NaN goes on, as in `scatter_surface`); glass never.
+        let mut kept = (dot(dir, nf).cmp::<_CMP_NLE_UQ>(zero) & surface) | glass;
         if nee {
             let cosine = dot(dir, nf).max(zero) / s.splat(PI);
             p.prev_pdf = p.prev_pdf.blend(cosine.keep(sampled), hit);
@@ -986,22 +1031,92 @@ impl Lanes {
         (l, tests)
     }
 
+    /// `scatter_dielectric`'s direction for the rays `d` meeting glass in the lanes of `glass`
+    /// (facing normal `n`, from the front where `front`): reflected by total internal
+    /// reflection or with Schlick's probability, else refracted (a ratio of exactly 1 lets
+    /// the ray through, and draws nothing), then fuzzed where the glass has absorption.
+    #[inline(always)]
+    fn refract<S: Isa>(
+        &self,
+        s: S,
+        (d, n, front): (V3<S>, V3<S>, M<S>),
+        idx: I<S>,
+        glass: M<S>,
+        rng: &mut Draws<S>,
+    ) -> V3<S> {
+        let (zero, one) = (s.zero(), s.splat(1.0));
+        let ratio = F::pick(&self.ior, idx).blend(F::pick(&self.inv_ior, idx), front);
+        let back = each!(|c| -d[c]);
+        let cos_t = dot(back, n).min(one);
+        let sin_t = (one - cos_t * cos_t).max(zero).sqrt();
+        let mut dir = d;
+        let bends = glass.without(ratio.cmp::<_CMP_EQ_OQ>(one));
+        if bends.any() {
+            let u = rng.draw(s, bends);
+            // Schlick's reflectance (`material::schlick`).
+            let r0 = (one - ratio) / (one + ratio);
+            let r0 = r0 * r0;
+            let x = one - cos_t;
+            let x2 = x * x;
+            let fresnel = r0 + (one - r0) * ((x2 * x2) * x);
+            let reflects = (ratio * sin_t).gt(one) | fresnel.gt(u);
+            // `reflect(d, n).normalize()` and `refract_dir(d, n, cos_t, ratio).normalize()`.
+            let dn = s.splat(2.0) * dot(d, n);
+            let mirror = normalize(each!(|c| d[c] - dn * n[c]));
+            let perp: V3<S> = each!(|c| ratio * (d[c] + cos_t * n[c]));
+            let k = -((one - dot(perp, perp)).abs().sqrt());
+            let bent = normalize(each!(|c| perp[c] + k * n[c]));
+            for c in 0..3 {
+                dir[c] = dir[c].blend(bent[c].blend(mirror[c], reflects), bends);
+            }
+        }
+        let fuzz = F::pick(&self.fuzz, idx);
+        let fuzzed = glass & fuzz.gt(zero);
+        if fuzzed.any() {
+            let (u, v) = rng.draw2(s, fuzzed);
+            let unit = random_unit_vector(s, u, v);
+            let moved = normalize_or(s, each!(|c| dir[c] + fuzz * unit[c]), dir);
+            for c in 0..3 {
+                dir[c] = dir[c].blend(moved[c], fuzzed);
+            }
+        }
+        dir
+    }
+
     /// The lanes whose primitive `idx` is of `kind`.
     #[inline(always)]
     fn is_kind<S: Isa>(&self, s: S, kind: Kind, idx: I<S>) -> M<S> {
         flagged(s, &self.of_kind[kind as usize], idx)
     }
 
-    /// The sky in direction d (its y component): uniform, or the gradient (`Tracer::sky`).
+    /// The sky in directions d, for the lanes of `lanes`: uniform, or the gradient with its
+    /// sun where it has one (`Tracer::sky`; the sun's falloff is libm's `powf`, lane by lane).
     #[inline(always)]
-    fn sky<S: Isa>(&self, s: S, dy: F<S>) -> V3<S> {
+    fn sky<S: Isa>(&self, s: S, d: V3<S>, lanes: M<S>) -> V3<S> {
         if self.sky_uniform {
             return each!(|c| s.splat(self.sky_bottom[c]));
         }
         let one = s.splat(1.0);
-        let t = s.splat(0.5) * (dy + one);
+        let t = s.splat(0.5) * (d[1] + one);
         let below = one - t;
-        each!(|c| below * s.splat(self.sky_bottom[c]) + t * s.splat(self.sky_top[c]))
+        let mut sky = each!(|c| below * s.splat(self.sky_bottom[c]) + t * s.splat(self.sky_top[c]));
+        if let Some(sun) = &self.sun {
+            let cz = dot(lit(s, sun.dir), d).max(s.zero());
+            let lit_by = (cz.gt(s.zero()) & lanes).bits();
+            if lit_by != 0 {
+                let mut x = [0.0; MAX_LANES];
+                cz.store(&mut x);
+                for k in lanes_of(lit_by) {
+                    x[k] = x[k].powf(sun.size);
+                }
+                let falloff = s.load(&x);
+                let on = s.mask(lit_by);
+                for (c, v) in sky.iter_mut().enumerate() {
+                    *v = v.blend(*v + s.splat(sun.radiance[c]) * falloff, on);
+                }
+            }
+        }
+        sky
     }
 }
 
@@ -1176,6 +1291,13 @@ fn cross<S: Isa>(a: V3<S>, c: V3<S>) -> V3<S> {
     ]
 }
 
+/// glam's `normalize`: v / |v|.
+#[inline(always)]
+fn normalize<S: Isa>(v: V3<S>) -> V3<S> {
+    let root = dot(v, v).sqrt();
+    each!(|c| v[c] / root)
+}
+
 /// `sampling::normalize_or`: v / |v|, or `fallback` where |v|² < 10⁻¹².
 #[inline(always)]
 fn normalize_or<S: Isa>(s: S, v: V3<S>, fallback: V3<S>) -> V3<S> {
@@ -1304,10 +1426,75 @@ radius = 0.2
 color = "#606060"
 "##;
 
-    /// A shipped scene, or the test scene `SHELL`.
+    /// Glass under a sun and a lamp: a solid ball, a hollow one (a sphere of negative radius
+    /// inside), an index-matched one (ior 1: no draw) and a frosted one, on a glass box;
+    /// lobes drawn with a probability (one at smoothness 0, which light sampling weighs, one
+    /// fuzzed); a quad lamp; enough bounces for paths through the glass.
+    const GLASSY: &str = r##"
+[camera]
+look_from = [0, 0.5, 2.6]
+look_at = [0, 0.1, -1]
+vfov = 60
+[render]
+max_bounces = 6
+[sky]
+bottom = [1.0, 1.0, 1.0]
+top = [0.5, 0.7, 1.0]
+sun = { direction = [-0.5, 0.8, 0.4], color = [1.0, 0.95, 0.85], intensity = 6, size = 40 }
+[materials.glass]
+color = [0.95, 0.95, 0.95]
+smoothness = -1
+ior = 1.5
+[[sphere]]
+center = [0, -100.5, -1]
+radius = 100
+color = "#80a060"
+specular = 0.3
+smoothness = 0
+[[sphere]]
+center = [-1.1, 0, -1]
+radius = 0.5
+material = "glass"
+[[sphere]]
+center = [-1.1, 0, -1]
+radius = -0.4
+material = "glass"
+[[sphere]]
+center = [0, 0, -1.2]
+radius = 0.5
+material = "glass"
+ior = 1.0
+color = [0.9, 0.7, 0.7]
+[[sphere]]
+center = [1.1, 0, -1]
+radius = 0.5
+material = "glass"
+absorption = 0.2
+ior = 2.4
+[[sphere]]
+center = [0.5, 0.9, -1.9]
+radius = 0.35
+color = "#d04040"
+specular = 0.4
+smoothness = 0.8
+absorption = 0.3
+[[box]]
+center = [0, -0.4, 0.3]
+half_extents = [0.3, 0.1, 0.2]
+material = "glass"
+[[quad]]
+q = [-0.5, 2.0, -1.5]
+u = [1, 0, 0]
+v = [0, 0, 1]
+color = [1, 0.9, 0.8]
+light = 4
+"##;
+
+    /// A shipped scene, or one of the test scenes `SHELL` and `GLASSY`.
     fn scene(name: &str) -> Scene {
         match name {
             "shell" => Scene::from_toml(SHELL, "shell").unwrap(),
+            "glassy" => Scene::from_toml(GLASSY, "glassy").unwrap(),
             _ => Scene::load(name).unwrap(),
         }
     }
@@ -1389,11 +1576,19 @@ color = "#606060"
     #[test]
     fn lanes_trace_the_scalar_paths_bit_for_bit() {
         let mut cases = vec![];
-        for name in ["shell", "basic", "metal", "fuzz", "dof"] {
+        for name in [
+            "shell",
+            "basic",
+            "metal",
+            "fuzz",
+            "dof",
+            "dielectric",
+            "specular",
+        ] {
             let scene = scene(name);
             cases.push((name, Features::of(&scene), scene));
         }
-        for name in ["lamp", "cornell"] {
+        for name in ["lamp", "cornell", "glassy"] {
             let scene = scene(name);
             let f = Features::of(&scene);
             cases.push((name, Features { nee: false, ..f }, scene.clone()));
@@ -1479,20 +1674,24 @@ color = "#606060"
     fn lanes_trace_what_they_can_and_leave_out_the_rest() {
         let settings = FrameSettings::new(16, 16, 8, 1);
         let has = std::arch::is_x86_feature_detected!("avx2");
-        // Glass, several lights, a map, triangles, glTF's BRDF.
-        for name in [
-            "weekend",
-            "dielectric",
-            "emissive",
-            "outdoor",
-            "mesh",
-            "pbr",
-        ] {
+        // Many primitives, several lights, a map, triangles, glTF's BRDF.
+        for name in ["weekend", "emissive", "outdoor", "mesh", "pbr"] {
             let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);
             assert!(Lanes::of(&s, Features::of(&scene)).is_none(), "{name}");
         }
-        for name in ["shell", "basic", "metal", "fuzz", "dof", "lamp", "cornell"] {
+        for name in [
+            "shell",
+            "glassy",
+            "basic",
+            "metal",
+            "fuzz",
+            "dof",
+            "lamp",
+            "cornell",
+            "dielectric",
+            "specular",
+        ] {
             let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);
             assert_eq!(Lanes::of(&s, Features::of(&scene)).is_some(), has, "{name}");

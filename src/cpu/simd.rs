@@ -618,7 +618,6 @@ pub trait Make: Isa {
     fn zero(self) -> F<Self> {
         self.splat(0.0)
     }
-    #[cfg(test)]
     #[inline(always)]
     fn load(self, a: &Row) -> F<Self> {
         F(unsafe { <Self as Isa>::load(a) })
