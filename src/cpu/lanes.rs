@@ -141,6 +141,11 @@ pub struct Lanes {
     flat: Row,
     spec_color: Tables3,
     fuzz: Row,
+    /// The lecture's glossy lobe that light sampling weighs (`trace_path`'s `glossy`: with
+    /// glossy light sampling, a specular lobe of smoothness in (0, 1) without fuzz), and
+    /// whether it is drawn beside the cosine lobe (`mixed`: specular below 1).
+    glossy: Row,
+    mixed: Row,
     /// Glass (`scatter_dielectric`): whether the material is, its index of refraction and
     /// 1 / it.
     glass: Row,
@@ -219,8 +224,7 @@ impl Lanes {
             || f.env_map
             || f.pbr
             || f.mirror_nee
-            || f.lens_nee
-            || f.gloss_nee);
+            || f.lens_nee);
         let count = s.spheres.len() + s.quads.len() + s.boxes.len();
         if !plain
             || !s.triangles.is_empty()
@@ -261,6 +265,8 @@ impl Lanes {
             flat: row,
             spec_color: [row; 3],
             fuzz: row,
+            glossy: row,
+            mixed: row,
             glass: row,
             ior: row,
             inv_ior: row,
@@ -359,6 +365,13 @@ impl Lanes {
             l.smooth[k] = m.smoothness;
             l.rough[k] = 1.0 - m.smoothness;
             l.flat[k] = flag(m.smoothness == 0.0);
+            let glossy = f.gloss_nee
+                && m.specular > 0.0
+                && m.smoothness > 0.0
+                && m.smoothness < 1.0
+                && m.absorption == 0.0;
+            l.glossy[k] = flag(glossy);
+            l.mixed[k] = flag(glossy && m.specular < 1.0);
         }
         // Light sampling runs where the scene has a light and the settings ask for it
         // (`trace_path`'s `nee`).
@@ -636,19 +649,38 @@ impl Lanes {
         }
         let (color, spec_color) = (pick3(&self.color, idx), pick3(&self.spec_color, idx));
         let tint = each!(|c| color[c].blend(spec_color[c], spec));
-        // The lobes light sampling weighs: the diffuse one, and the specular one at
-        // smoothness 0.
-        let sampled = surface.without(spec.without(flagged(s, &self.flat, idx)));
+        // The lobes light sampling weighs: the diffuse one, the specular one at smoothness 0,
+        // and the glossy one, alone or mixed with the diffuse one (`Weighed`).
+        let glossy = flagged(s, &self.glossy, idx) & surface;
+        let weighs = flagged(s, &self.flat, idx) | glossy;
+        let sampled = surface.without(spec.without(weighs));
+        let lobe = Lobe {
+            gloss: glossy.without(flagged(s, &self.mixed, idx)),
+            mixed: glossy & flagged(s, &self.mixed, idx),
+            r: each!(|c| d[c] - (s.splat(2.0) * dot(*d, nf)) * nf[c]),
+            smooth: F::pick(&self.smooth, idx),
+            p: F::pick(&self.p_spec, idx),
+        };
         // Light sampling at the lobes it weighs: the shadow ray leaves on the facing side, and
-        // cannot meet the primitive it leaves (`leaving(hit, front)`).
+        // cannot meet the primitive it leaves (`leaving(hit, front)`). The mixture's tints
+        // are its own.
         if let Some(lamp) = self.lamp.as_ref()
             && sampled.any()
         {
             let from = self.leaving(s, idx, front);
-            let (l, t) = self.sample_light(s, lamp, (position, nf), from, sampled, &mut p.rng);
+            let tints = (spec_color, color);
+            let (l, t) = self.sample_light(
+                s,
+                lamp,
+                (position, nf),
+                from,
+                sampled,
+                (&lobe, tints),
+                &mut p.rng,
+            );
             *tests += t;
             for c in 0..3 {
-                let add = (throughput[c] * tint[c]) * l[c];
+                let add = (throughput[c] * tint[c].blend(one, lobe.mixed)) * l[c];
                 radiance[c] = radiance[c].blend(radiance[c] + add, sampled);
             }
         }
@@ -688,8 +720,15 @@ impl Lanes {
         // Absorbed where dir·n <= 0 (a NaN goes on, as in `scatter_surface`); glass never.
         let mut kept = (dot(dir, nf).cmp::<_CMP_NLE_UQ>(zero) & surface) | glass;
         if nee {
+            // `lobe_pdf`.
             let cosine = dot(dir, nf).max(zero) / s.splat(PI);
-            p.prev_pdf = p.prev_pdf.blend(cosine.keep(sampled), hit);
+            let mut pdf = cosine;
+            if glossy.any() {
+                let g = gloss_pdf(s, dir, nf, lobe.r, lobe.smooth);
+                let mix = lobe.p * g + (one - lobe.p) * cosine;
+                pdf = pdf.blend(g, lobe.gloss).blend(mix, lobe.mixed);
+            }
+            p.prev_pdf = p.prev_pdf.blend(pdf.keep(sampled), hit);
             for (prev, n) in p.prev_normal.iter_mut().zip(nf) {
                 *prev = prev.blend(n, sampled);
             }
@@ -978,6 +1017,7 @@ impl Lanes {
         (p, n): (V3<S>, V3<S>),
         from: I<S>,
         lanes: M<S>,
+        (lobe, (spec, diff)): (&Lobe<S>, (V3<S>, V3<S>)),
         rng: &mut Draws<S>,
     ) -> (V3<S>, u64) {
         let zero = s.zero();
@@ -1025,10 +1065,26 @@ impl Lanes {
             tests = (lanes.bits().count_ones() as u64) * self.kinds.len() as u64;
         }
         // light_weighted's cosine lobe: radiance · (cos_s/π / pl · w(pl, cos_s/π)).
-        let lobe = cos_s / s.splat(PI);
-        let f = (lobe / pdf) * power_heuristic(pdf, lobe);
-        let l = each!(|c| (s.splat(lamp.radiance[c]) * f).keep(ok));
-        (l, tests)
+        let cosine = cos_s / s.splat(PI);
+        let f = (cosine / pdf) * power_heuristic(pdf, cosine);
+        let radiance = lit(s, lamp.radiance);
+        let mut l = each!(|c| radiance[c] * f);
+        let glossy = lobe.gloss | lobe.mixed;
+        if glossy.any() {
+            // The glossy lobe: radiance · (g / pl · w(pl, g)); the mixture: radiance ·
+            // (spec·pg + diff·pd) · (w(pl, pg + pd) / pl), pg = p·g and pd = (1 − p)·cos_s/π.
+            let g = gloss_pdf(s, dir, n, lobe.r, lobe.smooth);
+            let fg = (g / pdf) * power_heuristic(pdf, g);
+            let (pg, pd) = (lobe.p * g, (one - lobe.p) * cosine);
+            let w = power_heuristic(pdf, pg + pd) / pdf;
+            for c in 0..3 {
+                let mixed = (radiance[c] * (spec[c] * pg + diff[c] * pd)) * w;
+                l[c] = l[c]
+                    .blend(radiance[c] * fg, lobe.gloss)
+                    .blend(mixed, lobe.mixed);
+            }
+        }
+        (each!(|c| l[c].keep(ok)), tests)
     }
 
     /// `scatter_dielectric`'s direction for the rays `d` meeting glass in the lanes of `glass`
@@ -1118,6 +1174,17 @@ impl Lanes {
         }
         sky
     }
+}
+
+/// The glossy lobe light sampling weighs (`Weighed::Gloss` and `Weighed::Mixed`) at a bounce:
+/// the lanes where it is alone and where it is mixed with the cosine lobe, the mirror
+/// direction, the smoothness and the mixture's probability.
+struct Lobe<S: Isa> {
+    gloss: M<S>,
+    mixed: M<S>,
+    r: V3<S>,
+    smooth: F<S>,
+    p: F<S>,
 }
 
 /// The paths in flight, one a lane: what `Tracer::trace_path` keeps between bounces.
@@ -1291,6 +1358,27 @@ fn cross<S: Isa>(a: V3<S>, c: V3<S>) -> V3<S> {
     ]
 }
 
+/// `material::gloss_pdf` in lanes: the density of the lecture's glossy lobe of smoothness
+/// `sm` about mirror direction `r` (shading normal `n`) at direction `w`.
+#[inline(always)]
+fn gloss_pdf<S: Isa>(s: S, w: V3<S>, n: V3<S>, r: V3<S>, sm: F<S>) -> F<S> {
+    use super::material::DISC_ROUNDING;
+    let zero = s.zero();
+    let t = s.splat(1.0) - sm;
+    let c = dot(w, r);
+    let x = cross(w, r);
+    let disc = t * t - (sm * sm) * dot(x, x);
+    // 0 where disc is NaN or at most −DISC_ROUNDING.
+    let valid = disc.gt(s.splat(-DISC_ROUNDING));
+    let q = disc.max(s.splat(DISC_ROUNDING * DISC_ROUNDING)).sqrt();
+    let (l1, l2) = (sm * c + q, sm * c - q);
+    let d1 = dot(each!(|k| l1 * w[k] - sm * r[k]), n) / t;
+    let d2 = dot(each!(|k| l2 * w[k] - sm * r[k]), n) / t;
+    let t1 = ((d1 * l1) * l1).keep(l1.gt(zero) & d1.gt(zero));
+    let t2 = ((d2 * l2) * l2).keep(l2.gt(zero) & d2.gt(zero));
+    ((t1 + t2) / ((s.splat(PI) * t) * q)).keep(valid)
+}
+
 /// glam's `normalize`: v / |v|.
 #[inline(always)]
 fn normalize<S: Isa>(v: V3<S>) -> V3<S> {
@@ -1427,9 +1515,10 @@ color = "#606060"
 "##;
 
     /// Glass under a sun and a lamp: a solid ball, a hollow one (a sphere of negative radius
-    /// inside), an index-matched one (ior 1: no draw) and a frosted one, on a glass box;
-    /// lobes drawn with a probability (one at smoothness 0, which light sampling weighs, one
-    /// fuzzed); a quad lamp; enough bounces for paths through the glass.
+    /// inside), an index-matched one (ior 1: no draw) and a frosted one; lobes drawn with a
+    /// probability (one at smoothness 0, one glossy: light sampling weighs both, the glossy
+    /// one mixed with the diffuse lobe), a box of a certain glossy lobe; a quad lamp; enough
+    /// bounces for paths through the glass.
     const GLASSY: &str = r##"
 [camera]
 look_from = [0, 0.5, 2.6]
@@ -1477,11 +1566,12 @@ radius = 0.35
 color = "#d04040"
 specular = 0.4
 smoothness = 0.8
-absorption = 0.3
 [[box]]
 center = [0, -0.4, 0.3]
 half_extents = [0.3, 0.1, 0.2]
-material = "glass"
+color = "#c0c0a0"
+specular = 1
+smoothness = 0.6
 [[quad]]
 q = [-0.5, 2.0, -1.5]
 u = [1, 0, 0]
@@ -1588,7 +1678,7 @@ light = 4
             let scene = scene(name);
             cases.push((name, Features::of(&scene), scene));
         }
-        for name in ["lamp", "cornell", "glassy"] {
+        for name in ["lamp", "cornell", "glassy", "showcase"] {
             let scene = scene(name);
             let f = Features::of(&scene);
             cases.push((name, Features { nee: false, ..f }, scene.clone()));
@@ -1691,6 +1781,7 @@ light = 4
             "cornell",
             "dielectric",
             "specular",
+            "showcase",
         ] {
             let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);

@@ -84,7 +84,7 @@ pub fn scatter_surface(m: &Material, d: Vec3A, n: Vec3A, is_spec: bool, rng: &mu
 }
 
 /// How far below 0 `gloss_pdf`'s discriminant may round for a direction the lobe draws.
-const DISC_ROUNDING: f32 = 1e-6;
+pub(super) const DISC_ROUNDING: f32 = 1e-6;
 
 /// The density, in solid angle, with which the lecture's glossy lobe (`scatter_surface`'s
 /// specular lobe at smoothness `s` in (0, 1), without fuzz) draws `w`, about the shading
