@@ -1,7 +1,9 @@
 //! The path loop in vector lanes, one path a lane (sixteen on AVX-512, else eight on AVX2),
 //! for scenes of a few primitives (spheres, quads, boxes: at most eight) of the lecture's
-//! certain lobes under the sky, lit by the sky and at most one light, with or without light
-//! sampling: `Tracer::trace_path`'s arithmetic for those scenes, operation for operation in
+//! materials (its lobes, certain or drawn, light sampling weighing the glossy one too, and its
+//! glass) under the sky and its sun or an environment map, lit by them and at most one light
+//! (not both a light and a map), with or without light sampling: `Tracer::trace_path`'s
+//! arithmetic for those scenes, operation for operation in
 //! the same order (glam's dot is (x·x′ + y·y′) + z·z′, its cross the textbook one, its
 //! normalize a division by the square root, nothing fused), so that each lane's path is the
 //! scalar one bit for bit; tested against it on every lane, at both widths. The scalar loop
@@ -11,7 +13,10 @@
 //! one kernel as Mitsuba 3's LLVM backend keeps it). A lane whose path has ended starts its
 //! pixel's next sample (`Lanes::trace`): its sampler and camera ray made in lanes too. The
 //! draws are each lane's own sampler's (`cpu::draws`, `Rng`'s in lanes), taken in the order
-//! the scalar path takes them. The code is written once over `simd::Isa`.
+//! the scalar path takes them. The code is written once over `simd::Isa`. What reads the map
+//! (its lookups, its distribution's inversions, libm's trigonometry) and the sun's falloff
+//! (libm's `powf`) run lane by lane through the scalar tracer's own functions, so that they
+//! stay its bits.
 //!
 //! The one difference a path can show: where two primitives are hit at the same distance (a
 //! ray through the edge two quads share), the scalar walk keeps the one its BVH order tests
@@ -24,7 +29,9 @@ use super::scene::CpuScene;
 use super::simd::{Avx2, Avx512, F, I, Isa, M, MAX_LANES, Make, Row};
 use super::trace::T_FAR;
 use crate::common::Features;
-use crate::common::arrays::REF_INDEX;
+use crate::common::arrays::{ENV_NONE, ENV_VISIBLE, REF_INDEX};
+use crate::scene::envmap::EnvMap;
+use crate::scene::envmap_sampling::coordinates;
 use glam::Vec3A;
 use std::arch::x86_64::{_CMP_EQ_OQ, _CMP_NGE_UQ, _CMP_NLE_UQ, _CMP_NLT_UQ};
 use std::array::from_fn;
@@ -155,6 +162,10 @@ pub struct Lanes {
     lamp: Option<Lamp>,
     /// The sky's sun (`Tracer::sky`), where the scene has one.
     sun: Option<Sun>,
+    /// The environment map, where the scene has one (then without lights).
+    env: Option<Env>,
+    /// Whether light sampling runs (`trace_path`'s `nee`): a light or the map to sample.
+    nee: bool,
     sky_uniform: bool,
     sky_bottom: [f32; 3],
     sky_top: [f32; 3],
@@ -174,6 +185,19 @@ struct Camera {
     u: [f32; 3],
     v: [f32; 3],
     lens_radius: f32,
+}
+
+/// The environment map as `Tracer::escaped` and `Tracer::sample_env` read it: the map, its
+/// rotation and intensity, the probability that light sampling picks it (`env_pick`: 1 here,
+/// where it is the only light, or 0 for a black map), and whether camera rays see it (else
+/// they see the sky) and whether anything does (`env_mode`).
+struct Env {
+    map: std::sync::Arc<EnvMap>,
+    rotation: f32,
+    intensity: f32,
+    pick: f32,
+    seen_directly: bool,
+    shown: bool,
 }
 
 /// The sun of the gradient sky: its direction, its radiance and the exponent of its falloff.
@@ -212,19 +236,14 @@ pub struct Traced {
 
 impl Lanes {
     /// The lanes for `s` traced with features `f`, where they apply: a CPU with AVX2, one to
-    /// `MAX_PRIMITIVES` spheres, quads and boxes (no triangles), every material an emitter
-    /// or the lecture's surface with a certain lobe (no draw picks it; the specular one may
-    /// be fuzzed), at most one light and no map, no glossy lobe that light sampling weighs,
-    /// and the sky without its sun. The camera rays, a lens's included, are the caller's.
+    /// `MAX_PRIMITIVES` spheres, quads and boxes (no triangles), every material an emitter,
+    /// the lecture's glass, or its surface (lobes certain or drawn, fuzzed or not), at most
+    /// one light, or a map and no light, and neither glTF's BRDF nor the mirror and lens
+    /// samplers. The camera rays, a lens's included, are made in lanes too.
     pub fn of(s: &CpuScene, f: Features) -> Option<Lanes> {
         let narrow = Avx2::new()?;
-        let plain = !(f.triangles
-            || f.instances
-            || f.textures
-            || f.env_map
-            || f.pbr
-            || f.mirror_nee
-            || f.lens_nee);
+        let plain =
+            !(f.triangles || f.instances || f.textures || f.pbr || f.mirror_nee || f.lens_nee);
         let count = s.spheres.len() + s.quads.len() + s.boxes.len();
         if !plain
             || !s.triangles.is_empty()
@@ -232,7 +251,7 @@ impl Lanes {
             || count == 0
             || count > MAX_PRIMITIVES
             || s.u.n_lights > 1
-            || s.env.is_some()
+            || (f.env_map && s.env.is_some() && s.u.n_lights > 0)
             || s.shading_normals()
         {
             return None;
@@ -271,6 +290,15 @@ impl Lanes {
             ior: row,
             inv_ior: row,
             lamp: None,
+            env: s.env.clone().filter(|_| f.env_map).map(|map| Env {
+                map,
+                rotation: s.u.env_rotation,
+                intensity: s.u.env_intensity,
+                pick: s.u.env_pick,
+                seen_directly: s.u.env_mode == ENV_VISIBLE,
+                shown: s.u.env_mode != ENV_NONE,
+            }),
+            nee: false,
             sun: f.sun.then(|| Sun {
                 dir: s.u.sun_dir.to_array(),
                 radiance: s.u.sun_radiance.to_array(),
@@ -403,6 +431,7 @@ impl Lanes {
                 radiance: (m.color * m.light).to_array(),
             });
         }
+        l.nee = f.nee && (l.lamp.is_some() || l.env.as_ref().is_some_and(|e| e.pick > 0.0));
         Some(l)
     }
 }
@@ -583,7 +612,7 @@ impl Lanes {
     fn step<S: Isa>(&self, s: S, p: &mut Paths<S>, active: u32, tests: &mut u64) -> u32 {
         let zero = s.zero();
         let one = s.splat(1.0);
-        let nee = self.lamp.is_some();
+        let nee = self.nee;
         let Paths {
             o,
             d,
@@ -598,7 +627,10 @@ impl Lanes {
         let found = index.gt(s.int(NONE));
         let missed = live.without(found);
         if missed.any() {
-            let sky = self.sky(s, *d, missed);
+            let sky = match &self.env {
+                Some(env) => self.escaped(s, env, *d, missed, p.bounce, p.prev_pdf),
+                None => self.sky(s, *d, missed),
+            };
             for c in 0..3 {
                 let add = radiance[c] + throughput[c] * sky[c];
                 radiance[c] = radiance[c].blend(add, missed);
@@ -664,20 +696,11 @@ impl Lanes {
         // Light sampling at the lobes it weighs: the shadow ray leaves on the facing side, and
         // cannot meet the primitive it leaves (`leaving(hit, front)`). The mixture's tints
         // are its own.
-        if let Some(lamp) = self.lamp.as_ref()
-            && sampled.any()
-        {
+        if nee && sampled.any() {
             let from = self.leaving(s, idx, front);
             let tints = (spec_color, color);
-            let (l, t) = self.sample_light(
-                s,
-                lamp,
-                (position, nf),
-                from,
-                sampled,
-                (&lobe, tints),
-                &mut p.rng,
-            );
+            let (l, t) =
+                self.sample_light(s, (position, nf), from, sampled, (&lobe, tints), &mut p.rng);
             *tests += t;
             for c in 0..3 {
                 let add = (throughput[c] * tint[c].blend(one, lobe.mixed)) * l[c];
@@ -1013,7 +1036,6 @@ impl Lanes {
     fn sample_light<S: Isa>(
         &self,
         s: S,
-        lamp: &Lamp,
         (p, n): (V3<S>, V3<S>),
         from: I<S>,
         lanes: M<S>,
@@ -1023,6 +1045,9 @@ impl Lanes {
         let zero = s.zero();
         let one = s.splat(1.0);
         let (u1, u2) = rng.draw2(s, lanes);
+        let Some(lamp) = self.lamp.as_ref() else {
+            return self.sample_env(s, (p, n), from, lanes, (u1, u2), (lobe, (spec, diff)));
+        };
         let (dir, pdf, ok) = match &lamp.shape {
             LampShape::Sphere { center, r2 } => {
                 let to: V3<S> = each!(|c| s.splat(center[c]) - p[c]);
@@ -1064,27 +1089,116 @@ impl Lanes {
             ok = ok.without(blocked);
             tests = (lanes.bits().count_ones() as u64) * self.kinds.len() as u64;
         }
-        // light_weighted's cosine lobe: radiance · (cos_s/π / pl · w(pl, cos_s/π)).
-        let cosine = cos_s / s.splat(PI);
-        let f = (cosine / pdf) * power_heuristic(pdf, cosine);
         let radiance = lit(s, lamp.radiance);
-        let mut l = each!(|c| radiance[c] * f);
-        let glossy = lobe.gloss | lobe.mixed;
-        if glossy.any() {
-            // The glossy lobe: radiance · (g / pl · w(pl, g)); the mixture: radiance ·
-            // (spec·pg + diff·pd) · (w(pl, pg + pd) / pl), pg = p·g and pd = (1 − p)·cos_s/π.
-            let g = gloss_pdf(s, dir, n, lobe.r, lobe.smooth);
-            let fg = (g / pdf) * power_heuristic(pdf, g);
-            let (pg, pd) = (lobe.p * g, (one - lobe.p) * cosine);
-            let w = power_heuristic(pdf, pg + pd) / pdf;
-            for c in 0..3 {
-                let mixed = (radiance[c] * (spec[c] * pg + diff[c] * pd)) * w;
-                l[c] = l[c]
-                    .blend(radiance[c] * fg, lobe.gloss)
-                    .blend(mixed, lobe.mixed);
+        let l = light_weighted(s, radiance, (cos_s, dir, n), pdf, (lobe, (spec, diff)));
+        (each!(|c| l[c].keep(ok)), tests)
+    }
+
+    /// `Tracer::sample_env` for the lanes of `lanes` at points `p` (facing normal `n`,
+    /// leaving primitive `from`), with draws (u1, u2): a direction from the map's
+    /// distribution and the radiance there, lane by lane with the scalar tracer's code
+    /// (`Distribution::sample`, `EnvMap::radiance_at`), the shadow ray in lanes, weighed as
+    /// `sample_light` weighs; returns the light (tint not included) and the tests made.
+    #[inline(always)]
+    fn sample_env<S: Isa>(
+        &self,
+        s: S,
+        (p, n): (V3<S>, V3<S>),
+        from: I<S>,
+        lanes: M<S>,
+        (u1, u2): (F<S>, F<S>),
+        lobe: (&Lobe<S>, (V3<S>, V3<S>)),
+    ) -> (V3<S>, u64) {
+        let zero = s.zero();
+        let Some(env) = self.env.as_ref() else {
+            return ([zero; 3], 0);
+        };
+        let (mut a, mut b) = ([0.0; MAX_LANES], [0.0; MAX_LANES]);
+        u1.store(&mut a);
+        u2.store(&mut b);
+        let mut dirs = [[0.0; MAX_LANES]; 3];
+        let mut pdfs = [0.0; MAX_LANES];
+        let mut uvs = [(0.0, 0.0); MAX_LANES];
+        for k in lanes_of(lanes.bits()) {
+            let smp = env.map.distribution.sample(a[k], b[k], env.rotation);
+            for (c, d) in dirs.iter_mut().enumerate() {
+                d[k] = smp.dir[c];
+            }
+            pdfs[k] = smp.pdf;
+            uvs[k] = smp.uv;
+        }
+        let dir = each!(|c| s.load(&dirs[c]));
+        let pdf = s.load(&pdfs);
+        let cos_s = dot(n, dir);
+        let mut ok = (lanes & pdf.gt(zero)) & cos_s.gt(zero);
+        let mut tests = 0;
+        if ok.any() {
+            let origin = offset_ray(s, p, n);
+            let blocked = self.occluded(s, (origin, dir), s.splat(T_FAR), usize::MAX, from);
+            ok = ok.without(blocked);
+            tests = (lanes.bits().count_ones() as u64) * self.kinds.len() as u64;
+        }
+        let mut rad = [[0.0; MAX_LANES]; 3];
+        for k in lanes_of(ok.bits()) {
+            let l = Vec3A::from_array(env.map.radiance_at(uvs[k].0, uvs[k].1)) * env.intensity;
+            for (c, r) in rad.iter_mut().enumerate() {
+                r[k] = l[c];
             }
         }
+        let radiance = each!(|c| s.load(&rad[c]));
+        let pl = s.splat(env.pick) * pdf;
+        let l = light_weighted(s, radiance, (cos_s, dir, n), pl, lobe);
         (each!(|c| l[c].keep(ok)), tests)
+    }
+
+    /// `Tracer::escaped` under the map, for the rays `d` of the lanes of `lanes` that left the
+    /// scene at bounce `bounce` after a lobe of density `prev_pdf`: the map, looked up lane by
+    /// lane with the scalar tracer's code and weighed against light sampling where that could
+    /// have found the direction; the sky where the map is not seen (by camera rays, where it
+    /// is hidden from them).
+    #[inline(always)]
+    fn escaped<S: Isa>(
+        &self,
+        s: S,
+        env: &Env,
+        d: V3<S>,
+        lanes: M<S>,
+        bounce: I<S>,
+        prev_pdf: F<S>,
+    ) -> V3<S> {
+        let seen = if !env.shown {
+            s.mask(0)
+        } else if env.seen_directly {
+            lanes
+        } else {
+            lanes & bounce.gt(s.int(0))
+        };
+        let sky = self.sky(s, d, lanes.without(seen));
+        if !seen.any() {
+            return sky;
+        }
+        let mut dirs = [[0.0; MAX_LANES]; 3];
+        let mut prev = [0.0; MAX_LANES];
+        let mut out = [[0.0; MAX_LANES]; 3];
+        for (c, v) in dirs.iter_mut().enumerate() {
+            d[c].store(v);
+        }
+        prev_pdf.store(&mut prev);
+        let weighs = self.nee && env.pick > 0.0;
+        for k in lanes_of(seen.bits()) {
+            let dir = glam::Vec3::new(dirs[0][k], dirs[1][k], dirs[2][k]);
+            let (cu, cv) = coordinates(dir, env.rotation);
+            let mut l = Vec3A::from_array(env.map.radiance_at(cu, cv)) * env.intensity;
+            if weighs && prev[k] > 0.0 {
+                let pl = env.pick * env.map.distribution.pdf_at(cu, cv);
+                let a2 = prev[k] * prev[k];
+                l *= a2 / (a2 + pl * pl);
+            }
+            for (c, o) in out.iter_mut().enumerate() {
+                o[k] = l[c];
+            }
+        }
+        each!(|c| sky[c].blend(s.load(&out[c]), seen))
     }
 
     /// `scatter_dielectric`'s direction for the rays `d` meeting glass in the lanes of `glass`
@@ -1358,6 +1472,40 @@ fn cross<S: Isa>(a: V3<S>, c: V3<S>) -> V3<S> {
     ]
 }
 
+/// `light_weighted` in lanes: `radiance` arriving from `dir` (cos_s against the shading
+/// normal `n`), drawn with density `pl`, times the lobe's f·cos, weighed by the power heuristic
+/// against the lobe's density: the cosine lobe's (cos_s/π, its tint the caller's), the glossy
+/// one's, or their mixture's with each lobe's tint (`spec`, `diff`).
+#[inline(always)]
+fn light_weighted<S: Isa>(
+    s: S,
+    radiance: V3<S>,
+    (cos_s, dir, n): (F<S>, V3<S>, V3<S>),
+    pl: F<S>,
+    (lobe, (spec, diff)): (&Lobe<S>, (V3<S>, V3<S>)),
+) -> V3<S> {
+    // The cosine lobe: radiance · (cos_s/π / pl · w(pl, cos_s/π)).
+    let cosine = cos_s / s.splat(PI);
+    let f = (cosine / pl) * power_heuristic(pl, cosine);
+    let mut l = each!(|c| radiance[c] * f);
+    let glossy = lobe.gloss | lobe.mixed;
+    if glossy.any() {
+        // The glossy lobe: radiance · (g / pl · w(pl, g)); the mixture: radiance ·
+        // (spec·pg + diff·pd) · (w(pl, pg + pd) / pl), pg = p·g and pd = (1 − p)·cos_s/π.
+        let g = gloss_pdf(s, dir, n, lobe.r, lobe.smooth);
+        let fg = (g / pl) * power_heuristic(pl, g);
+        let (pg, pd) = (lobe.p * g, (s.splat(1.0) - lobe.p) * cosine);
+        let w = power_heuristic(pl, pg + pd) / pl;
+        for c in 0..3 {
+            let mixed = (radiance[c] * (spec[c] * pg + diff[c] * pd)) * w;
+            l[c] = l[c]
+                .blend(radiance[c] * fg, lobe.gloss)
+                .blend(mixed, lobe.mixed);
+        }
+    }
+    l
+}
+
 /// `material::gloss_pdf` in lanes: the density of the lecture's glossy lobe of smoothness
 /// `sm` about mirror direction `r` (shading normal `n`) at direction `w`.
 #[inline(always)]
@@ -1580,11 +1728,64 @@ color = [1, 0.9, 0.8]
 light = 4
 "##;
 
-    /// A shipped scene, or one of the test scenes `SHELL` and `GLASSY`.
+    /// Under the shipped map, hidden from the camera (which sees the gradient sky) and turned:
+    /// glossy lobes alone and mixed, a fuzzed specular lobe, a frosted glass box (a perfect
+    /// mirror ball or a glass ball would bring the mirror or lens sampler).
+    const MAPPED: &str = r##"
+[camera]
+look_from = [0, 0.7, 2.6]
+look_at = [0, 0.1, -1.2]
+vfov = 55
+[render]
+max_bounces = 6
+[sky]
+map = "scenes/maps/quarry_01_1k.hdr"
+rotation = 130
+intensity = 0.8
+visible = false
+bottom = [0.9, 0.9, 0.9]
+top = [0.3, 0.5, 0.9]
+[[sphere]]
+center = [0, -100.5, -1]
+radius = 100
+color = "#8a8a84"
+[[sphere]]
+center = [-1.1, 0, -1]
+radius = 0.5
+color = "#3a6fb5"
+[[sphere]]
+center = [0, 0, -1.3]
+radius = 0.5
+color = "#d0200c"
+specular = 0.2
+smoothness = 0.9
+[[sphere]]
+center = [1.1, 0, -1]
+radius = 0.5
+color = "#e0c080"
+specular = 1
+smoothness = 0.7
+[[sphere]]
+center = [0.6, 0.7, -2.2]
+radius = 0.4
+color = [0.9, 0.9, 0.9]
+specular = 1
+smoothness = 0.98
+absorption = 0.1
+[[box]]
+center = [0, -0.35, 0.2]
+half_extents = [0.3, 0.15, 0.2]
+smoothness = -1
+ior = 1.5
+absorption = 0.1
+"##;
+
+    /// A shipped scene, or one of the test scenes `SHELL`, `GLASSY` and `MAPPED`.
     fn scene(name: &str) -> Scene {
         match name {
             "shell" => Scene::from_toml(SHELL, "shell").unwrap(),
             "glassy" => Scene::from_toml(GLASSY, "glassy").unwrap(),
+            "mapped" => Scene::from_toml(MAPPED, "mapped").unwrap(),
             _ => Scene::load(name).unwrap(),
         }
     }
@@ -1678,7 +1879,7 @@ light = 4
             let scene = scene(name);
             cases.push((name, Features::of(&scene), scene));
         }
-        for name in ["lamp", "cornell", "glassy", "showcase"] {
+        for name in ["lamp", "cornell", "glassy", "showcase", "mapped", "outdoor"] {
             let scene = scene(name);
             let f = Features::of(&scene);
             cases.push((name, Features { nee: false, ..f }, scene.clone()));
@@ -1764,8 +1965,9 @@ light = 4
     fn lanes_trace_what_they_can_and_leave_out_the_rest() {
         let settings = FrameSettings::new(16, 16, 8, 1);
         let has = std::arch::is_x86_feature_detected!("avx2");
-        // Many primitives, several lights, a map, triangles, glTF's BRDF.
-        for name in ["weekend", "emissive", "outdoor", "mesh", "pbr"] {
+        // Many primitives, several lights, the mirror and lens samplers, triangles, glTF's
+        // BRDF.
+        for name in ["weekend", "emissive", "outdoor-caustics", "mesh", "pbr"] {
             let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);
             assert!(Lanes::of(&s, Features::of(&scene)).is_none(), "{name}");
@@ -1782,6 +1984,8 @@ light = 4
             "dielectric",
             "specular",
             "showcase",
+            "outdoor",
+            "mapped",
         ] {
             let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);
