@@ -1126,6 +1126,8 @@ impl Lanes {
             }
             pdfs[k] = smp.pdf;
             uvs[k] = smp.uv;
+            // Looked up after the shadow rays, where it is not occluded.
+            env.map.prefetch(smp.uv.0, smp.uv.1);
         }
         let dir = each!(|c| s.load(&dirs[c]));
         let pdf = s.load(&pdfs);
@@ -1185,9 +1187,19 @@ impl Lanes {
         }
         prev_pdf.store(&mut prev);
         let weighs = self.nee && env.pick > 0.0;
+        // The coordinates first, and the texels and densities asked for, so that the lanes'
+        // cache misses overlap.
+        let mut uv = [(0.0, 0.0); MAX_LANES];
         for k in lanes_of(seen.bits()) {
             let dir = glam::Vec3::new(dirs[0][k], dirs[1][k], dirs[2][k]);
-            let (cu, cv) = coordinates(dir, env.rotation);
+            uv[k] = coordinates(dir, env.rotation);
+            env.map.prefetch(uv[k].0, uv[k].1);
+            if weighs && prev[k] > 0.0 {
+                env.map.distribution.prefetch_pdf(uv[k].0, uv[k].1);
+            }
+        }
+        for k in lanes_of(seen.bits()) {
+            let (cu, cv) = uv[k];
             let mut l = Vec3A::from_array(env.map.radiance_at(cu, cv)) * env.intensity;
             if weighs && prev[k] > 0.0 {
                 let pl = env.pick * env.map.distribution.pdf_at(cu, cv);

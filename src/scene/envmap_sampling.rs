@@ -431,6 +431,14 @@ impl Distribution {
         self.density_uv(x as usize, y as usize) / (2.0 * PI * PI * sin_t)
     }
 
+    /// Asks the cache for the density `pdf_at(u, v)` reads (`EnvMap::prefetch`).
+    #[inline(always)]
+    pub fn prefetch_pdf(&self, u: f32, v: f32) {
+        let (x, y, _) = self.texel_at(u, v);
+        let w = self.width as usize + 1;
+        super::envmap::prefetch(&self.conditional[y as usize * w + x as usize]);
+    }
+
     /// Bytes the CDFs take, as both tracers hold them (the host's guide tables add about a
     /// quarter of this on the CPU tracer).
     pub fn bytes(&self) -> usize {
