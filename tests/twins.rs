@@ -42,6 +42,10 @@ const TWINS: &[Twin] = &[
             "guide",
             "invert_guided",
             "new",
+            // The CPU's lanes ask the cache for every lane's texels and densities before
+            // reading any.
+            "prefetch",
+            "prefetch_pdf",
             "rgbe_pack",
             "rgbe_unpack",
             "row",

@@ -131,8 +131,8 @@ impl EnvMap {
         let x = ((u * w as f32 - 0.5).max(0.0) as usize).min(w - 1);
         let y = ((v * h as f32 - 0.5).max(0.0) as usize).min(h - 1);
         let y1 = (y + 1).min(h - 1);
-        prefetch(&self.rgbe[y * w + x]);
-        prefetch(&self.rgbe[y1 * w + x]);
+        super::envmap_sampling::prefetch(&self.rgbe[y * w + x]);
+        super::envmap_sampling::prefetch(&self.rgbe[y1 * w + x]);
     }
 
     /// Every texel decoded, row-major.
@@ -144,19 +144,6 @@ impl EnvMap {
     pub fn bytes(&self) -> usize {
         self.rgbe.len() * 4 + self.distribution.bytes()
     }
-}
-
-/// A hint that `at` will be read soon (x86-64's `prefetcht0`; nothing elsewhere).
-#[inline(always)]
-pub(crate) fn prefetch<T>(at: &T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch reads nothing and cannot fault; `at` is a live reference.
-    unsafe {
-        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        _mm_prefetch::<_MM_HINT_T0>((at as *const T).cast::<i8>());
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = at;
 }
 
 fn unpack_all(rgbe: &[u32]) -> Vec<[f32; 3]> {

@@ -145,6 +145,19 @@ pub fn bilinear(
     lerp(top, bottom, ty)
 }
 
+/// A hint that `at` will be read soon (x86-64's `prefetcht0`; nothing elsewhere).
+#[inline(always)]
+pub(crate) fn prefetch<T>(at: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch reads nothing and cannot fault; `at` is a live reference.
+    unsafe {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        _mm_prefetch::<_MM_HINT_T0>((at as *const T).cast::<i8>());
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = at;
+}
+
 /// The sampling distribution of a `width × height` map: for each row the CDF of its texels
 /// (`width + 1` entries, from 0 to 1), and the CDF of the rows (`height + 1`). Built in f64,
 /// stored in f32, which is what both tracers read.
@@ -436,7 +449,7 @@ impl Distribution {
     pub fn prefetch_pdf(&self, u: f32, v: f32) {
         let (x, y, _) = self.texel_at(u, v);
         let w = self.width as usize + 1;
-        super::envmap::prefetch(&self.conditional[y as usize * w + x as usize]);
+        prefetch(&self.conditional[y as usize * w + x as usize]);
     }
 
     /// Bytes the CDFs take, as both tracers hold them (the host's guide tables add about a
