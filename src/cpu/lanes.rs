@@ -1,8 +1,8 @@
 //! The path loop in vector lanes, one path a lane (sixteen on AVX-512, else eight on AVX2),
 //! for scenes of a few primitives (spheres, quads, boxes: at most eight) of the lecture's
 //! materials (its lobes, certain or drawn, light sampling weighing the glossy one too, and its
-//! glass) under the sky and its sun or an environment map, lit by them and at most one light
-//! (not both a light and a map), with or without light sampling: `Tracer::trace_path`'s
+//! glass) under the sky and its sun or an environment map, lit by them and by at most
+//! `MAX_LAMPS` lights (not both lights and a map), with or without light sampling: `Tracer::trace_path`'s
 //! arithmetic for those scenes, operation for operation in
 //! the same order (glam's dot is (x·x′ + y·y′) + z·z′, its cross the textbook one, its
 //! normalize a division by the square root, nothing fused), so that each lane's path is the
@@ -158,8 +158,11 @@ pub struct Lanes {
     glass: Row,
     ior: Row,
     inv_ior: Row,
-    /// The one light (`GpuLight`), where the scene has one and light sampling runs.
-    lamp: Option<Lamp>,
+    /// The lights (`GpuLight`), where light sampling runs: at most `MAX_LAMPS`.
+    lamps: Vec<Lamp>,
+    /// Per primitive, its material's light slot (`Material::light_slot`: 1 + its light's
+    /// index, 0 for none).
+    slot: Row,
     /// The sky's sun (`Tracer::sky`), where the scene has one.
     sun: Option<Sun>,
     /// The environment map, where the scene has one (then without lights).
@@ -207,13 +210,20 @@ struct Sun {
     size: f32,
 }
 
-/// The light that light sampling draws from: its primitive, its shape, and its material's
-/// colour times its light.
+/// A light that light sampling draws from: its primitive, its shape, its material's colour
+/// times its light, and what choosing it among several reads (`Tracer::light_weight`): its
+/// power's share, and the centre and radius² of its bounding sphere.
 struct Lamp {
     index: usize,
     shape: LampShape,
     radiance: [f32; 3],
+    pmf: f32,
+    center: [f32; 3],
+    r2: f32,
 }
+
+/// The most lights the lanes sample (chosen among by `Tracer::choose_light`'s local weights).
+pub const MAX_LAMPS: usize = 8;
 
 /// What sampling a light needs of its shape.
 enum LampShape {
@@ -238,8 +248,8 @@ impl Lanes {
     /// The lanes for `s` traced with features `f`, where they apply: a CPU with AVX2, one to
     /// `MAX_PRIMITIVES` spheres, quads and boxes (no triangles), every material an emitter,
     /// the lecture's glass, or its surface (lobes certain or drawn, fuzzed or not), at most
-    /// one light, or a map and no light, and neither glTF's BRDF nor the mirror and lens
-    /// samplers. The camera rays, a lens's included, are made in lanes too.
+    /// `MAX_LAMPS` lights, or a map and no light, and neither glTF's BRDF nor the mirror and
+    /// lens samplers. The camera rays, a lens's included, are made in lanes too.
     pub fn of(s: &CpuScene, f: Features) -> Option<Lanes> {
         let narrow = Avx2::new()?;
         let plain =
@@ -250,7 +260,7 @@ impl Lanes {
             || !s.instances.is_empty()
             || count == 0
             || count > MAX_PRIMITIVES
-            || s.u.n_lights > 1
+            || s.u.n_lights as usize > MAX_LAMPS
             || (f.env_map && s.env.is_some() && s.u.n_lights > 0)
             || s.shading_normals()
         {
@@ -289,7 +299,8 @@ impl Lanes {
             glass: row,
             ior: row,
             inv_ior: row,
-            lamp: None,
+            lamps: Vec::new(),
+            slot: row,
             env: s.env.clone().filter(|_| f.env_map).map(|map| Env {
                 map,
                 rotation: s.u.env_rotation,
@@ -401,17 +412,24 @@ impl Lanes {
             l.glossy[k] = flag(glossy);
             l.mixed[k] = flag(glossy && m.specular < 1.0);
         }
-        // Light sampling runs where the scene has a light and the settings ask for it
+        for (k, &mat) in materials.iter().enumerate() {
+            l.slot[k] = s.materials[mat as usize].light_slot as f32;
+        }
+        // Light sampling runs where the scene has lights and the settings ask for it
         // (`trace_path`'s `nee`).
-        if f.nee && s.u.n_lights == 1 {
-            let light = s.lights[0];
+        let lights = if f.nee { s.u.n_lights as usize } else { 0 };
+        for light in &s.lights[..lights] {
             let i = (light.prim & REF_INDEX) as usize;
-            let (index, shape, material) = match light.prim >> 30 {
+            let (index, shape, material, (center, r2)) = match light.prim >> 30 {
                 0 => {
                     let sp = &s.spheres[i];
-                    let center = super::trace::sphere_center(sp).to_array();
+                    let center = super::trace::sphere_center(sp);
                     let r2 = sp.radius * sp.radius;
-                    (i, LampShape::Sphere { center, r2 }, sp.material)
+                    let shape = LampShape::Sphere {
+                        center: center.to_array(),
+                        r2,
+                    };
+                    (i, shape, sp.material, (center, r2))
                 }
                 1 => {
                     let q = &s.quads[i];
@@ -420,18 +438,23 @@ impl Lanes {
                         q: corners,
                         area: light.area,
                     };
-                    (s.spheres.len() + i, shape, q.material)
+                    // `light_weight`'s bounding sphere of the quad.
+                    let bound = (q.q + 0.5 * (q.u + q.v), 0.25 * (q.u + q.v).length_squared());
+                    (s.spheres.len() + i, shape, q.material, bound)
                 }
                 _ => return None,
             };
             let m = &s.materials[material as usize];
-            l.lamp = Some(Lamp {
+            l.lamps.push(Lamp {
                 index,
                 shape,
                 radiance: (m.color * m.light).to_array(),
+                pmf: light.pmf,
+                center: center.to_array(),
+                r2,
             });
         }
-        l.nee = f.nee && (l.lamp.is_some() || l.env.as_ref().is_some_and(|e| e.pick > 0.0));
+        l.nee = f.nee && (!l.lamps.is_empty() || l.env.as_ref().is_some_and(|e| e.pick > 0.0));
         Some(l)
     }
 }
@@ -648,8 +671,19 @@ impl Lanes {
         if emits.any() {
             let mut w = one;
             if nee {
-                let pl = self.light_pdf(s, idx, p.prev_point, position);
-                let weigh = p.prev_pdf.gt(zero);
+                // Weighed where it is a light (`light_slot`), against the chance that light
+                // sampling chose it from the last vertex and drew this point.
+                let slot = F::pick(&self.slot, idx);
+                let mut pl = self.light_pdf(s, idx, p.prev_point, position);
+                if self.lamps.len() > 1 {
+                    let (weights, total) = self.light_weights(s, p.prev_point, p.prev_normal);
+                    let mut w_slot = zero;
+                    for (i, &wi) in weights.iter().enumerate() {
+                        w_slot = w_slot.blend(wi, slot.cmp::<_CMP_EQ_OQ>(s.splat(i as f32 + 1.0)));
+                    }
+                    pl = (w_slot / total) * pl;
+                }
+                let weigh = p.prev_pdf.gt(zero) & slot.gt(zero);
                 w = one.blend(power_heuristic(p.prev_pdf, pl), weigh);
             }
             let (color, light) = (pick3(&self.color, idx), F::pick(&self.light, idx));
@@ -815,12 +849,13 @@ impl Lanes {
         (o, d): (V3<S>, V3<S>),
         t_max: F<S>,
         skip: usize,
-        from: I<S>,
+        (from, also): (I<S>, I<S>),
     ) -> M<S> {
         let mut blocked = s.mask(0);
         for k in (0..self.kinds.len()).filter(|&k| k != skip) {
             let t = self.hit(s, k, o, d);
-            let left = from.eq(s.int(k as i32));
+            let kk = s.int(k as i32);
+            let left = from.eq(kk) | also.eq(kk);
             blocked = blocked | between(s, t, t_max).without(left);
         }
         blocked
@@ -1028,9 +1063,10 @@ impl Lanes {
         pdf
     }
 
-    /// `Tracer::sample_light` for the one light and the cosine lobe, at points `p` (facing
-    /// normal n, leaving primitive `from`) in the lanes of `lanes`: the MIS-weighted light
-    /// (its f·cos included, its tint not), and the primitive tests made.
+    /// `Tracer::sample_light` at points `p` (facing normal n, leaving primitive `from`) in the
+    /// lanes of `lanes`, for the lobe light sampling weighs there: one light of several chosen
+    /// by a draw (`choose_light`), the one light, or the map; the MIS-weighted light (its f·cos
+    /// included, its tint not), and the primitive tests made.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn sample_light<S: Isa>(
@@ -1044,11 +1080,130 @@ impl Lanes {
     ) -> (V3<S>, u64) {
         let zero = s.zero();
         let one = s.splat(1.0);
-        let (u1, u2) = rng.draw2(s, lanes);
-        let Some(lamp) = self.lamp.as_ref() else {
+        if self.lamps.is_empty() {
+            let (u1, u2) = rng.draw2(s, lanes);
             return self.sample_env(s, (p, n), from, lanes, (u1, u2), (lobe, (spec, diff)));
+        }
+        // One light of several is chosen by a draw (`choose_light`); the lanes whose choice
+        // has no weight draw nothing more.
+        let several = self.lamps.len() > 1;
+        let (chosen, pmf, lanes) = if several {
+            let u = rng.draw(s, lanes);
+            let (chosen, pmf) = self.choose_light(s, u, p, n);
+            (chosen, pmf, lanes.without(pmf.le(zero)))
+        } else {
+            (s.int(0), one, lanes)
         };
-        let (dir, pdf, ok) = match &lamp.shape {
+        let (u1, u2) = rng.draw2(s, lanes);
+        let (mut dir, mut pdf, mut ok) = ([zero; 3], zero, s.mask(0));
+        let (mut radiance, mut index) = ([zero; 3], s.int(NONE));
+        for (i, lamp) in self.lamps.iter().enumerate() {
+            let this = if several {
+                lanes & chosen.eq(s.int(i as i32))
+            } else {
+                lanes
+            };
+            if !this.any() {
+                continue;
+            }
+            let (d, pd, good) = self.lamp_sample(s, lamp, p, (u1, u2));
+            for c in 0..3 {
+                dir[c] = dir[c].blend(d[c], this);
+                radiance[c] = radiance[c].blend(s.splat(lamp.radiance[c]), this);
+            }
+            pdf = pdf.blend(pd, this);
+            ok = ok | (good & this);
+            index = index.blend(s.int(lamp.index as i32), this);
+        }
+        let cos_s = dot(n, dir);
+        let mut ok = (ok & lanes) & cos_s.gt(zero);
+        let mut tests = 0;
+        if ok.any() {
+            let origin = offset_ray(s, p, n);
+            let (t_light, blocked) = if several {
+                let mut t_light = s.splat(NO_HIT);
+                for (i, lamp) in self.lamps.iter().enumerate() {
+                    let this = ok & chosen.eq(s.int(i as i32));
+                    if this.any() {
+                        t_light = t_light.blend(self.hit(s, lamp.index, origin, dir), this);
+                    }
+                }
+                let skip = (from, index);
+                let b = self.occluded(s, (origin, dir), t_light, usize::MAX, skip);
+                (t_light, b)
+            } else {
+                let lamp = &self.lamps[0];
+                let t_light = self.hit(s, lamp.index, origin, dir);
+                let none = s.int(NONE);
+                let b = self.occluded(s, (origin, dir), t_light, lamp.index, (from, none));
+                (t_light, b)
+            };
+            ok = (ok & t_light.gt(zero)).without(blocked);
+            tests = (lanes.bits().count_ones() as u64) * self.kinds.len() as u64;
+        }
+        // (1 − env_pick)·pmf·pdf, the map not picked here.
+        let pl = if several { pmf * pdf } else { pdf };
+        let l = light_weighted(s, radiance, (cos_s, dir, n), pl, (lobe, (spec, diff)));
+        (each!(|c| l[c].keep(ok)), tests)
+    }
+
+    /// `Tracer::light_weight` of every light at points `p` (facing shading normal `n`), and
+    /// their sum, in the lights' order (`choose_light`'s total).
+    #[inline(always)]
+    fn light_weights<S: Isa>(&self, s: S, p: V3<S>, n: V3<S>) -> ([F<S>; MAX_LAMPS], F<S>) {
+        let zero = s.zero();
+        let mut weights = [zero; MAX_LAMPS];
+        let mut total = zero;
+        for (i, lamp) in self.lamps.iter().enumerate() {
+            let to: V3<S> = each!(|c| s.splat(lamp.center[c]) - p[c]);
+            let d2 = dot(to, to);
+            let cos_t = dot(n, to) / d2.max(s.splat(1e-30)).sqrt();
+            let w = (s.splat(lamp.pmf) / d2.max(s.splat(lamp.r2)))
+                * (s.splat(super::trace::BACKFACE_WEIGHT) + cos_t.max(zero));
+            weights[i] = w;
+            total = total + w;
+        }
+        (weights, total)
+    }
+
+    /// `Tracer::choose_light` among several lights with draw `u` at points `p` (facing
+    /// shading normal `n`): the light whose running sum of weights first passes u × their
+    /// total (the last one else), and its weight's share.
+    #[inline(always)]
+    fn choose_light<S: Isa>(&self, s: S, u: F<S>, p: V3<S>, n: V3<S>) -> (I<S>, F<S>) {
+        let (weights, total) = self.light_weights(s, p, n);
+        let target = u * total;
+        let mut acc = s.zero();
+        let (mut chosen, mut pmf) = (s.int(NONE), s.zero());
+        let mut decided = s.mask(0);
+        let last = self.lamps.len() - 1;
+        for (i, &w) in weights.iter().enumerate().take(self.lamps.len()) {
+            acc = acc + w;
+            let here = if i == last {
+                !decided
+            } else {
+                acc.gt(target).without(decided)
+            };
+            chosen = chosen.blend(s.int(i as i32), here);
+            pmf = pmf.blend(w / total, here);
+            decided = decided | here;
+        }
+        (chosen, pmf)
+    }
+
+    /// A direction toward `lamp` from points `p` with draws (u1, u2) (`Tracer::sample_light`'s
+    /// shapes): the direction, its density in solid angle, and where the sample holds (the
+    /// point outside the sphere; the quad not seen edge-on).
+    #[inline(always)]
+    fn lamp_sample<S: Isa>(
+        &self,
+        s: S,
+        lamp: &Lamp,
+        p: V3<S>,
+        (u1, u2): (F<S>, F<S>),
+    ) -> (V3<S>, F<S>, M<S>) {
+        let (zero, one) = (s.zero(), s.splat(1.0));
+        match &lamp.shape {
             LampShape::Sphere { center, r2 } => {
                 let to: V3<S> = each!(|c| s.splat(center[c]) - p[c]);
                 let dist2 = dot(to, to);
@@ -1077,21 +1232,7 @@ impl Lanes {
                 let pdf = dist2 / (s.splat(*area) * cos_l);
                 (dir, pdf, cos_l.cmp::<_CMP_NLT_UQ>(s.splat(1e-6)))
             }
-        };
-        let cos_s = dot(n, dir);
-        let mut ok = (ok & lanes) & cos_s.gt(zero);
-        let mut tests = 0;
-        if ok.any() {
-            let origin = offset_ray(s, p, n);
-            let t_light = self.hit(s, lamp.index, origin, dir);
-            ok = ok & t_light.gt(zero);
-            let blocked = self.occluded(s, (origin, dir), t_light, lamp.index, from);
-            ok = ok.without(blocked);
-            tests = (lanes.bits().count_ones() as u64) * self.kinds.len() as u64;
         }
-        let radiance = lit(s, lamp.radiance);
-        let l = light_weighted(s, radiance, (cos_s, dir, n), pdf, (lobe, (spec, diff)));
-        (each!(|c| l[c].keep(ok)), tests)
     }
 
     /// `Tracer::sample_env` for the lanes of `lanes` at points `p` (facing normal `n`,
@@ -1136,7 +1277,8 @@ impl Lanes {
         let mut tests = 0;
         if ok.any() {
             let origin = offset_ray(s, p, n);
-            let blocked = self.occluded(s, (origin, dir), s.splat(T_FAR), usize::MAX, from);
+            let none = s.int(NONE);
+            let blocked = self.occluded(s, (origin, dir), s.splat(T_FAR), usize::MAX, (from, none));
             ok = ok.without(blocked);
             tests = (lanes.bits().count_ones() as u64) * self.kinds.len() as u64;
         }
@@ -1792,12 +1934,69 @@ ior = 1.5
 absorption = 0.1
 "##;
 
-    /// A shipped scene, or one of the test scenes `SHELL`, `GLASSY` and `MAPPED`.
+    /// Three lights of unequal power chosen among by light sampling (two spheres, one small
+    /// and bright, and a quad), a glowing box that is no light (its light is met, never
+    /// sampled), glossy lobes mixed and alone, glass, a dark sky.
+    const LAMPS: &str = r##"
+[camera]
+look_from = [0, 0.8, 2.8]
+look_at = [0, 0.1, -1]
+vfov = 60
+[render]
+max_bounces = 6
+[sky]
+uniform = [0.02, 0.02, 0.04]
+[[sphere]]
+center = [0, -100.5, -1]
+radius = 100
+color = "#8a8a84"
+[[sphere]]
+center = [-1.0, 0.1, -1.2]
+radius = 0.4
+color = "#d0200c"
+specular = 0.3
+smoothness = 0.8
+[[sphere]]
+center = [0.2, 0, -1.4]
+radius = 0.5
+smoothness = -1
+ior = 1.5
+[[sphere]]
+center = [1.1, 0, -1.1]
+radius = 0.45
+color = "#e0c080"
+specular = 1
+smoothness = 0.6
+[[sphere]]
+center = [-0.4, 0.9, -0.6]
+radius = 0.08
+color = [1.0, 0.7, 0.4]
+light = 40
+[[sphere]]
+center = [0.9, 1.2, -2.2]
+radius = 0.3
+color = [0.6, 0.8, 1.0]
+light = 3
+[[quad]]
+q = [-0.6, 2.2, -1.8]
+u = [1.2, 0, 0]
+v = [0, 0, 0.8]
+color = [1, 1, 1]
+light = 2
+[[box]]
+center = [0, -0.4, 0.2]
+half_extents = [0.25, 0.1, 0.15]
+color = [0.2, 1.0, 0.3]
+light = 2
+"##;
+
+    /// A shipped scene, or one of the test scenes `SHELL`, `GLASSY`, `MAPPED` and `LAMPS`.
     fn scene(name: &str) -> Scene {
         match name {
             "shell" => Scene::from_toml(SHELL, "shell").unwrap(),
             "glassy" => Scene::from_toml(GLASSY, "glassy").unwrap(),
             "mapped" => Scene::from_toml(MAPPED, "mapped").unwrap(),
+            "lamps" => Scene::from_toml(LAMPS, "lamps").unwrap(),
             _ => Scene::load(name).unwrap(),
         }
     }
@@ -1891,7 +2090,9 @@ absorption = 0.1
             let scene = scene(name);
             cases.push((name, Features::of(&scene), scene));
         }
-        for name in ["lamp", "cornell", "glassy", "showcase", "mapped", "outdoor"] {
+        for name in [
+            "lamp", "cornell", "glassy", "showcase", "mapped", "outdoor", "lamps", "emissive",
+        ] {
             let scene = scene(name);
             let f = Features::of(&scene);
             cases.push((name, Features { nee: false, ..f }, scene.clone()));
@@ -1977,9 +2178,8 @@ absorption = 0.1
     fn lanes_trace_what_they_can_and_leave_out_the_rest() {
         let settings = FrameSettings::new(16, 16, 8, 1);
         let has = std::arch::is_x86_feature_detected!("avx2");
-        // Many primitives, several lights, the mirror and lens samplers, triangles, glTF's
-        // BRDF.
-        for name in ["weekend", "emissive", "outdoor-caustics", "mesh", "pbr"] {
+        // Many primitives, the mirror and lens samplers, triangles, glTF's BRDF.
+        for name in ["weekend", "outdoor-caustics", "mesh", "pbr"] {
             let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);
             assert!(Lanes::of(&s, Features::of(&scene)).is_none(), "{name}");
@@ -1998,6 +2198,8 @@ absorption = 0.1
             "showcase",
             "outdoor",
             "mapped",
+            "lamps",
+            "emissive",
         ] {
             let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);

@@ -43,7 +43,7 @@ const NONE: u32 = u32::MAX;
 const RR_START: u32 = 3;
 const RR_MAX_SURVIVAL: f32 = 0.95;
 const LOCAL_SELECTION_MAX: u32 = 32;
-const BACKFACE_WEIGHT: f32 = 0.1;
+pub(super) const BACKFACE_WEIGHT: f32 = 0.1;
 
 /// Where a textured hit read its maps: its texture record, barycentrics and coordinates.
 #[derive(Clone, Copy)]
