@@ -2,11 +2,11 @@
 //! for scenes of a few primitives (spheres, quads, boxes: at most eight) of the lecture's
 //! materials (its lobes, certain or drawn, light sampling weighing the glossy one too, and its
 //! glass) under the sky and its sun or an environment map, lit by them and by at most
-//! `MAX_LAMPS` lights (not both lights and a map), with or without light sampling: `Tracer::trace_path`'s
-//! arithmetic for those scenes, operation for operation in
-//! the same order (glam's dot is (x·x′ + y·y′) + z·z′, its cross the textbook one, its
-//! normalize a division by the square root, nothing fused), so that each lane's path is the
-//! scalar one bit for bit; tested against it on every lane, at both widths. The scalar loop
+//! `MAX_LAMPS` lights (not both lights and a map), with or without light sampling:
+//! `Tracer::trace_path`'s arithmetic for those scenes, operation for operation in the same
+//! order (glam's dot is (x·x′ + y·y′) + z·z′, its cross the textbook one, its normalize a
+//! division by the square root, nothing fused), so that each lane's path is the scalar one
+//! bit for bit; tested against it on every lane, at both widths. The scalar loop
 //! runs one path's dependent chain of divisions and square roots at a time; here a vector's
 //! worth run side by side, every primitive tested against all their rays at once (the
 //! wavefront of Laine, Karras and Aila, "Megakernels Considered Harmful", HPG 2013, kept in
