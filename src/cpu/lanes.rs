@@ -376,6 +376,7 @@ impl Lanes {
             if m.pbr {
                 return None;
             }
+            l.slot[k] = m.light_slot as f32;
             for c in 0..3 {
                 l.color[c][k] = m.color[c];
             }
@@ -411,9 +412,6 @@ impl Lanes {
                 && m.absorption == 0.0;
             l.glossy[k] = flag(glossy);
             l.mixed[k] = flag(glossy && m.specular < 1.0);
-        }
-        for (k, &mat) in materials.iter().enumerate() {
-            l.slot[k] = s.materials[mat as usize].light_slot as f32;
         }
         // Light sampling runs where the scene has lights and the settings ask for it
         // (`trace_path`'s `nee`).
@@ -720,10 +718,15 @@ impl Lanes {
         let glossy = flagged(s, &self.glossy, idx) & surface;
         let weighs = flagged(s, &self.flat, idx) | glossy;
         let sampled = surface.without(spec.without(weighs));
+        // The mirror direction (`reflect(d, n)`): the glossy lobe's axis, the specular lobe's
+        // and glass's reflection.
+        let dn = s.splat(2.0) * dot(*d, nf);
+        let reflected: V3<S> = each!(|c| d[c] - dn * nf[c]);
+        let mixed = flagged(s, &self.mixed, idx);
         let lobe = Lobe {
-            gloss: glossy.without(flagged(s, &self.mixed, idx)),
-            mixed: glossy & flagged(s, &self.mixed, idx),
-            r: each!(|c| d[c] - (s.splat(2.0) * dot(*d, nf)) * nf[c]),
+            gloss: glossy.without(mixed),
+            mixed: glossy & mixed,
+            r: reflected,
             smooth: F::pick(&self.smooth, idx),
             p: F::pick(&self.p_spec, idx),
         };
@@ -748,9 +751,8 @@ impl Lanes {
         let unit = random_unit_vector(s, u, v);
         let diffuse = normalize_or(s, each!(|c| nf[c] + unit[c]), nf);
         let mut dir = if spec.any() {
-            let dn = s.splat(2.0) * dot(*d, nf);
-            let (smooth, rough) = (F::pick(&self.smooth, idx), F::pick(&self.rough, idx));
-            let mut mirror: V3<S> = each!(|c| d[c] - dn * nf[c]);
+            let (smooth, rough) = (lobe.smooth, F::pick(&self.rough, idx));
+            let mut mirror = reflected;
             let fuzz = F::pick(&self.fuzz, idx);
             let fuzzed = fuzz.gt(zero) & spec;
             let fuzzy = fuzzed.bits();
@@ -769,7 +771,7 @@ impl Lanes {
             diffuse
         };
         if glass.any() {
-            let through = self.refract(s, (*d, nf, front), idx, glass, &mut p.rng);
+            let through = self.refract(s, (*d, nf, front), reflected, (idx, glass), &mut p.rng);
             for c in 0..3 {
                 dir[c] = dir[c].blend(through[c], glass);
             }
@@ -1345,8 +1347,7 @@ impl Lanes {
             let mut l = Vec3A::from_array(env.map.radiance_at(cu, cv)) * env.intensity;
             if weighs && prev[k] > 0.0 {
                 let pl = env.pick * env.map.distribution.pdf_at(cu, cv);
-                let a2 = prev[k] * prev[k];
-                l *= a2 / (a2 + pl * pl);
+                l *= super::trace::power_heuristic(prev[k], pl);
             }
             for (c, o) in out.iter_mut().enumerate() {
                 o[k] = l[c];
@@ -1356,16 +1357,17 @@ impl Lanes {
     }
 
     /// `scatter_dielectric`'s direction for the rays `d` meeting glass in the lanes of `glass`
-    /// (facing normal `n`, from the front where `front`): reflected by total internal
-    /// reflection or with Schlick's probability, else refracted (a ratio of exactly 1 lets
-    /// the ray through, and draws nothing), then fuzzed where the glass has absorption.
+    /// (facing normal `n`, from the front where `front`; `reflected` is `reflect(d, n)`):
+    /// reflected by total internal reflection or with Schlick's probability, else refracted
+    /// (a ratio of exactly 1 lets the ray through, and draws nothing), then fuzzed where the
+    /// glass has absorption.
     #[inline(always)]
     fn refract<S: Isa>(
         &self,
         s: S,
         (d, n, front): (V3<S>, V3<S>, M<S>),
-        idx: I<S>,
-        glass: M<S>,
+        reflected: V3<S>,
+        (idx, glass): (I<S>, M<S>),
         rng: &mut Draws<S>,
     ) -> V3<S> {
         let (zero, one) = (s.zero(), s.splat(1.0));
@@ -1385,8 +1387,7 @@ impl Lanes {
             let fresnel = r0 + (one - r0) * ((x2 * x2) * x);
             let reflects = (ratio * sin_t).gt(one) | fresnel.gt(u);
             // `reflect(d, n).normalize()` and `refract_dir(d, n, cos_t, ratio).normalize()`.
-            let dn = s.splat(2.0) * dot(d, n);
-            let mirror = normalize(each!(|c| d[c] - dn * n[c]));
+            let mirror = normalize(reflected);
             let perp: V3<S> = each!(|c| ratio * (d[c] + cos_t * n[c]));
             let k = -((one - dot(perp, perp)).abs().sqrt());
             let bent = normalize(each!(|c| perp[c] + k * n[c]));

@@ -194,7 +194,7 @@ struct LensPath {
     inner: u8,
 }
 
-fn power_heuristic(a: f32, b: f32) -> f32 {
+pub(super) fn power_heuristic(a: f32, b: f32) -> f32 {
     let a2 = a * a;
     a2 / (a2 + b * b)
 }
