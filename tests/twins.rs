@@ -142,7 +142,7 @@ const TWINS: &[Twin] = &[
         prefix: "tex_",
         // The GPU reads typed words one by one; the host decodes them into arrays.
         wgsl_only: &["f32", "texel", "vec3"],
-        rust_only: &["decode", "f", "wrapped"],
+        rust_only: &["decode", "f", "may_emit", "wrapped"],
     },
     Twin {
         wgsl: "shaders/trace.wgsl",
@@ -183,6 +183,8 @@ const TWINS: &[Twin] = &[
             "hit_except",
             "intersect",
             "leaving",
+            "met",
+            "nearest",
             "new",
             "trace_path",
             "walk_closest",

@@ -24,10 +24,10 @@
 
 use super::draws::Draws;
 use super::fixed::FIXED_MAX;
-use super::intersect::NO_HIT;
+use super::intersect::{NO_HIT, Ray};
 use super::scene::CpuScene;
 use super::simd::{Avx2, Avx512, F, I, Isa, M, MAX_LANES, Make, Row};
-use super::trace::T_FAR;
+use super::trace::{ANY, T_FAR, Tracer};
 use crate::common::Features;
 use crate::common::arrays::{ENV_NONE, ENV_VISIBLE, REF_INDEX};
 use crate::scene::envmap::EnvMap;
@@ -35,6 +35,7 @@ use crate::scene::envmap_sampling::coordinates;
 use glam::Vec3A;
 use std::arch::x86_64::{_CMP_EQ_OQ, _CMP_NGE_UQ, _CMP_NLE_UQ, _CMP_NLT_UQ};
 use std::array::from_fn;
+use std::cell::RefCell;
 use std::f32::consts::PI;
 
 /// `[e(0), e(1), e(2)]`, written out. The lanes' code takes no closures: one
@@ -73,7 +74,7 @@ macro_rules! entry {
             samples: std::ops::Range<u32>,
             seed: u32,
             done: impl FnMut(usize, u32, Traced),
-        ) -> u64 {
+        ) -> (u64, u64) {
             self.trace_in(s, at, n, samples, seed, done)
         }
     };
@@ -107,7 +108,7 @@ type V3<S> = [F<S>; 3];
 /// boxes), its shape's parameters and its material's, as tables that a lane's primitive
 /// index permutes. Built per row from the scene (a few primitives: nothing to keep in step
 /// with edits).
-pub struct Lanes {
+pub struct Lanes<'a> {
     /// The instruction sets: AVX2 for eight lanes, and AVX-512 for sixteen where the CPU
     /// has it (`None` traces eight).
     narrow: Avx2,
@@ -174,6 +175,24 @@ pub struct Lanes {
     sky_top: [f32; 3],
     max_bounces: u32,
     camera: Camera,
+    /// A scene the lanes do not test whole, where each lane's ray walks the scalar
+    /// tracer's tree (then the tables hold the materials, in the scene's order).
+    walk: Option<Walk<'a>>,
+}
+
+/// A scene of triangles, or of more than `MAX_PRIMITIVES` primitives: each lane's ray walks
+/// the scalar tracer's tree, and what it meets there (the surface, a texture's colour, the
+/// shading normal) is the scalar tracer's, lane by lane (`Tracer::nearest`, `Tracer::met`,
+/// `Tracer::occluded`); the rest of the path runs in lanes. A lane's walk is one ray's, as
+/// Embree's single-ray kernels walk the incoherent rays of a path tracer (Wald et al.,
+/// "Embree: A Kernel Framework for Efficient CPU Ray Tracing", SIGGRAPH 2014).
+struct Walk<'a> {
+    tracer: RefCell<Tracer<'a>>,
+    /// Per material of the scene, its row of the tables.
+    rows: Vec<i32>,
+    /// Whether the scene has shading normals (smooth or mapped): light sampling and the
+    /// lobes then read the shading normal, and a direction below the surface ends the path.
+    normals: bool,
 }
 
 /// The camera as `Tracer::camera_ray` reads it (`GpuUniforms`): the image's size, the
@@ -244,26 +263,35 @@ pub struct Traced {
     pub state: u32,
 }
 
-impl Lanes {
+impl<'a> Lanes<'a> {
     /// The lanes for `s` traced with features `f`, where they apply: a CPU with AVX2, one to
-    /// `MAX_PRIMITIVES` spheres, quads and boxes (no triangles), every material an emitter,
-    /// the lecture's glass, or its surface (lobes certain or drawn, fuzzed or not), at most
-    /// `MAX_LAMPS` lights, or a map and no light, and neither glTF's BRDF nor the mirror and
-    /// lens samplers. The camera rays, a lens's included, are made in lanes too.
-    pub fn of(s: &CpuScene, f: Features) -> Option<Lanes> {
+    /// `MAX_PRIMITIVES` spheres, quads and boxes, every material an emitter, the lecture's
+    /// glass, or its surface (lobes certain or drawn, fuzzed or not), at most `MAX_LAMPS`
+    /// lights, or a map and no light, and neither glTF's BRDF nor the mirror and lens
+    /// samplers; or a walk (`Walk`) of any number of spheres, quads, boxes and triangles
+    /// (textured, smooth or normal-mapped) of materials that differ in at most
+    /// `MAX_PRIMITIVES` ways but for their colour, no emitter, no instance, no light. The camera rays, a lens's included, are made in lanes too.
+    pub fn of(s: &'a CpuScene, f: Features) -> Option<Lanes<'a>> {
         let narrow = Avx2::new()?;
-        let plain =
-            !(f.triangles || f.instances || f.textures || f.pbr || f.mirror_nee || f.lens_nee);
         let count = s.spheres.len() + s.quads.len() + s.boxes.len();
+        let walks = !s.triangles.is_empty() || count > MAX_PRIMITIVES;
+        let plain = !(f.instances || f.pbr || f.mirror_nee || f.lens_nee)
+            && (walks || !(f.triangles || f.textures));
         if !plain
-            || !s.triangles.is_empty()
             || !s.instances.is_empty()
-            || count == 0
-            || count > MAX_PRIMITIVES
+            || count + s.triangles.len() == 0
             || s.u.n_lights as usize > MAX_LAMPS
             || (f.env_map && s.env.is_some() && s.u.n_lights > 0)
-            || s.shading_normals()
+            || (s.shading_normals() && !walks)
+            || (walks && s.u.n_lights > 0)
         {
+            return None;
+        }
+        // A textured material that may emit is left to the scalar tracer.
+        let lit_by_texture = |m: u32| {
+            super::texture::record(&s.tex, m).is_some_and(|r| super::texture::may_emit(&s.tex, r))
+        };
+        if walks && !s.tex.is_empty() && (0..s.materials.len() as u32).any(lit_by_texture) {
             return None;
         }
         let row = [0.0; MAX_LANES];
@@ -329,10 +357,17 @@ impl Lanes {
                 v: s.u.cam_v.to_array(),
                 lens_radius: if f.dof { s.u.lens_radius.max(0.0) } else { 0.0 },
             },
+            walk: None,
         };
         let flag = |b: bool| if b { 1.0 } else { 0.0 };
         let mut materials = Vec::with_capacity(count);
-        for (k, sp) in s.spheres.iter().enumerate() {
+        // The primitives' tables (a walk's tree holds its primitives).
+        let (spheres, quads, boxes) = if walks {
+            (&[][..], &[][..], &[][..])
+        } else {
+            (&s.spheres[..], &s.quads[..], &s.boxes[..])
+        };
+        for (k, sp) in spheres.iter().enumerate() {
             let r = sp.radius.abs();
             for c in 0..3 {
                 l.anchor[c][k] = sp.anchor[c];
@@ -346,7 +381,7 @@ impl Lanes {
             l.kinds.push(Kind::Sphere);
             materials.push(sp.material);
         }
-        for q in &s.quads {
+        for q in quads {
             let k = l.kinds.len();
             for (t, v) in l.quad.iter_mut().zip([q.q, q.u, q.v, q.normal, q.w]) {
                 for c in 0..3 {
@@ -356,7 +391,7 @@ impl Lanes {
             l.kinds.push(Kind::Quad);
             materials.push(q.material);
         }
-        for b in &s.boxes {
+        for b in boxes {
             let k = l.kinds.len();
             for c in 0..3 {
                 l.center[c][k] = b.center[c];
@@ -371,47 +406,36 @@ impl Lanes {
         for (k, &kind) in l.kinds.iter().enumerate() {
             l.of_kind[kind as usize][k] = 1.0;
         }
+        // A walk's rows are its materials', one row for those that differ in their colour
+        // alone (a walk's colour is the hit's).
+        let mut rows = Vec::new();
+        if walks {
+            let mut kept: Vec<Entry> = Vec::new();
+            for m in &s.materials {
+                let e = Entry::of(m, f)?;
+                if e.emits != 0.0 {
+                    return None;
+                }
+                let key = Entry {
+                    color: [0.0; 3],
+                    ..e
+                };
+                let row = match kept.iter().position(|k| *k == key) {
+                    Some(row) => row,
+                    None if kept.len() < MAX_PRIMITIVES => {
+                        kept.push(key);
+                        kept.len() - 1
+                    }
+                    None => return None,
+                };
+                rows.push(row as i32);
+            }
+            for (k, e) in kept.iter().enumerate() {
+                l.put(k, e);
+            }
+        }
         for (k, &mat) in materials.iter().enumerate() {
-            let m = s.materials.get(mat as usize)?;
-            if m.pbr {
-                return None;
-            }
-            l.slot[k] = m.light_slot as f32;
-            for c in 0..3 {
-                l.color[c][k] = m.color[c];
-            }
-            l.light[k] = m.light;
-            if f.emitters && m.light > 0.0 {
-                // An emitter ends the path where it is met, whatever its other keys.
-                l.emits[k] = 1.0;
-                continue;
-            }
-            l.fuzz[k] = m.absorption;
-            if f.dielectrics && m.smoothness < 0.0 {
-                l.glass[k] = 1.0;
-                l.ior[k] = m.ior;
-                l.inv_ior[k] = 1.0 / m.ior;
-                continue;
-            }
-            if m.smoothness < 0.0 {
-                return None;
-            }
-            for c in 0..3 {
-                l.spec_color[c][k] = m.specular_color[c];
-            }
-            l.certain[k] = flag(m.specular >= 1.0);
-            l.maybe[k] = flag(m.specular > 0.0 && m.specular < 1.0);
-            l.p_spec[k] = m.specular;
-            l.smooth[k] = m.smoothness;
-            l.rough[k] = 1.0 - m.smoothness;
-            l.flat[k] = flag(m.smoothness == 0.0);
-            let glossy = f.gloss_nee
-                && m.specular > 0.0
-                && m.smoothness > 0.0
-                && m.smoothness < 1.0
-                && m.absorption == 0.0;
-            l.glossy[k] = flag(glossy);
-            l.mixed[k] = flag(glossy && m.specular < 1.0);
+            l.put(k, &Entry::of(s.materials.get(mat as usize)?, f)?);
         }
         // Light sampling runs where the scene has lights and the settings ask for it
         // (`trace_path`'s `nee`).
@@ -453,11 +477,113 @@ impl Lanes {
             });
         }
         l.nee = f.nee && (!l.lamps.is_empty() || l.env.as_ref().is_some_and(|e| e.pick > 0.0));
+        l.walk = walks.then(|| Walk {
+            tracer: RefCell::new(Tracer::new(s, f)),
+            rows,
+            normals: s.shading_normals(),
+        });
         Some(l)
     }
 }
 
-impl Lanes {
+/// A material as the tables hold it (`Lanes::put`): whether it emits, its colour and
+/// light; whether its specular lobe is certain or drawn, with what probability, its
+/// smoothness s and 1 − s, whether s is 0, the lobe's tint and fuzz; whether light sampling
+/// weighs the glossy lobe, alone or mixed; glass and its index; its light slot.
+#[derive(Clone, Copy, PartialEq, Default)]
+struct Entry {
+    emits: f32,
+    color: [f32; 3],
+    light: f32,
+    certain: f32,
+    maybe: f32,
+    p_spec: f32,
+    smooth: f32,
+    rough: f32,
+    flat: f32,
+    spec_color: [f32; 3],
+    fuzz: f32,
+    glossy: f32,
+    mixed: f32,
+    glass: f32,
+    ior: f32,
+    inv_ior: f32,
+    slot: f32,
+}
+
+impl Entry {
+    /// Material `m` traced with features `f`, where the lanes trace it (not glTF's BRDF, nor
+    /// a smoothness below 0 without glass).
+    fn of(m: &super::scene::Material, f: Features) -> Option<Entry> {
+        let flag = |b: bool| if b { 1.0 } else { 0.0 };
+        if m.pbr {
+            return None;
+        }
+        let mut e = Entry {
+            slot: m.light_slot as f32,
+            color: m.color.to_array(),
+            light: m.light,
+            ..Entry::default()
+        };
+        if f.emitters && m.light > 0.0 {
+            // An emitter ends the path where it is met, whatever its other keys.
+            e.emits = 1.0;
+            return Some(e);
+        }
+        e.fuzz = m.absorption;
+        if f.dielectrics && m.smoothness < 0.0 {
+            e.glass = 1.0;
+            e.ior = m.ior;
+            e.inv_ior = 1.0 / m.ior;
+            return Some(e);
+        }
+        if m.smoothness < 0.0 {
+            return None;
+        }
+        e.spec_color = m.specular_color.to_array();
+        e.certain = flag(m.specular >= 1.0);
+        e.maybe = flag(m.specular > 0.0 && m.specular < 1.0);
+        e.p_spec = m.specular;
+        e.smooth = m.smoothness;
+        e.rough = 1.0 - m.smoothness;
+        e.flat = flag(m.smoothness == 0.0);
+        let glossy = f.gloss_nee
+            && m.specular > 0.0
+            && m.smoothness > 0.0
+            && m.smoothness < 1.0
+            && m.absorption == 0.0;
+        e.glossy = flag(glossy);
+        e.mixed = flag(glossy && m.specular < 1.0);
+        Some(e)
+    }
+}
+
+impl Lanes<'_> {
+    /// Material entry `e` into row k of the tables.
+    fn put(&mut self, k: usize, e: &Entry) {
+        for c in 0..3 {
+            self.color[c][k] = e.color[c];
+            self.spec_color[c][k] = e.spec_color[c];
+        }
+        self.emits[k] = e.emits;
+        self.light[k] = e.light;
+        self.certain[k] = e.certain;
+        self.maybe[k] = e.maybe;
+        self.p_spec[k] = e.p_spec;
+        self.smooth[k] = e.smooth;
+        self.rough[k] = e.rough;
+        self.flat[k] = e.flat;
+        self.fuzz[k] = e.fuzz;
+        self.glossy[k] = e.glossy;
+        self.mixed[k] = e.mixed;
+        self.glass[k] = e.glass;
+        self.ior[k] = e.ior;
+        self.inv_ior[k] = e.inv_ior;
+        self.slot[k] = e.slot;
+    }
+}
+
+impl Lanes<'_> {
     /// Pixels traced side by side: sixteen on AVX-512, else eight.
     pub fn width(&self) -> usize {
         if self.wide.is_some() {
@@ -473,7 +599,8 @@ impl Lanes {
     /// and the path (`Traced`), with seed `seed`'s samplers. A lane whose path ends
     /// starts its pixel's next sample at once (path regeneration: Novák, Havran and
     /// Dachsbacher, "Path Regeneration for Interactive Path Tracing", Eurographics 2010), so
-    /// the lanes stay busy while the paths' lengths differ. Returns the primitive tests made.
+    /// the lanes stay busy while the paths' lengths differ. Returns the tree's nodes visited
+    /// (a walk's) and the primitive tests made.
     pub fn trace(
         &self,
         at: (u32, u32, u32),
@@ -481,7 +608,7 @@ impl Lanes {
         samples: std::ops::Range<u32>,
         seed: u32,
         done: impl FnMut(usize, u32, Traced),
-    ) -> u64 {
+    ) -> (u64, u64) {
         match self.wide {
             // SAFETY: the token says the CPU has AVX-512 F, DQ and BW, `narrow` AVX and AVX2.
             Some(s) => unsafe { self.trace_avx512(s, at, n, samples, seed, done) },
@@ -515,7 +642,7 @@ impl Lanes {
         samples: std::ops::Range<u32>,
         seed: u32,
         mut done: impl FnMut(usize, u32, Traced),
-    ) -> u64 {
+    ) -> (u64, u64) {
         debug_assert!(n <= S::N);
         let (zero, one) = (s.zero(), s.splat(1.0));
         let pixel = s.ints(&from_fn(|k| (y * width + x0 + k as u32) as i32));
@@ -597,7 +724,13 @@ impl Lanes {
                 }
             }
         }
-        tests
+        match &self.walk {
+            Some(w) => {
+                let tally = std::mem::take(&mut w.tracer.borrow_mut().tally);
+                (tally.visits, tests + tally.tests)
+            }
+            None => (0, tests),
+        }
     }
 
     /// `Tracer::camera_ray` of the lanes of `m`, at columns `x` of row `y`: the jitter in the
@@ -644,8 +777,13 @@ impl Lanes {
         let live = s.mask(active);
         p.segments = p.segments.count(live);
         *tests += (active.count_ones() as u64) * self.kinds.len() as u64;
-        let (best, index) = self.closest(s, *o, *d, p.skip);
-        let found = index.gt(s.int(NONE));
+        let (best, index, found) = match &self.walk {
+            Some(w) => w.closest(s, (*o, *d), p.skip, live),
+            None => {
+                let (best, index) = self.closest(s, *o, *d, p.skip);
+                (best, index, index.gt(s.int(NONE)))
+            }
+        };
         let missed = live.without(found);
         if missed.any() {
             let sky = match &self.env {
@@ -661,8 +799,25 @@ impl Lanes {
         if !hit.any() {
             return 0;
         }
-        let idx = index.max(s.int(0));
-        let (position, n_out) = self.surface(s, *o, *d, best, idx);
+        // The tables' row (a primitive's; a walk's material), the primitive, the point and
+        // geometric normal, and a walk's colour and shading normal.
+        let (idx, prim, position, n_out, met) = match &self.walk {
+            Some(w) => {
+                let m = w.surface(s, (*o, *d), (best, index), hit);
+                (
+                    m.material,
+                    index,
+                    m.position,
+                    m.normal,
+                    Some((m.color, m.shading)),
+                )
+            }
+            None => {
+                let idx = index.max(s.int(0));
+                let (position, n_out) = self.surface(s, *o, *d, best, idx);
+                (idx, idx, position, n_out, None)
+            }
+        };
         // An emitter: its light, weighed against light sampling where the last lobe's
         // density is known, and the path ends.
         let emits = flagged(s, &self.emits, idx) & hit;
@@ -698,9 +853,14 @@ impl Lanes {
         if on == 0 {
             return 0;
         }
-        // The facing normal.
+        // The facing normal, and the shading normal on its side.
         let front = dot(*d, n_out).lt(zero);
         let nf = each!(|c| (-n_out[c]).blend(n_out[c], front));
+        let normals = self.walk.as_ref().is_some_and(|w| w.normals);
+        let ns = match met {
+            Some((_, shading)) if normals => shading,
+            _ => nf,
+        };
         let glass = flagged(s, &self.glass, idx) & hit;
         let surface = hit.without(glass);
         // The lobe (`trace_path`'s is_spec): the specular one where it is certain, or drawn
@@ -711,7 +871,11 @@ impl Lanes {
             let u = p.rng.draw(s, maybe);
             spec = spec | (maybe & u.lt(F::pick(&self.p_spec, idx)));
         }
-        let (color, spec_color) = (pick3(&self.color, idx), pick3(&self.spec_color, idx));
+        let color = match met {
+            Some((color, _)) => color,
+            None => pick3(&self.color, idx),
+        };
+        let spec_color = pick3(&self.spec_color, idx);
         let tint = each!(|c| color[c].blend(spec_color[c], spec));
         // The lobes light sampling weighs: the diffuse one, the specular one at smoothness 0,
         // and the glossy one, alone or mixed with the diffuse one (`Weighed`).
@@ -719,9 +883,9 @@ impl Lanes {
         let weighs = flagged(s, &self.flat, idx) | glossy;
         let sampled = surface.without(spec.without(weighs));
         // The mirror direction (`reflect(d, n)`): the glossy lobe's axis, the specular lobe's
-        // and glass's reflection.
-        let dn = s.splat(2.0) * dot(*d, nf);
-        let reflected: V3<S> = each!(|c| d[c] - dn * nf[c]);
+        // and glass's reflection (about the shading normal, glass's about the geometric one).
+        let dn = s.splat(2.0) * dot(*d, ns);
+        let reflected: V3<S> = each!(|c| d[c] - dn * ns[c]);
         let mixed = flagged(s, &self.mixed, idx);
         let lobe = Lobe {
             gloss: glossy.without(mixed),
@@ -734,10 +898,10 @@ impl Lanes {
         // cannot meet the primitive it leaves (`leaving(hit, front)`). The mixture's tints
         // are its own.
         if nee && sampled.any() {
-            let from = self.leaving(s, idx, front);
+            let from = self.leaving(s, prim, front, sampled);
             let tints = (spec_color, color);
-            let (l, t) =
-                self.sample_light(s, (position, nf), from, sampled, (&lobe, tints), &mut p.rng);
+            let at = (position, ns, nf);
+            let (l, t) = self.sample_light(s, at, from, sampled, (&lobe, tints), &mut p.rng);
             *tests += t;
             for c in 0..3 {
                 let add = (throughput[c] * tint[c].blend(one, lobe.mixed)) * l[c];
@@ -749,7 +913,7 @@ impl Lanes {
         // smoothness (`Vec3A::lerp`) and normalized again.
         let (u, v) = p.rng.draw2(s, surface);
         let unit = random_unit_vector(s, u, v);
-        let diffuse = normalize_or(s, each!(|c| nf[c] + unit[c]), nf);
+        let diffuse = normalize_or(s, each!(|c| ns[c] + unit[c]), ns);
         let mut dir = if spec.any() {
             let (smooth, rough) = (lobe.smooth, F::pick(&self.rough, idx));
             let mut mirror = reflected;
@@ -759,36 +923,47 @@ impl Lanes {
             if fuzzy != 0 {
                 let (u, v) = p.rng.draw2(s, fuzzed);
                 let unit = random_unit_vector(s, u, v);
-                let moved = normalize_or(s, each!(|c| mirror[c] + fuzz * unit[c]), nf);
+                let moved = normalize_or(s, each!(|c| mirror[c] + fuzz * unit[c]), ns);
                 for c in 0..3 {
                     mirror[c] = mirror[c].blend(moved[c], fuzzed);
                 }
             }
             let blend: V3<S> = each!(|c| diffuse[c] * rough + mirror[c] * smooth);
-            let specular = normalize_or(s, blend, nf);
+            let specular = normalize_or(s, blend, ns);
             each!(|c| diffuse[c].blend(specular[c], spec))
         } else {
             diffuse
         };
         if glass.any() {
-            let through = self.refract(s, (*d, nf, front), reflected, (idx, glass), &mut p.rng);
+            let mirror = if normals {
+                let dn = s.splat(2.0) * dot(*d, nf);
+                each!(|c| d[c] - dn * nf[c])
+            } else {
+                reflected
+            };
+            let through = self.refract(s, (*d, nf, front), mirror, (idx, glass), &mut p.rng);
             for c in 0..3 {
                 dir[c] = dir[c].blend(through[c], glass);
             }
         }
-        // Absorbed where dir·n <= 0 (a NaN goes on, as in `scatter_surface`); glass never.
-        let mut kept = (dot(dir, nf).cmp::<_CMP_NLE_UQ>(zero) & surface) | glass;
+        // Absorbed where dir·n <= 0 (a NaN goes on, as in `scatter_surface`), and with shading
+        // normals where the direction enters the surface; glass never.
+        let mut stays = dot(dir, ns).cmp::<_CMP_NLE_UQ>(zero);
+        if normals {
+            stays = stays & dot(dir, nf).cmp::<_CMP_NLE_UQ>(zero);
+        }
+        let mut kept = (stays & surface) | glass;
         if nee {
             // `lobe_pdf`.
-            let cosine = dot(dir, nf).max(zero) / s.splat(PI);
+            let cosine = dot(dir, ns).max(zero) / s.splat(PI);
             let mut pdf = cosine;
             if glossy.any() {
-                let g = gloss_pdf(s, dir, nf, lobe.r, lobe.smooth);
+                let g = gloss_pdf(s, dir, ns, lobe.r, lobe.smooth);
                 let mix = lobe.p * g + (one - lobe.p) * cosine;
                 pdf = pdf.blend(g, lobe.gloss).blend(mix, lobe.mixed);
             }
             p.prev_pdf = p.prev_pdf.blend(pdf.keep(sampled), hit);
-            for (prev, n) in p.prev_normal.iter_mut().zip(nf) {
+            for (prev, n) in p.prev_normal.iter_mut().zip(ns) {
                 *prev = prev.blend(n, sampled);
             }
         }
@@ -817,7 +992,7 @@ impl Lanes {
         // origin moved off the surface (`offset_ray`).
         let out = dot(dir, n_out).gt(zero);
         let side = each!(|c| (-n_out[c]).blend(n_out[c], out));
-        p.skip = p.skip.blend(self.leaving(s, idx, out), kept);
+        p.skip = p.skip.blend(self.leaving(s, prim, out, kept), kept);
         let moved = offset_ray(s, position, side);
         for c in 0..3 {
             o[c] = o[c].blend(moved[c], kept);
@@ -843,7 +1018,8 @@ impl Lanes {
         (best, index)
     }
 
-    /// Whether each ray meets any primitive but `skip` and `from` before `t_max`.
+    /// Whether each ray meets any primitive but `skip` and `from` before `t_max` (a walk's,
+    /// in the lanes of `lanes`).
     #[inline(always)]
     fn occluded<S: Isa>(
         &self,
@@ -852,7 +1028,11 @@ impl Lanes {
         t_max: F<S>,
         skip: usize,
         (from, also): (I<S>, I<S>),
+        lanes: M<S>,
     ) -> M<S> {
+        if let Some(w) = &self.walk {
+            return w.occluded(s, (o, d), t_max, from, lanes);
+        }
         let mut blocked = s.mask(0);
         for k in (0..self.kinds.len()).filter(|&k| k != skip) {
             let t = self.hit(s, k, o, d);
@@ -1015,9 +1195,13 @@ impl Lanes {
 
     /// The primitive a ray leaving `idx` on its outer side (`out`) or inner side cannot meet
     /// next (`Tracer::leaving`): a sphere where it leaves the side its normal points to, a
-    /// quad always, a box where it leaves outward.
+    /// quad always, a box where it leaves outward (a triangle always: a walk's, in the lanes
+    /// of `lanes`).
     #[inline(always)]
-    fn leaving<S: Isa>(&self, s: S, idx: I<S>, out: M<S>) -> I<S> {
+    fn leaving<S: Isa>(&self, s: S, idx: I<S>, out: M<S>, lanes: M<S>) -> I<S> {
+        if let Some(w) = &self.walk {
+            return w.leaving(s, idx, out, lanes);
+        }
         // (`outward` is 0 but for the spheres.)
         let outward = flagged(s, &self.outward, idx);
         let same = !out.xor(outward);
@@ -1074,7 +1258,7 @@ impl Lanes {
     fn sample_light<S: Isa>(
         &self,
         s: S,
-        (p, n): (V3<S>, V3<S>),
+        (p, n, ng): (V3<S>, V3<S>, V3<S>),
         from: I<S>,
         lanes: M<S>,
         (lobe, (spec, diff)): (&Lobe<S>, (V3<S>, V3<S>)),
@@ -1084,7 +1268,7 @@ impl Lanes {
         let one = s.splat(1.0);
         if self.lamps.is_empty() {
             let (u1, u2) = rng.draw2(s, lanes);
-            return self.sample_env(s, (p, n), from, lanes, (u1, u2), (lobe, (spec, diff)));
+            return self.sample_env(s, (p, n, ng), from, lanes, (u1, u2), (lobe, (spec, diff)));
         }
         // One light of several is chosen by a draw (`choose_light`); the lanes whose choice
         // has no weight draw nothing more.
@@ -1131,13 +1315,13 @@ impl Lanes {
                     }
                 }
                 let skip = (from, index);
-                let b = self.occluded(s, (origin, dir), t_light, usize::MAX, skip);
+                let b = self.occluded(s, (origin, dir), t_light, usize::MAX, skip, ok);
                 (t_light, b)
             } else {
                 let lamp = &self.lamps[0];
                 let t_light = self.hit(s, lamp.index, origin, dir);
                 let none = s.int(NONE);
-                let b = self.occluded(s, (origin, dir), t_light, lamp.index, (from, none));
+                let b = self.occluded(s, (origin, dir), t_light, lamp.index, (from, none), ok);
                 (t_light, b)
             };
             ok = (ok & t_light.gt(zero)).without(blocked);
@@ -1237,8 +1421,8 @@ impl Lanes {
         }
     }
 
-    /// `Tracer::sample_env` for the lanes of `lanes` at points `p` (facing normal `n`,
-    /// leaving primitive `from`), with draws (u1, u2): a direction from the map's
+    /// `Tracer::sample_env` for the lanes of `lanes` at points `p` (facing shading normal `n`,
+    /// geometric `ng`, leaving primitive `from`), with draws (u1, u2): a direction from the map's
     /// distribution and the radiance there, lane by lane with the scalar tracer's code
     /// (`Distribution::sample`, `EnvMap::radiance_at`), the shadow ray in lanes, weighed as
     /// `sample_light` weighs; returns the light (tint not included) and the tests made.
@@ -1246,7 +1430,7 @@ impl Lanes {
     fn sample_env<S: Isa>(
         &self,
         s: S,
-        (p, n): (V3<S>, V3<S>),
+        (p, n, ng): (V3<S>, V3<S>, V3<S>),
         from: I<S>,
         lanes: M<S>,
         (u1, u2): (F<S>, F<S>),
@@ -1276,11 +1460,16 @@ impl Lanes {
         let pdf = s.load(&pdfs);
         let cos_s = dot(n, dir);
         let mut ok = (lanes & pdf.gt(zero)) & cos_s.gt(zero);
+        // With shading normals, a direction below the geometric surface is not lit
+        // (`Tracer::shadow_side`).
+        if self.walk.as_ref().is_some_and(|w| w.normals) {
+            ok = ok & dot(ng, dir).cmp::<_CMP_NLE_UQ>(zero);
+        }
         let mut tests = 0;
         if ok.any() {
-            let origin = offset_ray(s, p, n);
-            let none = s.int(NONE);
-            let blocked = self.occluded(s, (origin, dir), s.splat(T_FAR), usize::MAX, (from, none));
+            let origin = offset_ray(s, p, ng);
+            let (none, far) = (s.int(NONE), s.splat(T_FAR));
+            let blocked = self.occluded(s, (origin, dir), far, usize::MAX, (from, none), ok);
             ok = ok.without(blocked);
             tests = (lanes.bits().count_ones() as u64) * self.kinds.len() as u64;
         }
@@ -1442,6 +1631,139 @@ impl Lanes {
             }
         }
         sky
+    }
+}
+
+/// What a walk's rays met, in lanes (`Tracer::met`'s): the material, the point, the
+/// geometric normal (outward), the colour there and the shading normal on the rays' side.
+struct Met<S: Isa> {
+    material: I<S>,
+    position: V3<S>,
+    normal: V3<S>,
+    color: V3<S>,
+    shading: V3<S>,
+}
+
+impl Walk<'_> {
+    /// The nearest hits of the rays (o, d) of the lanes of `lanes`, primitive `skip` left
+    /// out (`Tracer::nearest`, lane by lane): the distances, the primitives, and the lanes
+    /// that hit.
+    #[inline(always)]
+    fn closest<S: Isa>(
+        &self,
+        s: S,
+        (o, d): (V3<S>, V3<S>),
+        skip: I<S>,
+        lanes: M<S>,
+    ) -> (F<S>, I<S>, M<S>) {
+        let (o, d) = (rows(o), rows(d));
+        let mut skips = [0; MAX_LANES];
+        skip.store(&mut skips);
+        let (mut t, mut r) = ([0.0; MAX_LANES], [NONE; MAX_LANES]);
+        let mut found = 0;
+        let mut tracer = self.tracer.borrow_mut();
+        for k in lanes_of(lanes.bits()) {
+            if let Some(hit) = tracer.nearest(&ray_of(&o, &d, k), skips[k] as u32) {
+                (t[k], r[k]) = (hit.0, hit.1 as i32);
+                found |= 1 << k;
+            }
+        }
+        (s.load(&t), s.ints(&r), s.mask(found))
+    }
+
+    /// What the rays (o, d) of the lanes of `lanes` met at (t, r) (`Tracer::met`, lane by
+    /// lane).
+    #[inline(always)]
+    fn surface<S: Isa>(
+        &self,
+        s: S,
+        (o, d): (V3<S>, V3<S>),
+        (t, r): (F<S>, I<S>),
+        lanes: M<S>,
+    ) -> Met<S> {
+        let (o, d) = (rows(o), rows(d));
+        let (mut ts, mut refs) = ([0.0; MAX_LANES], [0; MAX_LANES]);
+        t.store(&mut ts);
+        r.store(&mut refs);
+        let mut material = [0; MAX_LANES];
+        let [mut position, mut normal, mut color, mut shading] = [[[0.0; MAX_LANES]; 3]; 4];
+        let tracer = self.tracer.borrow();
+        for k in lanes_of(lanes.bits()) {
+            let m = tracer.met(&ray_of(&o, &d, k), ts[k], refs[k] as u32);
+            material[k] = self.rows[m.material as usize];
+            for c in 0..3 {
+                position[c][k] = m.position[c];
+                normal[c][k] = m.normal[c];
+                color[c][k] = m.color[c];
+                shading[c][k] = m.shading[c];
+            }
+        }
+        Met {
+            material: s.ints(&material),
+            position: each!(|c| s.load(&position[c])),
+            normal: each!(|c| s.load(&normal[c])),
+            color: each!(|c| s.load(&color[c])),
+            shading: each!(|c| s.load(&shading[c])),
+        }
+    }
+
+    /// Whether the rays (o, d) of the lanes of `lanes` meet any primitive but `from` before
+    /// `t_max` (`Tracer::occluded`, lane by lane).
+    #[inline(always)]
+    fn occluded<S: Isa>(
+        &self,
+        s: S,
+        (o, d): (V3<S>, V3<S>),
+        t_max: F<S>,
+        from: I<S>,
+        lanes: M<S>,
+    ) -> M<S> {
+        let (o, d) = (rows(o), rows(d));
+        let (mut far, mut froms) = ([0.0; MAX_LANES], [0; MAX_LANES]);
+        t_max.store(&mut far);
+        from.store(&mut froms);
+        let mut blocked = 0;
+        let mut tracer = self.tracer.borrow_mut();
+        for k in lanes_of(lanes.bits()) {
+            let ray = ray_of(&o, &d, k);
+            if tracer.occluded::<ANY>(&ray, far[k], NONE as u32, froms[k] as u32) {
+                blocked |= 1 << k;
+            }
+        }
+        s.mask(blocked)
+    }
+
+    /// `Tracer::leaving` of primitives `r` on their outer side (`out`) or inner side, in the
+    /// lanes of `lanes` (`NONE` in the others).
+    #[inline(always)]
+    fn leaving<S: Isa>(&self, s: S, r: I<S>, out: M<S>, lanes: M<S>) -> I<S> {
+        let mut refs = [0; MAX_LANES];
+        r.store(&mut refs);
+        let mut left = [NONE; MAX_LANES];
+        let (out, tracer) = (out.bits(), self.tracer.borrow());
+        for k in lanes_of(lanes.bits()) {
+            left[k] = tracer.leaving(refs[k] as u32, out >> k & 1 != 0) as i32;
+        }
+        s.ints(&left)
+    }
+}
+
+/// A 3-vector's lanes, by component.
+#[inline(always)]
+fn rows<S: Isa>(v: V3<S>) -> [Row; 3] {
+    let mut out = [[0.0; MAX_LANES]; 3];
+    for (c, row) in out.iter_mut().enumerate() {
+        v[c].store(row);
+    }
+    out
+}
+
+/// Lane k's ray of origins `o` and directions `d` (by component).
+#[inline(always)]
+fn ray_of(o: &[Row; 3], d: &[Row; 3], k: usize) -> Ray {
+    Ray {
+        origin: Vec3A::new(o[0][k], o[1][k], o[2][k]),
+        dir: Vec3A::new(d[0][k], d[1][k], d[2][k]),
     }
 }
 
@@ -1991,6 +2313,112 @@ color = [0.2, 1.0, 0.3]
 light = 2
 "##;
 
+    /// A walk (`Walk`): more than `MAX_PRIMITIVES` spheres, a quad and a box, of the
+    /// lecture's materials (glass, glossy lobes alone and mixed, fuzz) on triangles too: a
+    /// smooth icosphere, glass of smooth normals, and a glTF file's normal-mapped quads given
+    /// a glossy lecture material; under the map, seen directly.
+    const WALKED: &str = r##"
+[camera]
+look_from = [0, 0.9, 3.2]
+look_at = [0, 0.3, -0.8]
+vfov = 60
+[render]
+max_bounces = 6
+[sky]
+map = "scenes/maps/quarry_01_1k.hdr"
+rotation = 40
+[materials.ground]
+color = "#8a8a84"
+[materials.clay]
+color = "#3a6fb5"
+[materials.glass]
+color = [0.95, 0.95, 0.95]
+smoothness = -1
+ior = 1.5
+[materials.gloss]
+color = "#d0200c"
+specular = 0.3
+smoothness = 0.8
+[materials.metal]
+color = [0.9, 0.8, 0.6]
+specular = 1
+smoothness = 0.6
+[materials.fuzz]
+color = [0.8, 0.8, 0.8]
+specular = 1
+smoothness = 0.95
+absorption = 0.2
+[[sphere]]
+center = [0, -100.5, -1]
+radius = 100
+material = "ground"
+[[sphere]]
+center = [-1.6, -0.3, -1.5]
+radius = 0.2
+material = "clay"
+[[sphere]]
+center = [-1.1, -0.3, -1.5]
+radius = 0.2
+material = "gloss"
+[[sphere]]
+center = [-0.6, -0.3, -1.5]
+radius = 0.2
+material = "metal"
+[[sphere]]
+center = [-0.1, -0.3, -1.5]
+radius = 0.2
+material = "fuzz"
+[[sphere]]
+center = [0.4, -0.3, -1.5]
+radius = 0.2
+material = "fuzz"
+[[sphere]]
+center = [0.9, -0.3, -1.5]
+radius = 0.2
+material = "clay"
+[[sphere]]
+center = [1.4, -0.3, -1.5]
+radius = 0.2
+material = "gloss"
+[[sphere]]
+center = [-1.3, -0.35, -0.6]
+radius = 0.15
+material = "clay"
+[[sphere]]
+center = [1.3, -0.35, -0.6]
+radius = -0.15
+material = "metal"
+[[quad]]
+q = [-2, -0.5, -2.6]
+u = [4, 0, 0]
+v = [0, 2, 0]
+material = "clay"
+[[box]]
+center = [0, -0.4, 0.3]
+half_extents = [0.3, 0.1, 0.2]
+material = "glass"
+[[mesh]]
+file = "scenes/meshes/icosphere.obj"
+translate = [-0.6, 0.3, -0.9]
+scale = 0.3
+material = "metal"
+[[mesh]]
+file = "scenes/meshes/icosphere.obj"
+translate = [0.6, 0.3, -0.9]
+scale = 0.3
+material = "glass"
+[[gltf]]
+file = "tests/gltf/NormalTangentMirrorTest/NormalTangentMirrorTest.glb"
+translate = [0, 0.75, -2.0]
+scale = 1.2
+instancing = "never"
+[gltf.materials.Material]
+model = "lecture"
+color = [0.9, 0.9, 0.9]
+specular = 0.5
+smoothness = 0.7
+"##;
+
     /// A shipped scene, or one of the test scenes `SHELL`, `GLASSY`, `MAPPED` and `LAMPS`.
     fn scene(name: &str) -> Scene {
         match name {
@@ -1998,6 +2426,7 @@ light = 2
             "glassy" => Scene::from_toml(GLASSY, "glassy").unwrap(),
             "mapped" => Scene::from_toml(MAPPED, "mapped").unwrap(),
             "lamps" => Scene::from_toml(LAMPS, "lamps").unwrap(),
+            "walked" => Scene::from_toml(WALKED, "walked").unwrap(),
             _ => Scene::load(name).unwrap(),
         }
     }
@@ -2092,7 +2521,17 @@ light = 2
             cases.push((name, Features::of(&scene), scene));
         }
         for name in [
-            "lamp", "cornell", "glassy", "showcase", "mapped", "outdoor", "lamps", "emissive",
+            "lamp",
+            "cornell",
+            "glassy",
+            "showcase",
+            "mapped",
+            "outdoor",
+            "lamps",
+            "emissive",
+            "walked",
+            "mesh",
+            "benches/peer/map-dog.toml",
         ] {
             let scene = scene(name);
             let f = Features::of(&scene);
@@ -2179,8 +2618,9 @@ light = 2
     fn lanes_trace_what_they_can_and_leave_out_the_rest() {
         let settings = FrameSettings::new(16, 16, 8, 1);
         let has = std::arch::is_x86_feature_detected!("avx2");
-        // Many primitives, the mirror and lens samplers, triangles, glTF's BRDF.
-        for name in ["weekend", "outdoor-caustics", "mesh", "pbr"] {
+        // Many materials (more than `MAX_PRIMITIVES` kinds), the mirror and lens samplers,
+        // glTF's BRDF.
+        for name in ["weekend", "spheres", "outdoor-caustics", "pbr"] {
             let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);
             assert!(Lanes::of(&s, Features::of(&scene)).is_none(), "{name}");
@@ -2201,6 +2641,9 @@ light = 2
             "mapped",
             "lamps",
             "emissive",
+            "walked",
+            "mesh",
+            "benches/peer/map-dog.toml",
         ] {
             let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);

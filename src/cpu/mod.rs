@@ -176,7 +176,9 @@ fn trace_row<const P: u32, const NEE: bool>(
             let done = |x: usize, sample: u32, path: lanes::Traced| {
                 c.record_words(&mut sums[x], sample, path.words, path.segments, path.taken);
             };
-            c.tests += l.trace((x0, y, width), n, samples.clone(), scene.u.seed, done);
+            let (visits, tests) = l.trace((x0, y, width), n, samples.clone(), scene.u.seed, done);
+            c.visits += visits;
+            c.tests += tests;
         }
         return c;
     }

@@ -110,6 +110,12 @@ pub fn record(tex: &[u32], material: u32) -> Option<u32> {
     (r != NONE).then_some(r)
 }
 
+/// Whether record `rec`'s material may emit: its emissive factor is not black (the lanes,
+/// which trace no emitter of a texture, ask).
+pub fn may_emit(tex: &[u32], rec: u32) -> bool {
+    (10..13).any(|k| f(tex, rec + k) != 0.0)
+}
+
 /// The texture coordinates at `p` on triangle `index` (texture.wgsl: tex_uv).
 pub fn uv(tex: &[u32], tri: &Triangle, index: u32, p_world: Vec3A) -> Vec2 {
     uv_at(tex, index, triangle_barycentrics(tri, p_world - tri.v0))

@@ -402,7 +402,13 @@ impl<'a> Tracer<'a> {
 
     /// Whether anything but primitives `skip` and `from` lies on the ray before t_max.
     #[inline(always)]
-    fn occluded<const P: u32>(&mut self, ray: &Ray, t_max: f32, skip: u32, from: u32) -> bool {
+    pub(super) fn occluded<const P: u32>(
+        &mut self,
+        ray: &Ray,
+        t_max: f32,
+        skip: u32,
+        from: u32,
+    ) -> bool {
         let s = self.s;
         if !self.f.bvh {
             return self
@@ -987,7 +993,7 @@ impl<'a> Tracer<'a> {
     /// surface the ray starts on, which the ray offset is there to avoid), so its test is
     /// skipped. A sphere's normal points inward where its radius is negative (a hollow one).
     #[inline(always)]
-    fn leaving(&self, r: u32, out: bool) -> u32 {
+    pub(super) fn leaving(&self, r: u32, out: bool) -> u32 {
         match r >> 30 {
             0 => {
                 let outward = self.s.spheres[(r & INDEX) as usize].radius > 0.0;
@@ -1661,6 +1667,52 @@ impl<'a> Tracer<'a> {
             bounce += 1;
         }
         (radiance, segments)
+    }
+}
+
+/// What `trace_path` reads at a hit, for the lanes' walk (`cpu::lanes`): the point, its
+/// geometric normal (outward), its material, that material's colour there (a texture's where
+/// it has one) and the shading normal on the side the ray came from.
+pub(super) struct Met {
+    pub position: Vec3A,
+    pub normal: Vec3A,
+    pub material: u32,
+    pub color: Vec3A,
+    pub shading: Vec3A,
+}
+
+impl Tracer<'_> {
+    /// The nearest hit of `ray` but primitive `skip`, its distance and reference, as
+    /// `trace_path` finds it (the lanes' walk: a scene of no instances).
+    #[inline(always)]
+    pub(super) fn nearest(&mut self, ray: &Ray, skip: u32) -> Option<(f32, u32)> {
+        self.intersect::<ANY>(ray, skip).map(|h| (h.t, h.r))
+    }
+
+    /// `trace_path`'s surface at the hit (t, r) of `ray` (`surface_at`, `material_at` and
+    /// `shading_normal_at`), for the lanes' walk: a scene of no instances, whose textures
+    /// give a lecture material its colour alone.
+    #[inline(always)]
+    pub(super) fn met(&self, ray: &Ray, t: f32, r: u32) -> Met {
+        let hit = Hit { t, r, inst: NONE };
+        let (point, material, local) = self.surface_at(hit, ray);
+        let (textured, mapped) = self.material_at(hit, local, material);
+        let m = textured
+            .as_ref()
+            .unwrap_or(&self.s.materials[material as usize]);
+        let n_out = point.normal;
+        let n = if ray.dir.dot(n_out) < 0.0 {
+            n_out
+        } else {
+            -n_out
+        };
+        Met {
+            position: point.position,
+            normal: n_out,
+            material,
+            color: m.color,
+            shading: self.shading_normal_at(hit, mapped, local, n_out, n),
+        }
     }
 }
 
