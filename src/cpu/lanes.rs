@@ -1473,14 +1473,7 @@ impl Lanes<'_> {
             ok = ok.without(blocked);
             tests = (lanes.bits().count_ones() as u64) * self.kinds.len() as u64;
         }
-        let mut rad = [[0.0; MAX_LANES]; 3];
-        for k in lanes_of(ok.bits()) {
-            let l = Vec3A::from_array(env.map.radiance_at(uvs[k].0, uvs[k].1)) * env.intensity;
-            for (c, r) in rad.iter_mut().enumerate() {
-                r[k] = l[c];
-            }
-        }
-        let radiance = each!(|c| s.load(&rad[c]));
+        let radiance = map_radiance(s, env, &uvs, ok);
         let pl = s.splat(env.pick) * pdf;
         let l = light_weighted(s, radiance, (cos_s, dir, n), pl, lobe);
         (each!(|c| l[c].keep(ok)), tests)
@@ -1514,7 +1507,6 @@ impl Lanes<'_> {
         }
         let mut dirs = [[0.0; MAX_LANES]; 3];
         let mut prev = [0.0; MAX_LANES];
-        let mut out = [[0.0; MAX_LANES]; 3];
         for (c, v) in dirs.iter_mut().enumerate() {
             d[c].store(v);
         }
@@ -1531,18 +1523,17 @@ impl Lanes<'_> {
                 env.map.distribution.prefetch_pdf(uv[k].0, uv[k].1);
             }
         }
-        for k in lanes_of(seen.bits()) {
-            let (cu, cv) = uv[k];
-            let mut l = Vec3A::from_array(env.map.radiance_at(cu, cv)) * env.intensity;
-            if weighs && prev[k] > 0.0 {
+        let mut weights = [1.0; MAX_LANES];
+        if weighs {
+            for k in lanes_of(seen.bits()).filter(|&k| prev[k] > 0.0) {
+                let (cu, cv) = uv[k];
                 let pl = env.pick * env.map.distribution.pdf_at(cu, cv);
-                l *= super::trace::power_heuristic(prev[k], pl);
-            }
-            for (c, o) in out.iter_mut().enumerate() {
-                o[k] = l[c];
+                weights[k] = super::trace::power_heuristic(prev[k], pl);
             }
         }
-        each!(|c| sky[c].blend(s.load(&out[c]), seen))
+        let l = map_radiance(s, env, &uv, seen);
+        let w = s.load(&weights);
+        each!(|c| sky[c].blend(l[c] * w, seen))
     }
 
     /// `scatter_dielectric`'s direction for the rays `d` meeting glass in the lanes of `glass`
@@ -1947,6 +1938,85 @@ fn cross<S: Isa>(a: V3<S>, c: V3<S>) -> V3<S> {
         a[2] * c[0] - a[0] * c[2],
         a[0] * c[1] - a[1] * c[0],
     ]
+}
+
+/// `EnvMap::radiance_at` at map coordinates `uv` in the lanes of `lanes`, times the map's
+/// intensity (0 in the other lanes): the four texels gathered in lanes and decoded and
+/// blended in `envmap_sampling::bilinear`'s and `rgbe_unpack`'s order, so that each lane's
+/// radiance is the scalar lookup's bit for bit. A lane whose coordinates fall outside the
+/// map (NaN: `bilinear` wraps them by `rem_euclid`) or whose texels hold an exponent below 10
+/// (none does: `rgbe_pack` writes 29 or more) is looked up by the scalar code.
+#[inline(always)]
+fn map_radiance<S: Isa>(s: S, env: &Env, uv: &[(f32, f32); MAX_LANES], lanes: M<S>) -> V3<S> {
+    let (zero, one) = (s.zero(), s.splat(1.0));
+    let map = &env.map;
+    let (mut us, mut vs) = ([0.0; MAX_LANES], [0.0; MAX_LANES]);
+    for k in lanes_of(lanes.bits()) {
+        (us[k], vs[k]) = uv[k];
+    }
+    let (w, h) = (map.width as f32, map.height as f32);
+    let fx = s.load(&us) * s.splat(w) - s.splat(0.5);
+    let fy = (s.load(&vs) * s.splat(h) - s.splat(0.5)).max(zero);
+    let (x0f, y0f) = (floor(s, fx), floor(s, fy));
+    let (tx, ty) = (fx - x0f, fy - y0f);
+    // Wrapped in u (x0 = −1 is the last column); clamped at the poles in v.
+    let inside = x0f.ge(s.splat(-1.0)) & x0f.le(s.splat(w - 1.0));
+    let x0f = x0f.blend(s.splat(w - 1.0), x0f.lt(zero));
+    let x1f = (x0f + one).blend(zero, (x0f + one).cmp::<_CMP_EQ_OQ>(s.splat(w)));
+    let y0f = y0f.min(s.splat(h - 1.0));
+    let y1f = (y0f + one).min(s.splat(h - 1.0));
+    let (x0, x1) = (x0f.truncate(), x1f.truncate());
+    let width = s.int(map.width as i32);
+    let (row0, row1) = (y0f.truncate() * width, y1f.truncate() * width);
+    let (t00, odd00) = rgbe_unpack(s, I::gather(&map.rgbe, row0 + x0));
+    let (t10, odd10) = rgbe_unpack(s, I::gather(&map.rgbe, row0 + x1));
+    let (t01, odd01) = rgbe_unpack(s, I::gather(&map.rgbe, row1 + x0));
+    let (t11, odd11) = rgbe_unpack(s, I::gather(&map.rgbe, row1 + x1));
+    let odd = lanes & (!inside | ((odd00 | odd10) | (odd01 | odd11)));
+    let mut out: V3<S> = each!(|c| {
+        let top = lerp(t00[c], t10[c], tx);
+        let bottom = lerp(t01[c], t11[c], tx);
+        (lerp(top, bottom, ty) * s.splat(env.intensity)).keep(lanes)
+    });
+    if odd.any() {
+        let mut rows = rows(out);
+        for k in lanes_of(odd.bits()) {
+            let l = Vec3A::from_array(map.radiance_at(uv[k].0, uv[k].1)) * env.intensity;
+            for (c, row) in rows.iter_mut().enumerate() {
+                row[k] = l[c];
+            }
+        }
+        out = each!(|c| s.load(&rows[c]));
+    }
+    out
+}
+
+/// `envmap_sampling::floor` in lanes: the truncation, one less where it rounded up.
+#[inline(always)]
+fn floor<S: Isa>(s: S, x: F<S>) -> F<S> {
+    let t = x.trunc();
+    t.blend(t - s.splat(1.0), t.gt(x))
+}
+
+/// a + t (b − a), `bilinear`'s step.
+#[inline(always)]
+fn lerp<S: Isa>(a: F<S>, b: F<S>, t: F<S>) -> F<S> {
+    a + t * (b - a)
+}
+
+/// `envmap_sampling::rgbe_unpack` of texels `w` in lanes: m × 2^(e − 136), the power built
+/// from its bits, black at e = 0; and the lanes of an exponent from 1 to 9, which this does
+/// not decode (a subnormal power).
+#[inline(always)]
+fn rgbe_unpack<S: Isa>(s: S, w: I<S>) -> (V3<S>, M<S>) {
+    let e = w.shr(24);
+    let black = e.eq(s.int(0));
+    let f = ((e - s.int(9)) * s.int(1 << 23)).float_of_bits();
+    let c: V3<S> = each!(|c| {
+        let m = w.shr(8 * c as i32).and(s.int(0xff)).to_float();
+        (m * f).blend(s.zero(), black)
+    });
+    (c, s.int(10).gt(e).without(black))
 }
 
 /// `light_weighted` in lanes: `radiance` arriving from `dir` (cos_s against the shading

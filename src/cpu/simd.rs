@@ -79,6 +79,10 @@ pub unsafe trait Isa: Copy + 'static {
     unsafe fn iand(a: Self::I, b: Self::I) -> Self::I;
     unsafe fn ixor(a: Self::I, b: Self::I) -> Self::I;
     unsafe fn imax(a: Self::I, b: Self::I) -> Self::I;
+    /// The smaller, as unsigned integers.
+    unsafe fn iminu(a: Self::I, b: Self::I) -> Self::I;
+    /// Each lane's word `idx` of `base` (every index within it: the caller's promise).
+    unsafe fn gather(base: *const i32, idx: Self::I) -> Self::I;
     /// Shifted left by 30 bits.
     unsafe fn shl30(a: Self::I) -> Self::I;
     unsafe fn ieq(a: Self::I, b: Self::I) -> Self::M;
@@ -291,6 +295,14 @@ unsafe impl Isa for Avx2 {
         unsafe { _mm256_max_epi32(a, b) }
     }
     #[inline(always)]
+    unsafe fn iminu(a: __m256i, b: __m256i) -> __m256i {
+        unsafe { _mm256_min_epu32(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn gather(base: *const i32, idx: __m256i) -> __m256i {
+        unsafe { _mm256_i32gather_epi32::<4>(base, idx) }
+    }
+    #[inline(always)]
     unsafe fn shl30(a: __m256i) -> __m256i {
         unsafe { _mm256_slli_epi32::<30>(a) }
     }
@@ -500,6 +512,14 @@ unsafe impl Isa for Avx512 {
     #[inline(always)]
     unsafe fn imax(a: __m512i, b: __m512i) -> __m512i {
         unsafe { _mm512_max_epi32(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn iminu(a: __m512i, b: __m512i) -> __m512i {
+        unsafe { _mm512_min_epu32(a, b) }
+    }
+    #[inline(always)]
+    unsafe fn gather(base: *const i32, idx: __m512i) -> __m512i {
+        unsafe { _mm512_i32gather_epi32::<4>(idx, base) }
     }
     #[inline(always)]
     unsafe fn shl30(a: __m512i) -> __m512i {
@@ -741,6 +761,16 @@ impl<S: Isa> I<S> {
     #[inline(always)]
     pub fn shr_each(self, b: Self) -> Self {
         I(unsafe { S::ishrv(self.0, b.0) })
+    }
+    /// Each lane's word `idx` of `t` (an index past its end, as unsigned, reads its last word).
+    #[inline(always)]
+    pub fn gather(t: &[u32], idx: Self) -> Self {
+        assert!(!t.is_empty() && t.len() <= i32::MAX as usize);
+        // SAFETY: `idx` exists, so the CPU has `S`; every index is clamped into `t`.
+        unsafe {
+            let last = S::isplat(t.len() as i32 - 1);
+            I(S::gather(t.as_ptr().cast(), S::iminu(idx.0, last)))
+        }
     }
     #[inline(always)]
     pub fn reverse_bits(self) -> Self {
