@@ -2,7 +2,9 @@
 //! for scenes of a few primitives (spheres, quads, boxes: at most eight) of the lecture's
 //! materials (its lobes, certain or drawn, light sampling weighing the glossy one too, and its
 //! glass) under the sky and its sun or an environment map, lit by them and by at most
-//! `MAX_LAMPS` lights (not both lights and a map), with or without light sampling:
+//! `MAX_LAMPS` lights (not both lights and a map), with or without light sampling; and for
+//! scenes of triangles or of more primitives, without lights, by a walk (`Walk`: each lane's
+//! ray walks the scalar tracer's tree, and what it meets there is the scalar tracer's):
 //! `Tracer::trace_path`'s arithmetic for those scenes, operation for operation in the same
 //! order (glam's dot is (x·x′ + y·y′) + z·z′, its cross the textbook one, its normalize a
 //! division by the square root, nothing fused), so that each lane's path is the scalar one
@@ -13,10 +15,10 @@
 //! one kernel as Mitsuba 3's LLVM backend keeps it). A lane whose path has ended starts its
 //! pixel's next sample (`Lanes::trace`): its sampler and camera ray made in lanes too. The
 //! draws are each lane's own sampler's (`cpu::draws`, `Rng`'s in lanes), taken in the order
-//! the scalar path takes them. The code is written once over `simd::Isa`. What reads the map
-//! (its lookups, its distribution's inversions, libm's trigonometry) and the sun's falloff
-//! (libm's `powf`) run lane by lane through the scalar tracer's own functions, so that they
-//! stay its bits.
+//! the scalar path takes them. The code is written once over `simd::Isa`. The map's bilinear
+//! lookup runs in lanes (`map_radiance`); what else reads the map (its distribution's
+//! inversions, libm's trigonometry) and the sun's falloff (libm's `powf`) run lane by lane
+//! through the scalar tracer's own functions, so that they stay its bits.
 //!
 //! The one difference a path can show: where two primitives are hit at the same distance (a
 //! ray through the edge two quads share), the scalar walk keeps the one its BVH order tests
