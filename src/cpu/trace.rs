@@ -1670,6 +1670,7 @@ impl<'a> Tracer<'a> {
     }
 }
 
+#[cfg(target_arch = "x86_64")]
 /// What `trace_path` reads at a hit, for the lanes' walk (`cpu::lanes`): the point, its
 /// geometric normal (outward), its material, that material's colour there (a texture's where
 /// it has one) and the shading normal on the side the ray came from.
@@ -1681,6 +1682,7 @@ pub(super) struct Met {
     pub shading: Vec3A,
 }
 
+#[cfg(target_arch = "x86_64")]
 impl Tracer<'_> {
     /// The nearest hit of `ray` but primitive `skip`, its distance and reference, as
     /// `trace_path` finds it (the lanes' walk: a scene of no instances).
