@@ -183,8 +183,6 @@ const TWINS: &[Twin] = &[
             "hit_except",
             "intersect",
             "leaving",
-            "met",
-            "nearest",
             "new",
             "trace_path",
             "walk_closest",
