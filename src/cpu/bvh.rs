@@ -54,8 +54,8 @@ impl Default for Stack {
 
 #[derive(Clone, Copy, Default)]
 pub struct Entry {
-    node: u32,
-    t: f32,
+    pub(super) node: u32,
+    pub(super) t: f32,
 }
 
 /// A closest-hit walk between node visits (the four- and the eight-wide walk share it): the

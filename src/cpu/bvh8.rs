@@ -221,6 +221,59 @@ impl Bvh8 {
             }
         }
     }
+
+    /// `Bvh4::any` over the eight-wide nodes: whether `test` finds any primitive before
+    /// `t_max` (shadow rays: any order, the first blocker ends the walk).
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[target_feature(enable = "avx")]
+    pub unsafe fn any(
+        &self,
+        refs: &[u32],
+        ray: &Ray,
+        t_max: f32,
+        tally: &mut Tally,
+        stack: &mut Stack8,
+        mut test: impl FnMut(u32) -> bool,
+    ) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let inv = safe_inverse(ray.dir);
+        let o = [ray.origin.x, ray.origin.y, ray.origin.z].map(|x| _mm256_set1_ps(x));
+        let inv = [inv.x, inv.y, inv.z].map(|x| _mm256_set1_ps(x));
+        let stack = &mut *stack.0;
+        let (mut sp, mut node) = (0usize, 0usize);
+        loop {
+            let n = &self.nodes[node];
+            tally.visits += 1;
+            let mask = Self::slab(n, &o, &inv, t_max).1;
+            let leaves = n.leaves as u32;
+            for slot in slots(mask & leaves) {
+                let first = n.child[slot] as usize;
+                let count = n.count[slot] as usize;
+                tally.tests += count as u64;
+                for &r in &refs[first..first + count] {
+                    if test(r) {
+                        return true;
+                    }
+                }
+            }
+            for slot in slots(mask & !leaves) {
+                stack[sp] = Entry {
+                    node: n.child[slot],
+                    t: 0.0,
+                };
+                sp += 1;
+            }
+            if sp == 0 {
+                return false;
+            }
+            sp -= 1;
+            node = stack[sp].node as usize;
+        }
+    }
 }
 
 #[cfg(test)]
@@ -230,7 +283,7 @@ mod tests {
     use crate::cpu::trace::{ANY, T_FAR, hit_primitive, recorded};
 
     #[test]
-    fn the_eight_wide_walk_finds_what_the_four_wide_one_finds_bit_for_bit() {
+    fn the_eight_wide_walks_find_what_the_four_wide_ones_find_bit_for_bit() {
         if !std::arch::is_x86_feature_detected!("avx") {
             eprintln!("no AVX: nothing to compare");
             return;
@@ -248,7 +301,7 @@ mod tests {
             assert!(b8.node_count() < n4 || n4 == 1, "{name}: nothing collapsed");
             let (mut tally, mut stack, mut stack8) =
                 (Tally::default(), Stack::default(), Stack8::default());
-            let mut hits = 0;
+            let (mut hits, mut blocked) = (0, 0);
             for ray in &rays {
                 let test = |r, t| hit_primitive::<ANY>(&s, r, ray, t);
                 let want = s.bvh.closest(ray, T_FAR, &mut tally, &mut stack, test);
@@ -258,8 +311,22 @@ mod tests {
                 let bits = |h: Option<(f32, u32)>| h.map(|(t, r)| (t.to_bits(), r));
                 assert_eq!(bits(want), bits(got), "{name}: {ray:?}");
                 hits += want.is_some() as u32;
+                // The any-hit walks, up to the hit and just short of it, and unbounded.
+                for t_max in want.map_or(vec![T_FAR], |(t, _)| vec![t, t * 0.999, T_FAR]) {
+                    let test = |r| hit_primitive::<ANY>(&s, r, ray, t_max) > 0.0;
+                    let want = s.bvh.any(ray, t_max, &mut tally, &mut stack, test);
+                    // SAFETY: AVX is present (checked above).
+                    let got =
+                        unsafe { b8.any(&s.bvh.refs, ray, t_max, &mut tally, &mut stack8, test) };
+                    assert_eq!(want, got, "{name}: {ray:?} before {t_max}");
+                    blocked += want as u32;
+                }
             }
             assert!(hits > 1000, "{name}: only {hits} hits compared");
+            assert!(
+                blocked > 1000,
+                "{name}: only {blocked} blocked any-hit walks compared"
+            );
         }
     }
 }

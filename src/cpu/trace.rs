@@ -423,6 +423,21 @@ impl<'a> Tracer<'a> {
             self.tally.tests += tests;
             return hit;
         }
+        #[cfg(target_arch = "x86_64")]
+        if let Some(b8) = &s.bvh8 {
+            // SAFETY: `bvh8` exists only where the CPU has AVX.
+            return unsafe {
+                b8.any(
+                    &s.bvh.refs,
+                    ray,
+                    t_max,
+                    &mut self.tally,
+                    &mut self.stack8,
+                    #[inline(always)]
+                    |r| r != skip && r != from && hit_primitive::<P>(s, r, ray, t_max) > 0.0,
+                )
+            };
+        }
         s.bvh.any(
             ray,
             t_max,
