@@ -272,7 +272,8 @@ impl<'a> Lanes<'a> {
     /// lights, or a map and no light, and neither glTF's BRDF nor the mirror and lens
     /// samplers; or a walk (`Walk`) of any number of spheres, quads, boxes and triangles
     /// (textured, smooth or normal-mapped) of materials that differ in at most
-    /// `MAX_PRIMITIVES` ways but for their colour, no emitter, no instance, no light. The camera rays, a lens's included, are made in lanes too.
+    /// `MAX_PRIMITIVES` ways but for their colour, no emitter, no instance, no light. The
+    /// camera rays, a lens's included, are made in lanes too.
     pub fn of(s: &'a CpuScene, f: Features) -> Option<Lanes<'a>> {
         let narrow = Avx2::new()?;
         let count = s.spheres.len() + s.quads.len() + s.boxes.len();
