@@ -155,10 +155,19 @@ impl Bvh8 {
     #[target_feature(enable = "avx")]
     pub unsafe fn root_mask(&self, ray: &Ray, t_max: f32) -> u32 {
         let n = &self.nodes[0];
-        let inv = safe_inverse(ray.dir);
-        let o = [ray.origin.x, ray.origin.y, ray.origin.z].map(|x| _mm256_set1_ps(x));
-        let inv = [inv.x, inv.y, inv.z].map(|x| _mm256_set1_ps(x));
+        let (o, inv) = Self::ray_terms(ray);
         Self::slab(n, &o, &inv, t_max).1
+    }
+
+    /// The ray's origin and inverse direction in every slot (`Bvh4::ray_terms`, eight wide).
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn ray_terms(ray: &Ray) -> ([__m256; 3], [__m256; 3]) {
+        let inv = safe_inverse(ray.dir);
+        (
+            [ray.origin.x, ray.origin.y, ray.origin.z].map(|x| _mm256_set1_ps(x)),
+            [inv.x, inv.y, inv.z].map(|x| _mm256_set1_ps(x)),
+        )
     }
 
     /// The slab test of `n`'s eight boxes (one AVX operation per term) for the ray from `o`
@@ -202,9 +211,7 @@ impl Bvh8 {
         if self.nodes.is_empty() {
             return None;
         }
-        let inv = safe_inverse(ray.dir);
-        let o = [ray.origin.x, ray.origin.y, ray.origin.z].map(|x| _mm256_set1_ps(x));
-        let inv = [inv.x, inv.y, inv.z].map(|x| _mm256_set1_ps(x));
+        let (o, inv) = Self::ray_terms(ray);
         let mut w = Walk::new(&mut *stack.0, t_max);
         let mut node = 0usize;
         loop {
@@ -240,9 +247,7 @@ impl Bvh8 {
         if self.nodes.is_empty() {
             return false;
         }
-        let inv = safe_inverse(ray.dir);
-        let o = [ray.origin.x, ray.origin.y, ray.origin.z].map(|x| _mm256_set1_ps(x));
-        let inv = [inv.x, inv.y, inv.z].map(|x| _mm256_set1_ps(x));
+        let (o, inv) = Self::ray_terms(ray);
         let stack = &mut *stack.0;
         let (mut sp, mut node) = (0usize, 0usize);
         loop {

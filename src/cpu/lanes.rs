@@ -1034,7 +1034,7 @@ impl Lanes<'_> {
         lanes: M<S>,
     ) -> M<S> {
         if let Some(w) = &self.walk {
-            return w.occluded(s, (o, d), t_max, from, lanes);
+            return w.occluded(s, (o, d), t_max, (from, also), lanes);
         }
         let mut blocked = s.mask(0);
         for k in (0..self.kinds.len()).filter(|&k| k != skip) {
@@ -1701,26 +1701,27 @@ impl Walk<'_> {
         }
     }
 
-    /// Whether the rays (o, d) of the lanes of `lanes` meet any primitive but `from` before
-    /// `t_max` (`Tracer::occluded`, lane by lane).
+    /// Whether the rays (o, d) of the lanes of `lanes` meet any primitive but `from` and
+    /// `also` before `t_max` (`Tracer::occluded`, lane by lane).
     #[inline(always)]
     fn occluded<S: Isa>(
         &self,
         s: S,
         (o, d): (V3<S>, V3<S>),
         t_max: F<S>,
-        from: I<S>,
+        (from, also): (I<S>, I<S>),
         lanes: M<S>,
     ) -> M<S> {
         let (o, d) = (rows(o), rows(d));
-        let (mut far, mut froms) = ([0.0; MAX_LANES], [0; MAX_LANES]);
+        let (mut far, mut froms, mut alsos) = ([0.0; MAX_LANES], [0; MAX_LANES], [0; MAX_LANES]);
         t_max.store(&mut far);
         from.store(&mut froms);
+        also.store(&mut alsos);
         let mut blocked = 0;
         let mut tracer = self.tracer.borrow_mut();
         for k in lanes_of(lanes.bits()) {
             let ray = ray_of(&o, &d, k);
-            if tracer.occluded::<ANY>(&ray, far[k], NONE as u32, froms[k] as u32) {
+            if tracer.occluded::<ANY>(&ray, far[k], alsos[k] as u32, froms[k] as u32) {
                 blocked |= 1 << k;
             }
         }
