@@ -40,6 +40,8 @@ const TWINS: &[Twin] = &[
             "direction_and_sin",
             "floor",
             "guide",
+            // The CPU's lanes gather from the guide tables.
+            "guides",
             "invert_guided",
             "new",
             // The CPU's lanes ask the cache for every lane's texels and densities before
@@ -133,8 +135,8 @@ const TWINS: &[Twin] = &[
         rust: "src/cpu/sampling.rs",
         prefix: "",
         wgsl_only: &[],
-        // WGSL's sin and cos are the GPU's; the host's turn-based pair matches them.
-        rust_only: &["sin_cos_turns"],
+        // (WGSL's sin and cos are the GPU's; the host's turn-based pair is `common::trig`'s.)
+        rust_only: &[],
     },
     Twin {
         wgsl: "shaders/common/texture.wgsl",

@@ -28,6 +28,17 @@ struct Node8 {
     leaves: u8,
 }
 
+/// The root node's slots: their boxes by axis, and for each an inner node or a leaf's first
+/// reference and count (`Node8`'s fields).
+pub struct Root {
+    pub min: [[f32; WIDE]; 3],
+    pub max: [[f32; WIDE]; 3],
+    pub child: [u32; WIDE],
+    pub count: [u16; WIDE],
+    pub valid: u8,
+    pub leaves: u8,
+}
+
 /// The eight-wide tree; leaf slots index the four-wide tree's references.
 pub struct Bvh8 {
     nodes: Vec<Node8>,
@@ -130,6 +141,21 @@ impl Bvh8 {
             leaves,
         };
         at as u32
+    }
+
+    /// The root node as plain numbers, for the lanes' first step of the walk (`cpu::lanes`).
+    pub fn root(&self) -> Option<Root> {
+        let n = self.nodes.first()?;
+        // SAFETY: an `__m256` is eight floats (a copy; no instruction needs AVX).
+        let floats = |v: __m256| unsafe { std::mem::transmute::<__m256, [f32; WIDE]>(v) };
+        Some(Root {
+            min: n.min.map(floats),
+            max: n.max.map(floats),
+            child: n.child,
+            count: n.count,
+            valid: n.valid,
+            leaves: n.leaves,
+        })
     }
 
     pub fn node_count(&self) -> usize {

@@ -5,6 +5,8 @@ use glam::{Vec2, Vec3A};
 
 pub const PI: f32 = std::f32::consts::PI;
 
+pub use crate::scene::trig::sin_cos_turns;
+
 /// Uniform on the unit sphere (Archimedes: z uniform in [-1, 1], azimuth uniform).
 #[inline(always)]
 pub fn random_unit_vector(rng: &mut Rng) -> Vec3A {
@@ -22,27 +24,6 @@ pub fn random_in_disk(rng: &mut Rng) -> Vec2 {
     let r = u.sqrt();
     let (s, c) = sin_cos_turns(v);
     Vec2::new(r * c, r * s)
-}
-
-/// (sin 2πt, cos 2πt) for t in [0, 1], branch-free: the quadrant by rounding 4t, then
-/// Taylor polynomials on [-π/4, π/4] (truncation below 3·10⁻⁸), rotated into the quadrant.
-/// libm's `sin_cos` took 5–7 % of the tracer's time.
-#[inline(always)]
-pub fn sin_cos_turns(t: f32) -> (f32, f32) {
-    // Rounding by truncation (t ≥ 0): `round` is a libm call below SSE4.1.
-    let q = (4.0 * t + 0.5) as i32 as f32;
-    let x = 2.0 * PI * (t - 0.25 * q);
-    let x2 = x * x;
-    let s =
-        x * (1.0 + x2 * (-1.0 / 6.0 + x2 * (1.0 / 120.0 + x2 * (-1.0 / 5040.0 + x2 / 362880.0))));
-    let c = 1.0 + x2 * (-0.5 + x2 * (1.0 / 24.0 + x2 * (-1.0 / 720.0 + x2 * (1.0 / 40320.0))));
-    // Quadrant k: (sin, cos) is (s, c), (c, −s), (−s, −c) or (−c, s).
-    let k = q as u32;
-    let (a, b) = if k & 1 == 0 { (s, c) } else { (c, s) };
-    (
-        f32::from_bits(a.to_bits() ^ (k & 2) << 30),
-        f32::from_bits(b.to_bits() ^ (k.wrapping_add(1) & 2) << 30),
-    )
 }
 
 /// normalize(v), or `fallback` when v is too short to have a direction.
@@ -67,25 +48,4 @@ pub fn basis(n: Vec3A) -> [Vec3A; 3] {
         Vec3A::new(b, s + n.y * n.y * a, -n.y),
         n,
     ]
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn sin_cos_turns_matches_libm() {
-        let mut worst = 0.0f64;
-        for k in 0..=1_000_000u32 {
-            let t = k as f32 / 1_000_000.0;
-            let (s, c) = sin_cos_turns(t);
-            let phi = std::f64::consts::TAU * t as f64;
-            worst = worst.max(
-                (s as f64 - phi.sin())
-                    .abs()
-                    .max((c as f64 - phi.cos()).abs()),
-            );
-        }
-        assert!(worst < 3e-7, "worst error {worst:e}");
-    }
 }

@@ -832,3 +832,26 @@ impl<S: Isa> M<S> {
         M(unsafe { S::mandnot(b.0, self.0) })
     }
 }
+
+/// Lanes of a 3-vector, by component.
+pub type V3<S> = [F<S>; 3];
+
+/// A 3-vector's lanes, as rows by component.
+#[inline(always)]
+pub fn rows<S: Isa>(v: V3<S>) -> [Row; 3] {
+    let mut out = [[0.0; MAX_LANES]; 3];
+    for (c, row) in out.iter_mut().enumerate() {
+        v[c].store(row);
+    }
+    out
+}
+
+/// The lanes whose bits are set in `bits`, lowest first.
+#[inline(always)]
+pub fn lanes_of(mut bits: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        let k = bits.trailing_zeros();
+        bits &= bits.wrapping_sub(1);
+        (k < 32).then_some(k as usize)
+    })
+}

@@ -10,6 +10,7 @@
 //! 12 steps costs little beside a path segment.
 
 pub use super::color::luminance;
+use super::trig::{FRAC_1_TAU, acos_over_pi, atan2_turns, sin_cos_turns};
 use glam::Vec3;
 use std::f32::consts::PI;
 
@@ -79,18 +80,23 @@ pub fn direction(u: f32, v: f32, rotation: f32) -> Vec3 {
 }
 
 /// [`direction`] and sin θ = sin πv, which the density divides by.
+/// The angles in turns (`scene::trig`, whose polynomials the CPU tracer's lanes repeat):
+/// θ = v/2 turns, φ = u + rotation/2π turns, brought into [0, 1].
 #[inline(always)]
-fn direction_and_sin(u: f32, v: f32, rotation: f32) -> (Vec3, f32) {
-    let (sin_t, cos_t) = (PI * v).sin_cos();
-    let (sin_p, cos_p) = (2.0 * PI * u + rotation).sin_cos();
+pub fn direction_and_sin(u: f32, v: f32, rotation: f32) -> (Vec3, f32) {
+    let (sin_t, cos_t) = sin_cos_turns(0.5 * v);
+    let phi = u + rotation * FRAC_1_TAU;
+    let (sin_p, cos_p) = sin_cos_turns(phi - floor(phi));
     (Vec3::new(-sin_t * sin_p, cos_t, sin_t * cos_p), sin_t)
 }
 
 /// The map coordinates of unit direction `d` (the inverse of [`direction`]), u in [0, 1).
-/// (`env_coordinates` in shaders/common/envmap.wgsl, the same arithmetic.)
+/// (`env_coordinates` in shaders/common/envmap.wgsl, the same formula; here acos and atan2
+/// are `scene::trig`'s polynomials, in turns.)
+#[inline(always)]
 pub fn coordinates(d: Vec3, rotation: f32) -> (f32, f32) {
-    let v = d.y.clamp(-1.0, 1.0).acos() / PI;
-    let turns = ((-d.x).atan2(d.z) - rotation) / (2.0 * PI);
+    let v = acos_over_pi(d.y.clamp(-1.0, 1.0));
+    let turns = atan2_turns(-d.x, d.z) - rotation * FRAC_1_TAU;
     let u = turns - floor(turns);
     (if u >= 1.0 { 0.0 } else { u }, v)
 }
@@ -99,7 +105,7 @@ pub fn coordinates(d: Vec3, rotation: f32) -> (f32, f32) {
 /// and per light sample of a map): the same value wherever |x| < 2²³ (exactly representable
 /// integers, which truncation finds), `floorf` elsewhere (NaN, huge); tested bit for bit.
 #[inline(always)]
-fn floor(x: f32) -> f32 {
+pub fn floor(x: f32) -> f32 {
     if x.abs() < 8_388_608.0 {
         // (`copysign`: floorf(-0) is -0.)
         let t = x as i32 as f32;
@@ -437,7 +443,7 @@ impl Distribution {
             return 0.0;
         }
         let (x, y, v) = self.texel_at(u, v);
-        let sin_t = (PI * v).sin();
+        let sin_t = sin_cos_turns(0.5 * v).0;
         if sin_t <= 0.0 {
             return 0.0;
         }
@@ -450,6 +456,16 @@ impl Distribution {
         let (x, y, _) = self.texel_at(u, v);
         let w = self.width as usize + 1;
         prefetch(&self.conditional[y as usize * w + x as usize]);
+    }
+
+    /// The guide tables (the marginal's, the rows', row by row) and the buckets of a row's:
+    /// what the CPU tracer's lanes gather from.
+    pub fn guides(&self) -> (&[u32], &[u32], usize) {
+        (
+            &self.guide_marginal,
+            &self.guide_conditional,
+            self.guide_buckets,
+        )
     }
 
     /// Bytes the CDFs take, as both tracers hold them (the host's guide tables add about a

@@ -25,6 +25,7 @@ pub mod params;
 mod parse;
 mod reader;
 pub mod texture;
+pub mod trig;
 mod write;
 
 pub use builtin::{

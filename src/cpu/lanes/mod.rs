@@ -15,10 +15,11 @@
 //! one kernel as Mitsuba 3's LLVM backend keeps it). A lane whose path has ended starts its
 //! pixel's next sample (`Lanes::trace`): its sampler and camera ray made in lanes too. The
 //! draws are each lane's own sampler's (`cpu::draws`, `Rng`'s in lanes), taken in the order
-//! the scalar path takes them. The code is written once over `simd::Isa`. The map's bilinear
-//! lookup runs in lanes (`map_radiance`); what else reads the map (its distribution's
-//! inversions, libm's trigonometry) and the sun's falloff (libm's `powf`) run lane by lane
-//! through the scalar tracer's own functions, so that they stay its bits.
+//! the scalar path takes them. The code is written once over `simd::Isa`. The map runs in lanes
+//! (`map`: its coordinates, its distribution's inversions and density, its bilinear lookup),
+//! with the scalar tracer's own polynomials for the trigonometry (`trig`, `scene::trig`);
+//! the sun's falloff (libm's `powf`) runs lane by lane through the scalar tracer's function,
+//! so that it stays its bits.
 //!
 //! The one difference a path can show: where two primitives are hit at the same distance (a
 //! ray through the edge two quads share), the scalar walk keeps the one its BVH order tests
@@ -28,12 +29,11 @@ use super::draws::Draws;
 use super::fixed::FIXED_MAX;
 use super::intersect::{NO_HIT, Ray};
 use super::scene::CpuScene;
-use super::simd::{Avx2, Avx512, F, I, Isa, M, MAX_LANES, Make, Row};
+use super::simd::{Avx2, Avx512, F, I, Isa, M, MAX_LANES, Make, Row, V3, lanes_of, rows};
 use super::trace::{ANY, T_FAR, Tracer};
 use crate::common::Features;
 use crate::common::arrays::{ENV_NONE, ENV_VISIBLE, REF_INDEX};
 use crate::scene::envmap::EnvMap;
-use crate::scene::envmap_sampling::coordinates;
 use glam::Vec3A;
 use std::arch::x86_64::{_CMP_EQ_OQ, _CMP_NGE_UQ, _CMP_NLE_UQ, _CMP_NLT_UQ};
 use std::array::from_fn;
@@ -61,6 +61,12 @@ macro_rules! each {
         ]
     };
 }
+
+mod map;
+mod trig;
+
+use map::{Tables, map_radiance};
+use trig::sin_cos_turns;
 
 /// An entry point: `Lanes::trace_in` for one instruction set, compiled with its features
 /// (everything the lanes do is inlined into it; `Isa::new` checks the same features).
@@ -102,9 +108,6 @@ enum Kind {
 }
 
 type Tables3 = [Row; 3];
-
-/// Lanes of a 3-vector, by component.
-type V3<S> = [F<S>; 3];
 
 /// The scene as the lanes read it: per primitive (in the scene's order, spheres, quads,
 /// boxes), its shape's parameters and its material's, as tables that a lane's primitive
@@ -195,6 +198,8 @@ struct Walk<'a> {
     /// Whether the scene has shading normals (smooth or mapped): light sampling and the
     /// lobes then read the shading normal, and a direction below the surface ends the path.
     normals: bool,
+    /// The tree's root, tested in lanes, where the scalar walk reads an eight-wide tree.
+    root: Option<Root>,
 }
 
 /// The camera as `Tracer::camera_ray` reads it (`GpuUniforms`): the image's size, the
@@ -362,7 +367,6 @@ impl<'a> Lanes<'a> {
             },
             walk: None,
         };
-        let flag = |b: bool| if b { 1.0 } else { 0.0 };
         let mut materials = Vec::with_capacity(count);
         // The primitives' tables (a walk's tree holds its primitives).
         let (spheres, quads, boxes) = if walks {
@@ -371,16 +375,7 @@ impl<'a> Lanes<'a> {
             (&s.spheres[..], &s.quads[..], &s.boxes[..])
         };
         for (k, sp) in spheres.iter().enumerate() {
-            let r = sp.radius.abs();
-            for c in 0..3 {
-                l.anchor[c][k] = sp.anchor[c];
-                l.normal[c][k] = sp.anchor_normal[c];
-                l.r_normal[c][k] = (r * sp.anchor_normal)[c];
-            }
-            l.r[k] = r;
-            l.two_r[k] = 2.0 * r;
-            l.outward[k] = flag(sp.radius > 0.0);
-            l.inward[k] = flag(sp.radius < 0.0);
+            l.put_sphere(k, sp);
             l.kinds.push(Kind::Sphere);
             materials.push(sp.material);
         }
@@ -480,13 +475,109 @@ impl<'a> Lanes<'a> {
             });
         }
         l.nee = f.nee && (!l.lamps.is_empty() || l.env.as_ref().is_some_and(|e| e.pick > 0.0));
+        // The root of the scalar tracer's eight-wide tree, which its walk reads where the
+        // settings keep the tree (`Tracer::intersect`).
+        let root = match s.bvh8.as_ref().and_then(|b| b.root()) {
+            Some(r) if walks && f.bvh => Some(Root::of(&mut l, s, &r)),
+            _ => None,
+        };
         l.walk = walks.then(|| Walk {
             tracer: RefCell::new(Tracer::new(s, f)),
             rows,
             normals: s.shading_normals(),
+            root,
         });
         Some(l)
     }
+
+    /// Sphere `sp`'s shape in row k of the tables.
+    fn put_sphere(&mut self, k: usize, sp: &super::intersect::Sphere) {
+        let flag = |b: bool| if b { 1.0 } else { 0.0 };
+        let r = sp.radius.abs();
+        for c in 0..3 {
+            self.anchor[c][k] = sp.anchor[c];
+            self.normal[c][k] = sp.anchor_normal[c];
+            self.r_normal[c][k] = (r * sp.anchor_normal)[c];
+        }
+        self.r[k] = r;
+        self.two_r[k] = 2.0 * r;
+        self.outward[k] = flag(sp.radius > 0.0);
+        self.inward[k] = flag(sp.radius < 0.0);
+    }
+}
+
+/// The root of the scalar tracer's eight-wide tree (`Bvh8`), tested in lanes: its boxes
+/// against every lane's ray at once, and the spheres of its leaves with `hit_sphere` (the
+/// scalar test bit for bit), in the walk's order (leaves first, slot by slot; a nearer hit
+/// replaces the best). A lane whose ray enters no other slot nearer than its best hit (an
+/// inner node, a leaf of other primitives) ends its walk there: the ground of an outdoor
+/// scene, the sky. The others walk the whole tree on their own (`Tracer::nearest`). So each
+/// lane's hit is the scalar walk's, and most rays that miss a model never leave the lanes.
+struct Root {
+    /// The valid slots, in the walk's order.
+    slots: Vec<RootSlot>,
+}
+
+/// A slot of the root: its box, and the spheres of a leaf that the lanes test (row of the
+/// tables, reference), none where they walk it (an inner node, or a leaf of other
+/// primitives or of more spheres than the tables hold).
+struct RootSlot {
+    min: [f32; 3],
+    max: [f32; 3],
+    spheres: Vec<(usize, u32)>,
+    leaf: bool,
+}
+
+impl Root {
+    /// The root `r` of `s`'s tree, its leaves' spheres put in `l`'s tables from row 0.
+    fn of(l: &mut Lanes, s: &CpuScene, r: &super::bvh8::Root) -> Root {
+        let mut slots = Vec::new();
+        let mut rows = 0;
+        for slot in (0..8).filter(|&j| r.valid >> j & 1 != 0) {
+            let leaf = r.leaves >> slot & 1 != 0;
+            let mut spheres = Vec::new();
+            if leaf {
+                let first = r.child[slot] as usize;
+                let refs = &s.bvh.refs[first..first + r.count[slot] as usize];
+                if refs.iter().all(|&x| x >> 30 == 0) && rows + refs.len() <= MAX_PRIMITIVES {
+                    for &x in refs {
+                        l.put_sphere(rows, &s.spheres[(x & REF_INDEX) as usize]);
+                        spheres.push((rows, x));
+                        rows += 1;
+                    }
+                }
+            }
+            slots.push(RootSlot {
+                min: from_fn(|c| r.min[c][slot]),
+                max: from_fn(|c| r.max[c][slot]),
+                spheres,
+                leaf,
+            });
+        }
+        Root { slots }
+    }
+}
+
+impl RootSlot {
+    /// `Bvh8::slab` of this slot for the rays from `o` of inverse directions `inv`, in
+    /// lanes (its operations, in its order): the entry distances, and the lanes that enter
+    /// before `t_max`.
+    #[inline(always)]
+    fn slab<S: Isa>(&self, s: S, (o, inv): (V3<S>, V3<S>), t_max: F<S>) -> (F<S>, M<S>) {
+        let t0: V3<S> = each!(|c| (s.splat(self.min[c]) - o[c]) * inv[c]);
+        let t1: V3<S> = each!(|c| (s.splat(self.max[c]) - o[c]) * inv[c]);
+        let near = (t0[0].min(t1[0]).max(t0[1].min(t1[1]))).max(t0[2].min(t1[2]).max(s.zero()));
+        let far = (t0[0].max(t1[0]).min(t0[1].max(t1[1]))).min(t0[2].max(t1[2]).min(t_max));
+        (near, near.le(far))
+    }
+}
+
+/// `intersect::safe_inverse` of directions `d` in lanes: 1 / d, a component below 10⁻³⁰ in
+/// magnitude (or NaN) taken as 10⁻³⁰.
+#[inline(always)]
+fn inverse<S: Isa>(s: S, d: V3<S>) -> V3<S> {
+    let tiny = s.splat(1e-30);
+    each!(|c| s.splat(1.0) / tiny.blend(d[c], d[c].abs().ge(tiny)))
 }
 
 /// A material as the tables hold it (`Lanes::put`): whether it emits, its colour and
@@ -781,7 +872,7 @@ impl Lanes<'_> {
         p.segments = p.segments.count(live);
         *tests += (active.count_ones() as u64) * self.kinds.len() as u64;
         let (best, index, found) = match &self.walk {
-            Some(w) => w.closest(s, (*o, *d), p.skip, live),
+            Some(w) => w.closest(self, s, (*o, *d), p.skip, live),
             None => {
                 let (best, index) = self.closest(s, *o, *d, p.skip);
                 (best, index, index.gt(s.int(NONE)))
@@ -1034,7 +1125,7 @@ impl Lanes<'_> {
         lanes: M<S>,
     ) -> M<S> {
         if let Some(w) = &self.walk {
-            return w.occluded(s, (o, d), t_max, (from, also), lanes);
+            return w.occluded(self, s, (o, d), t_max, (from, also), lanes);
         }
         let mut blocked = s.mask(0);
         for k in (0..self.kinds.len()).filter(|&k| k != skip) {
@@ -1443,24 +1534,20 @@ impl Lanes<'_> {
         let Some(env) = self.env.as_ref() else {
             return ([zero; 3], 0);
         };
-        let (mut a, mut b) = ([0.0; MAX_LANES], [0.0; MAX_LANES]);
-        u1.store(&mut a);
-        u2.store(&mut b);
-        let mut dirs = [[0.0; MAX_LANES]; 3];
-        let mut pdfs = [0.0; MAX_LANES];
-        let mut uvs = [(0.0, 0.0); MAX_LANES];
+        let tables = Tables::of(&env.map.distribution);
+        let draws = (u1.keep(lanes), u2.keep(lanes));
+        let map::Drawn {
+            dir,
+            pdf,
+            uv: (u, v),
+        } = map::sample(s, &env.map.distribution, &tables, draws, env.rotation);
+        // Looked up after the shadow rays, where it is not occluded.
+        let (mut us, mut vs) = ([0.0; MAX_LANES], [0.0; MAX_LANES]);
+        u.store(&mut us);
+        v.store(&mut vs);
         for k in lanes_of(lanes.bits()) {
-            let smp = env.map.distribution.sample(a[k], b[k], env.rotation);
-            for (c, d) in dirs.iter_mut().enumerate() {
-                d[k] = smp.dir[c];
-            }
-            pdfs[k] = smp.pdf;
-            uvs[k] = smp.uv;
-            // Looked up after the shadow rays, where it is not occluded.
-            env.map.prefetch(smp.uv.0, smp.uv.1);
+            env.map.prefetch(us[k], vs[k]);
         }
-        let dir = each!(|c| s.load(&dirs[c]));
-        let pdf = s.load(&pdfs);
         let cos_s = dot(n, dir);
         let mut ok = (lanes & pdf.gt(zero)) & cos_s.gt(zero);
         // With shading normals, a direction below the geometric surface is not lit
@@ -1476,7 +1563,7 @@ impl Lanes<'_> {
             ok = ok.without(blocked);
             tests = (lanes.bits().count_ones() as u64) * self.kinds.len() as u64;
         }
-        let radiance = map_radiance(s, env, &uvs, ok);
+        let radiance = map_radiance(s, (&env.map, env.intensity), (u, v), ok);
         let pl = s.splat(env.pick) * pdf;
         let l = light_weighted(s, radiance, (cos_s, dir, n), pl, lobe);
         (each!(|c| l[c].keep(ok)), tests)
@@ -1508,34 +1595,47 @@ impl Lanes<'_> {
         if !seen.any() {
             return sky;
         }
-        let mut dirs = [[0.0; MAX_LANES]; 3];
-        let mut prev = [0.0; MAX_LANES];
-        for (c, v) in dirs.iter_mut().enumerate() {
-            d[c].store(v);
-        }
-        prev_pdf.store(&mut prev);
         let weighs = self.nee && env.pick > 0.0;
-        // The coordinates first, and the texels and densities asked for, so that the lanes'
-        // cache misses overlap.
-        let mut uv = [(0.0, 0.0); MAX_LANES];
+        let weighed = if weighs {
+            seen & prev_pdf.gt(s.zero())
+        } else {
+            s.mask(0)
+        };
+        let ((mut u, mut v), nan) = map::coordinates(s, d, env.rotation);
+        // The texels and densities asked for first, so that the lanes' cache misses overlap.
+        let (mut us, mut vs) = ([0.0; MAX_LANES], [0.0; MAX_LANES]);
+        u.store(&mut us);
+        v.store(&mut vs);
         for k in lanes_of(seen.bits()) {
-            let dir = glam::Vec3::new(dirs[0][k], dirs[1][k], dirs[2][k]);
-            uv[k] = coordinates(dir, env.rotation);
-            env.map.prefetch(uv[k].0, uv[k].1);
-            if weighs && prev[k] > 0.0 {
-                env.map.distribution.prefetch_pdf(uv[k].0, uv[k].1);
-            }
+            env.map.prefetch(us[k], vs[k]);
         }
-        let mut weights = [1.0; MAX_LANES];
-        if weighs {
-            for k in lanes_of(seen.bits()).filter(|&k| prev[k] > 0.0) {
-                let (cu, cv) = uv[k];
-                let pl = env.pick * env.map.distribution.pdf_at(cu, cv);
-                weights[k] = super::trace::power_heuristic(prev[k], pl);
-            }
+        for k in lanes_of(weighed.bits()) {
+            env.map.distribution.prefetch_pdf(us[k], vs[k]);
         }
-        let l = map_radiance(s, env, &uv, seen);
-        let w = s.load(&weights);
+        let mut w = s.splat(1.0);
+        if weighed.any() {
+            let tables = Tables::of(&env.map.distribution);
+            let pl = s.splat(env.pick) * map::pdf_at(s, &env.map.distribution, &tables, u, v);
+            w = w.blend(power_heuristic(prev_pdf, pl), weighed);
+        }
+        // A direction with a NaN component: the scalar code's coordinates and weight.
+        let odd = seen & nan;
+        if odd.any() {
+            let (dirs, mut prev, mut weights) = (rows(d), [0.0; MAX_LANES], [0.0; MAX_LANES]);
+            prev_pdf.store(&mut prev);
+            w.store(&mut weights);
+            for k in lanes_of(odd.bits()) {
+                let dir = glam::Vec3::new(dirs[0][k], dirs[1][k], dirs[2][k]);
+                let (cu, cv) = crate::scene::envmap_sampling::coordinates(dir, env.rotation);
+                (us[k], vs[k]) = (cu, cv);
+                if weighs && prev[k] > 0.0 {
+                    let pl = env.pick * env.map.distribution.pdf_at(cu, cv);
+                    weights[k] = super::trace::power_heuristic(prev[k], pl);
+                }
+            }
+            (u, v, w) = (s.load(&us), s.load(&vs), s.load(&weights));
+        }
+        let l = map_radiance(s, (&env.map, env.intensity), (u, v), seen);
         each!(|c| sky[c].blend(l[c] * w, seen))
     }
 
@@ -1640,29 +1740,95 @@ struct Met<S: Isa> {
 
 impl Walk<'_> {
     /// The nearest hits of the rays (o, d) of the lanes of `lanes`, primitive `skip` left
-    /// out (`Tracer::nearest`, lane by lane): the distances, the primitives, and the lanes
-    /// that hit.
+    /// out (`Tracer::nearest`): the root in lanes (`Root`), then lane by lane for the rays
+    /// that walk on; the distances, the primitives, and the lanes that hit.
     #[inline(always)]
     fn closest<S: Isa>(
         &self,
+        l: &Lanes,
         s: S,
         (o, d): (V3<S>, V3<S>),
         skip: I<S>,
         lanes: M<S>,
     ) -> (F<S>, I<S>, M<S>) {
-        let (o, d) = (rows(o), rows(d));
-        let mut skips = [0; MAX_LANES];
-        skip.store(&mut skips);
-        let (mut t, mut r) = ([0.0; MAX_LANES], [NONE; MAX_LANES]);
-        let mut found = 0;
-        let mut tracer = self.tracer.borrow_mut();
-        for k in lanes_of(lanes.bits()) {
-            if let Some(hit) = tracer.nearest(&ray_of(&o, &d, k), skips[k] as u32) {
-                (t[k], r[k]) = (hit.0, hit.1 as i32);
-                found |= 1 << k;
+        let Some(root) = &self.root else {
+            let (t, r) = (s.splat(T_FAR), s.int(NONE));
+            return self.walked(s, (o, d), skip, lanes, (t, r));
+        };
+        let inv = inverse(s, d);
+        let far = s.splat(T_FAR);
+        let (mut best, mut index) = (far, s.int(NONE));
+        let (mut walked, mut tests) = (s.mask(0), 0);
+        let mut near = [far; 8];
+        let mut entered = [s.mask(0); 8];
+        for (j, slot) in root.slots.iter().enumerate() {
+            (near[j], entered[j]) = slot.slab(s, (o, inv), far);
+            entered[j] = entered[j] & lanes;
+        }
+        // The leaves first, slot by slot, as `bvh::Walk::visit`.
+        for (j, slot) in root.slots.iter().enumerate() {
+            if !slot.leaf || !entered[j].any() {
+                continue;
+            }
+            if slot.spheres.is_empty() {
+                walked = walked | entered[j];
+                continue;
+            }
+            for &(k, r) in &slot.spheres {
+                let t = l.hit_sphere(s, k, o, d);
+                let rr = s.int(r as i32);
+                let take = (entered[j] & within(s, t)).without(skip.eq(rr)) & t.lt(best);
+                best = best.blend(t, take);
+                index = index.blend(rr, take);
+                tests += (entered[j].without(skip.eq(rr))).bits().count_ones() as u64;
             }
         }
-        (s.load(&t), s.ints(&r), s.mask(found))
+        // Then the inner nodes nearer than the best hit: walked.
+        for (j, slot) in root.slots.iter().enumerate() {
+            if !slot.leaf {
+                walked = walked | (entered[j] & near[j].lt(best));
+            }
+        }
+        let done = lanes.without(walked);
+        {
+            let tally = &mut self.tracer.borrow_mut().tally;
+            tally.visits += done.bits().count_ones() as u64;
+            tally.tests += tests;
+        }
+        self.walked(s, (o, d), skip, walked, (best, index))
+    }
+
+    /// `closest`'s lanes of `lanes` walked on their own (`Tracer::nearest`): their hits
+    /// replace (t, r) there; and the lanes that hit.
+    #[inline(always)]
+    fn walked<S: Isa>(
+        &self,
+        s: S,
+        (o, d): (V3<S>, V3<S>),
+        skip: I<S>,
+        lanes: M<S>,
+        (t, r): (F<S>, I<S>),
+    ) -> (F<S>, I<S>, M<S>) {
+        let (mut t, mut r) = (t, r);
+        if lanes.any() {
+            let (o, d) = (rows(o), rows(d));
+            let mut skips = [0; MAX_LANES];
+            skip.store(&mut skips);
+            let (mut ts, mut refs) = ([0.0; MAX_LANES], [NONE; MAX_LANES]);
+            t.store(&mut ts);
+            r.store(&mut refs);
+            let mut tracer = self.tracer.borrow_mut();
+            for k in lanes_of(lanes.bits()) {
+                (ts[k], refs[k]) = match tracer.nearest(&ray_of(&o, &d, k), skips[k] as u32) {
+                    Some(hit) => (hit.0, hit.1 as i32),
+                    None => (T_FAR, NONE),
+                };
+            }
+            (t, r) = (s.load(&ts), s.ints(&refs));
+        }
+        // (A triangle's reference is negative as an i32: its kind is in the top bits.)
+        let found = !r.eq(s.int(NONE));
+        (t.keep(found), r, found)
     }
 
     /// What the rays (o, d) of the lanes of `lanes` met at (t, r) (`Tracer::met`, lane by
@@ -1702,30 +1868,61 @@ impl Walk<'_> {
     }
 
     /// Whether the rays (o, d) of the lanes of `lanes` meet any primitive but `from` and
-    /// `also` before `t_max` (`Tracer::occluded`, lane by lane).
+    /// `also` before `t_max` (`Tracer::occluded`): the root in lanes (`Root`; any blocker
+    /// ends a shadow ray's walk), then lane by lane for the rays that enter another slot.
     #[inline(always)]
     fn occluded<S: Isa>(
         &self,
+        l: &Lanes,
         s: S,
         (o, d): (V3<S>, V3<S>),
         t_max: F<S>,
         (from, also): (I<S>, I<S>),
         lanes: M<S>,
     ) -> M<S> {
+        let (mut blocked, mut walked) = (s.mask(0), lanes);
+        if let Some(root) = &self.root {
+            let inv = inverse(s, d);
+            walked = s.mask(0);
+            let mut tests = 0;
+            for slot in &root.slots {
+                let entered = slot.slab(s, (o, inv), t_max).1 & lanes;
+                if !entered.any() {
+                    continue;
+                }
+                if slot.spheres.is_empty() {
+                    walked = walked | entered;
+                    continue;
+                }
+                for &(k, r) in &slot.spheres {
+                    let rr = s.int(r as i32);
+                    let hits = between(s, l.hit_sphere(s, k, o, d), t_max);
+                    blocked = blocked | (entered & hits).without(from.eq(rr) | also.eq(rr));
+                    tests += entered.bits().count_ones() as u64;
+                }
+            }
+            walked = walked.without(blocked);
+            let tally = &mut self.tracer.borrow_mut().tally;
+            tally.visits += lanes.without(walked).bits().count_ones() as u64;
+            tally.tests += tests;
+        }
+        if !walked.any() {
+            return blocked;
+        }
         let (o, d) = (rows(o), rows(d));
         let (mut far, mut froms, mut alsos) = ([0.0; MAX_LANES], [0; MAX_LANES], [0; MAX_LANES]);
         t_max.store(&mut far);
         from.store(&mut froms);
         also.store(&mut alsos);
-        let mut blocked = 0;
+        let mut hit = 0;
         let mut tracer = self.tracer.borrow_mut();
-        for k in lanes_of(lanes.bits()) {
+        for k in lanes_of(walked.bits()) {
             let ray = ray_of(&o, &d, k);
             if tracer.occluded::<ANY>(&ray, far[k], alsos[k] as u32, froms[k] as u32) {
-                blocked |= 1 << k;
+                hit |= 1 << k;
             }
         }
-        s.mask(blocked)
+        blocked | s.mask(hit)
     }
 
     /// `Tracer::leaving` of primitives `r` on their outer side (`out`) or inner side, in the
@@ -1741,16 +1938,6 @@ impl Walk<'_> {
         }
         s.ints(&left)
     }
-}
-
-/// A 3-vector's lanes, by component.
-#[inline(always)]
-fn rows<S: Isa>(v: V3<S>) -> [Row; 3] {
-    let mut out = [[0.0; MAX_LANES]; 3];
-    for (c, row) in out.iter_mut().enumerate() {
-        v[c].store(row);
-    }
-    out
 }
 
 /// Lane k's ray of origins `o` and directions `d` (by component).
@@ -1918,16 +2105,6 @@ fn fixed_words<S: Isa>(s: S, x: F<S>) -> (I<S>, I<S>) {
     (whole, frac)
 }
 
-/// The lanes whose bits are set in `bits`, lowest first.
-#[inline(always)]
-fn lanes_of(mut bits: u32) -> impl Iterator<Item = usize> {
-    std::iter::from_fn(move || {
-        let k = bits.trailing_zeros();
-        bits &= bits.wrapping_sub(1);
-        (k < 32).then_some(k as usize)
-    })
-}
-
 /// glam's Vec3A dot: (x·x′ + y·y′) + z·z′.
 #[inline(always)]
 fn dot<S: Isa>(a: V3<S>, b: V3<S>) -> F<S> {
@@ -1942,85 +2119,6 @@ fn cross<S: Isa>(a: V3<S>, c: V3<S>) -> V3<S> {
         a[2] * c[0] - a[0] * c[2],
         a[0] * c[1] - a[1] * c[0],
     ]
-}
-
-/// `EnvMap::radiance_at` at map coordinates `uv` in the lanes of `lanes`, times the map's
-/// intensity (0 in the other lanes): the four texels gathered in lanes and decoded and
-/// blended in `envmap_sampling::bilinear`'s and `rgbe_unpack`'s order, so that each lane's
-/// radiance is the scalar lookup's bit for bit. A lane whose coordinates fall outside the
-/// map (NaN: `bilinear` wraps them by `rem_euclid`) or whose texels hold an exponent below 10
-/// (none does: `rgbe_pack` writes 29 or more) is looked up by the scalar code.
-#[inline(always)]
-fn map_radiance<S: Isa>(s: S, env: &Env, uv: &[(f32, f32); MAX_LANES], lanes: M<S>) -> V3<S> {
-    let (zero, one) = (s.zero(), s.splat(1.0));
-    let map = &env.map;
-    let (mut us, mut vs) = ([0.0; MAX_LANES], [0.0; MAX_LANES]);
-    for k in lanes_of(lanes.bits()) {
-        (us[k], vs[k]) = uv[k];
-    }
-    let (w, h) = (map.width as f32, map.height as f32);
-    let fx = s.load(&us) * s.splat(w) - s.splat(0.5);
-    let fy = (s.load(&vs) * s.splat(h) - s.splat(0.5)).max(zero);
-    let (x0f, y0f) = (floor(s, fx), floor(s, fy));
-    let (tx, ty) = (fx - x0f, fy - y0f);
-    // Wrapped in u (x0 = −1 is the last column); clamped at the poles in v.
-    let inside = x0f.ge(s.splat(-1.0)) & x0f.le(s.splat(w - 1.0));
-    let x0f = x0f.blend(s.splat(w - 1.0), x0f.lt(zero));
-    let x1f = (x0f + one).blend(zero, (x0f + one).cmp::<_CMP_EQ_OQ>(s.splat(w)));
-    let y0f = y0f.min(s.splat(h - 1.0));
-    let y1f = (y0f + one).min(s.splat(h - 1.0));
-    let (x0, x1) = (x0f.truncate(), x1f.truncate());
-    let width = s.int(map.width as i32);
-    let (row0, row1) = (y0f.truncate() * width, y1f.truncate() * width);
-    let (t00, odd00) = rgbe_unpack(s, I::gather(&map.rgbe, row0 + x0));
-    let (t10, odd10) = rgbe_unpack(s, I::gather(&map.rgbe, row0 + x1));
-    let (t01, odd01) = rgbe_unpack(s, I::gather(&map.rgbe, row1 + x0));
-    let (t11, odd11) = rgbe_unpack(s, I::gather(&map.rgbe, row1 + x1));
-    let odd = lanes & (!inside | ((odd00 | odd10) | (odd01 | odd11)));
-    let mut out: V3<S> = each!(|c| {
-        let top = lerp(t00[c], t10[c], tx);
-        let bottom = lerp(t01[c], t11[c], tx);
-        (lerp(top, bottom, ty) * s.splat(env.intensity)).keep(lanes)
-    });
-    if odd.any() {
-        let mut rows = rows(out);
-        for k in lanes_of(odd.bits()) {
-            let l = Vec3A::from_array(map.radiance_at(uv[k].0, uv[k].1)) * env.intensity;
-            for (c, row) in rows.iter_mut().enumerate() {
-                row[k] = l[c];
-            }
-        }
-        out = each!(|c| s.load(&rows[c]));
-    }
-    out
-}
-
-/// `envmap_sampling::floor` in lanes: the truncation, one less where it rounded up.
-#[inline(always)]
-fn floor<S: Isa>(s: S, x: F<S>) -> F<S> {
-    let t = x.trunc();
-    t.blend(t - s.splat(1.0), t.gt(x))
-}
-
-/// a + t (b − a), `bilinear`'s step.
-#[inline(always)]
-fn lerp<S: Isa>(a: F<S>, b: F<S>, t: F<S>) -> F<S> {
-    a + t * (b - a)
-}
-
-/// `envmap_sampling::rgbe_unpack` of texels `w` in lanes: m × 2^(e − 136), the power built
-/// from its bits, black at e = 0; and the lanes of an exponent from 1 to 9, which this does
-/// not decode (a subnormal power).
-#[inline(always)]
-fn rgbe_unpack<S: Isa>(s: S, w: I<S>) -> (V3<S>, M<S>) {
-    let e = w.shr(24);
-    let black = e.eq(s.int(0));
-    let f = ((e - s.int(9)) * s.int(1 << 23)).float_of_bits();
-    let c: V3<S> = each!(|c| {
-        let m = w.shr(8 * c as i32).and(s.int(0xff)).to_float();
-        (m * f).blend(s.zero(), black)
-    });
-    (c, s.int(10).gt(e).without(black))
 }
 
 /// `light_weighted` in lanes: `radiance` arriving from `dir` (cos_s against the shading
@@ -2102,36 +2200,6 @@ fn random_unit_vector<S: Isa>(s: S, u: F<S>, v: F<S>) -> V3<S> {
     let r = (one - z * z).max(s.zero()).sqrt();
     let (sin, cos) = sin_cos_turns(s, v);
     [r * cos, r * sin, z]
-}
-
-/// `sampling::sin_cos_turns` in lanes: the same polynomials, the same quadrant turns.
-#[inline(always)]
-fn sin_cos_turns<S: Isa>(s: S, t: F<S>) -> (F<S>, F<S>) {
-    let qi = (s.splat(4.0) * t + s.splat(0.5)).truncate();
-    let q = qi.to_float();
-    let x = s.splat(2.0 * PI) * (t - s.splat(0.25) * q);
-    let x2 = x * x;
-    // x * (1 + x2 * (-1/6 + x2 * (1/120 + x2 * (-1/5040 + x2 / 362880))))
-    let sin = x
-        * (s.splat(1.0)
-            + x2 * (s.splat(-1.0 / 6.0)
-                + x2 * (s.splat(1.0 / 120.0)
-                    + x2 * (s.splat(-1.0 / 5040.0) + x2 / s.splat(362880.0)))));
-    // 1 + x2 * (-1/2 + x2 * (1/24 + x2 * (-1/720 + x2 * (1/40320))))
-    let cos = s.splat(1.0)
-        + x2 * (s.splat(-0.5)
-            + x2 * (s.splat(1.0 / 24.0)
-                + x2 * (s.splat(-1.0 / 720.0) + x2 * s.splat(1.0 / 40320.0))));
-    let (one, two) = (s.int(1), s.int(2));
-    let odd = qi.and(one).eq(one);
-    let a = sin.blend(cos, odd);
-    let b = cos.blend(sin, odd);
-    let flip_a = qi.and(two).shl30();
-    let flip_b = (qi + one).and(two).shl30();
-    (
-        a.to_bits().xor(flip_a).float_of_bits(),
-        b.to_bits().xor(flip_b).float_of_bits(),
-    )
 }
 
 /// `intersect::offset_ray` in lanes (Wächter and Binder, Ray Tracing Gems ch. 6).
