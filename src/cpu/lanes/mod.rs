@@ -478,7 +478,7 @@ impl<'a> Lanes<'a> {
         // The root of the scalar tracer's eight-wide tree, which its walk reads where the
         // settings keep the tree (`Tracer::intersect`).
         let root = match s.bvh8.as_ref().and_then(|b| b.root()) {
-            Some(r) if walks && f.bvh => Some(Root::of(&mut l, s, &r)),
+            Some(r) if walks && f.bvh => Some(Root::of(&mut l, s, &r, &rows)),
             _ => None,
         };
         l.walk = walks.then(|| Walk {
@@ -524,13 +524,23 @@ struct Root {
 struct RootSlot {
     min: [f32; 3],
     max: [f32; 3],
-    spheres: Vec<(usize, u32)>,
+    spheres: Vec<RootSphere>,
     leaf: bool,
+}
+
+/// A sphere of a root leaf: its row of the lanes' tables, its reference, and what
+/// `Tracer::met` reads of it (its material's row in the walk's tables, its colour).
+#[derive(Clone, Copy)]
+struct RootSphere {
+    k: usize,
+    r: u32,
+    material: i32,
+    color: [f32; 3],
 }
 
 impl Root {
     /// The root `r` of `s`'s tree, its leaves' spheres put in `l`'s tables from row 0.
-    fn of(l: &mut Lanes, s: &CpuScene, r: &super::bvh8::Root) -> Root {
+    fn of(l: &mut Lanes, s: &CpuScene, r: &super::bvh8::Root, material_rows: &[i32]) -> Root {
         let mut slots = Vec::new();
         let mut rows = 0;
         for slot in (0..8).filter(|&j| r.valid >> j & 1 != 0) {
@@ -541,8 +551,14 @@ impl Root {
                 let refs = &s.bvh.refs[first..first + r.count[slot] as usize];
                 if refs.iter().all(|&x| x >> 30 == 0) && rows + refs.len() <= MAX_PRIMITIVES {
                     for &x in refs {
-                        l.put_sphere(rows, &s.spheres[(x & REF_INDEX) as usize]);
-                        spheres.push((rows, x));
+                        let sp = &s.spheres[(x & REF_INDEX) as usize];
+                        l.put_sphere(rows, sp);
+                        spheres.push(RootSphere {
+                            k: rows,
+                            r: x,
+                            material: material_rows[sp.material as usize],
+                            color: s.materials[sp.material as usize].color.to_array(),
+                        });
                         rows += 1;
                     }
                 }
@@ -897,7 +913,7 @@ impl Lanes<'_> {
         // geometric normal, and a walk's colour and shading normal.
         let (idx, prim, position, n_out, met) = match &self.walk {
             Some(w) => {
-                let m = w.surface(s, (*o, *d), (best, index), hit);
+                let m = w.surface(self, s, (*o, *d), (best, index), hit);
                 (
                     m.material,
                     index,
@@ -1226,24 +1242,38 @@ impl Lanes<'_> {
         s.splat(NO_HIT).blend(t, hits)
     }
 
-    /// Where the rays hit their primitives `idx` at `t`: the point moved onto the surface,
-    /// and the geometric normal (`sphere_surface`, `quad_surface`, `box_surface`).
+    /// Where the rays hit spheres `idx` (rows of the tables) at `t`: the point moved onto the
+    /// surface, and the normal on the side it points to (`intersect::sphere_surface`).
+    #[inline(always)]
+    fn sphere_surface<S: Isa>(
+        &self,
+        s: S,
+        o: V3<S>,
+        d: V3<S>,
+        t: F<S>,
+        idx: I<S>,
+    ) -> (V3<S>, V3<S>) {
+        let r = F::pick(&self.r, idx);
+        let (an, anc) = (pick3(&self.normal, idx), pick3(&self.anchor, idx));
+        let q: V3<S> = each!(|c| (o[c] - anc[c]) + t * d[c]);
+        let m: V3<S> = each!(|c| q[c] / r + an[c]);
+        let len = dot(m, m).sqrt();
+        let n = each!(|c| m[c] / len);
+        let h = (dot(q, q) + F::pick(&self.two_r, idx) * dot(q, an)) / (r * len + r);
+        let p = each!(|c| anc[c] + (q[c] - h * n[c]));
+        let inward = flagged(s, &self.inward, idx);
+        (p, each!(|c| n[c].blend(-n[c], inward)))
+    }
+
+    /// The point and outward normal of the hits at `t` on primitives `idx` (`surface_at`:
+    /// `sphere_surface`, `quad_surface`, `box_surface`), by kind.
     #[inline(always)]
     fn surface<S: Isa>(&self, s: S, o: V3<S>, d: V3<S>, t: F<S>, idx: I<S>) -> (V3<S>, V3<S>) {
         let zero = s.zero();
         let has = |kind: Kind| self.kinds.contains(&kind);
         let mut at = ([zero; 3], [zero; 3]);
         if has(Kind::Sphere) {
-            let r = F::pick(&self.r, idx);
-            let (an, anc) = (pick3(&self.normal, idx), pick3(&self.anchor, idx));
-            let q: V3<S> = each!(|c| (o[c] - anc[c]) + t * d[c]);
-            let m: V3<S> = each!(|c| q[c] / r + an[c]);
-            let len = dot(m, m).sqrt();
-            let n = each!(|c| m[c] / len);
-            let h = (dot(q, q) + F::pick(&self.two_r, idx) * dot(q, an)) / (r * len + r);
-            let p = each!(|c| anc[c] + (q[c] - h * n[c]));
-            let inward = flagged(s, &self.inward, idx);
-            let n = each!(|c| n[c].blend(-n[c], inward));
+            let (p, n) = self.sphere_surface(s, o, d, t, idx);
             put(&mut at, self.is_kind(s, Kind::Sphere, idx), p, n);
         }
         if has(Kind::Quad) {
@@ -1774,7 +1804,7 @@ impl Walk<'_> {
                 walked = walked | entered[j];
                 continue;
             }
-            for &(k, r) in &slot.spheres {
+            for &RootSphere { k, r, .. } in &slot.spheres {
                 let t = l.hit_sphere(s, k, o, d);
                 let rr = s.int(r as i32);
                 let take = (entered[j] & within(s, t)).without(skip.eq(rr)) & t.lt(best);
@@ -1831,31 +1861,66 @@ impl Walk<'_> {
         (t.keep(found), r, found)
     }
 
-    /// What the rays (o, d) of the lanes of `lanes` met at (t, r) (`Tracer::met`, lane by
-    /// lane).
+    /// What the rays (o, d) of the lanes of `lanes` met at (t, r) (`Tracer::met`): a root
+    /// leaf's sphere in lanes (its surface, its material's row and colour, the facing normal
+    /// for shading: `met` of a sphere, which has no texture and no shading normal of its
+    /// own), the rest lane by lane.
     #[inline(always)]
     fn surface<S: Isa>(
         &self,
+        l: &Lanes,
         s: S,
         (o, d): (V3<S>, V3<S>),
         (t, r): (F<S>, I<S>),
         lanes: M<S>,
     ) -> Met<S> {
+        let zero = s.zero();
+        let mut m = Met {
+            material: s.int(0),
+            position: [zero; 3],
+            normal: [zero; 3],
+            color: [zero; 3],
+            shading: [zero; 3],
+        };
+        let mut rest = lanes;
+        if let Some(root) = &self.root {
+            let (mut row, mut on) = (s.int(0), s.mask(0));
+            for sp in root.slots.iter().flat_map(|slot| slot.spheres.iter()) {
+                let this = r.eq(s.int(sp.r as i32)) & lanes;
+                row = row.blend(s.int(sp.k as i32), this);
+                m.material = m.material.blend(s.int(sp.material), this);
+                m.color = each!(|c| m.color[c].blend(s.splat(sp.color[c]), this));
+                on = on | this;
+            }
+            if on.any() {
+                let (p, n) = l.sphere_surface(s, o, d, t, row);
+                let facing = dot(d, n).lt(zero);
+                m.position = each!(|c| p[c].keep(on));
+                m.normal = each!(|c| n[c].keep(on));
+                m.shading = each!(|c| (-n[c]).blend(n[c], facing).keep(on));
+                rest = rest.without(on);
+            }
+        }
+        if !rest.any() {
+            return m;
+        }
         let (o, d) = (rows(o), rows(d));
         let (mut ts, mut refs) = ([0.0; MAX_LANES], [0; MAX_LANES]);
         t.store(&mut ts);
         r.store(&mut refs);
         let mut material = [0; MAX_LANES];
-        let [mut position, mut normal, mut color, mut shading] = [[[0.0; MAX_LANES]; 3]; 4];
+        m.material.store(&mut material);
+        let (mut position, mut normal) = (rows(m.position), rows(m.normal));
+        let (mut color, mut shading) = (rows(m.color), rows(m.shading));
         let tracer = self.tracer.borrow();
-        for k in lanes_of(lanes.bits()) {
-            let m = tracer.met(&ray_of(&o, &d, k), ts[k], refs[k] as u32);
-            material[k] = self.rows[m.material as usize];
+        for k in lanes_of(rest.bits()) {
+            let met = tracer.met(&ray_of(&o, &d, k), ts[k], refs[k] as u32);
+            material[k] = self.rows[met.material as usize];
             for c in 0..3 {
-                position[c][k] = m.position[c];
-                normal[c][k] = m.normal[c];
-                color[c][k] = m.color[c];
-                shading[c][k] = m.shading[c];
+                position[c][k] = met.position[c];
+                normal[c][k] = met.normal[c];
+                color[c][k] = met.color[c];
+                shading[c][k] = met.shading[c];
             }
         }
         Met {
@@ -1894,7 +1959,7 @@ impl Walk<'_> {
                     walked = walked | entered;
                     continue;
                 }
-                for &(k, r) in &slot.spheres {
+                for &RootSphere { k, r, .. } in &slot.spheres {
                     let rr = s.int(r as i32);
                     let hits = between(s, l.hit_sphere(s, k, o, d), t_max);
                     blocked = blocked | (entered & hits).without(from.eq(rr) | also.eq(rr));
@@ -2458,7 +2523,9 @@ light = 2
     /// A walk (`Walk`): more than `MAX_PRIMITIVES` spheres, a quad and a box, of the
     /// lecture's materials (glass, glossy lobes alone and mixed, fuzz) on triangles too: a
     /// smooth icosphere, glass of smooth normals, and a glTF file's normal-mapped quads given
-    /// a glossy lecture material; under the map, seen directly.
+    /// a glossy lecture material; under the map, seen directly. Two large spheres of
+    /// different materials (the ground, a glossy backdrop) stand in the tree's root, which
+    /// the lanes test themselves (`Root`).
     const WALKED: &str = r##"
 [camera]
 look_from = [0, 0.9, 3.2]
@@ -2494,6 +2561,10 @@ absorption = 0.2
 center = [0, -100.5, -1]
 radius = 100
 material = "ground"
+[[sphere]]
+center = [0, 2, -60]
+radius = 20
+material = "gloss"
 [[sphere]]
 center = [-1.6, -0.3, -1.5]
 radius = 0.2
