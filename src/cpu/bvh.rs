@@ -9,6 +9,7 @@ use super::intersect::{Ray, safe_inverse};
 use crate::bvh::wide::GpuBvhNode4;
 use crate::bvh::wide::{EMPTY_SLOT, STACK};
 use glam::Vec4;
+use std::ops::ControlFlow;
 
 /// Four children: their bounds by axis, and for each either an inner node (`child` its
 /// index) or a leaf (`count` references from `child` on in `refs`); `valid` and `leaves`
@@ -134,6 +135,60 @@ impl<'s> Walk<'s> {
     }
 }
 
+/// An any-hit walk between node visits (the four- and the eight-wide walk share it): the
+/// children waiting on the stack, in no order (the first blocker ends the walk).
+pub(super) struct AnyWalk<'s> {
+    stack: &'s mut [Entry],
+    sp: usize,
+}
+
+impl<'s> AnyWalk<'s> {
+    #[inline(always)]
+    pub fn new(stack: &'s mut [Entry]) -> AnyWalk<'s> {
+        AnyWalk { stack, sp: 0 }
+    }
+
+    /// A node's children after their slab tests (`mask`: those entered; `child`, `count`,
+    /// `leaves` as in `Node4`): the leaves' primitives tested (`test`: whether one blocks),
+    /// the inner children pushed. `Break(true)` where one blocks, `Break(false)` where nothing
+    /// is left to visit, else `Continue` with the node to visit next.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn visit(
+        &mut self,
+        mask: u32,
+        leaves: u32,
+        child: &[u32],
+        count: &[u16],
+        refs: &[u32],
+        tally: &mut Tally,
+        test: &mut impl FnMut(u32) -> bool,
+    ) -> ControlFlow<bool, usize> {
+        for slot in slots(mask & leaves) {
+            let first = child[slot] as usize;
+            tally.tests += count[slot] as u64;
+            if refs[first..first + count[slot] as usize]
+                .iter()
+                .any(|&r| test(r))
+            {
+                return ControlFlow::Break(true);
+            }
+        }
+        for slot in slots(mask & !leaves) {
+            self.stack[self.sp] = Entry {
+                node: child[slot],
+                t: 0.0,
+            };
+            self.sp += 1;
+        }
+        if self.sp == 0 {
+            return ControlFlow::Break(false);
+        }
+        self.sp -= 1;
+        ControlFlow::Continue(self.stack[self.sp].node as usize)
+    }
+}
+
 /// The slots whose bits are set in `mask`, lowest first.
 #[inline(always)]
 pub(super) fn slots(mut mask: u32) -> impl Iterator<Item = usize> {
@@ -240,14 +295,6 @@ impl Bvh4 {
         )
     }
 
-    /// The references of leaf slot `slot` of `n`.
-    #[inline(always)]
-    fn leaf(&self, n: &Node4, slot: usize, tally: &mut Tally) -> &[u32] {
-        let first = n.child[slot] as usize;
-        tally.tests += n.count[slot] as u64;
-        &self.refs[first..first + n.count[slot] as usize]
-    }
-
     /// The nearest hit before `t_max`: (t, reference). `test` gives a primitive's distance
     /// if nearer than its bound, else a value ≤ 0 (the order of the walk: `Walk::visit`).
     #[inline(always)]
@@ -308,30 +355,19 @@ impl Bvh4 {
             return false;
         }
         let (o, inv) = Self::ray_terms(ray);
-        let stack = &mut *stack.0;
-        let mut sp = 0usize;
+        let mut w = AnyWalk::new(&mut *stack.0);
         let mut node = 0usize;
         loop {
             let n = &self.nodes[node];
             tally.visits += 1;
             let (mask, _) = Self::slabs(n, &o, &inv, t_max);
-            for slot in slots(mask & n.leaves as u32) {
-                if self.leaf(n, slot, tally).iter().any(|&r| test(r)) {
-                    return true;
-                }
+            let leaves = n.leaves as u32;
+            match w.visit(
+                mask, leaves, &n.child, &n.count, &self.refs, tally, &mut test,
+            ) {
+                ControlFlow::Continue(next) => node = next,
+                ControlFlow::Break(blocked) => return blocked,
             }
-            for slot in slots(mask & !(n.leaves as u32)) {
-                stack[sp] = Entry {
-                    node: n.child[slot],
-                    t: 0.0,
-                };
-                sp += 1;
-            }
-            if sp == 0 {
-                return false;
-            }
-            sp -= 1;
-            node = stack[sp].node as usize;
         }
     }
 }

@@ -5,9 +5,10 @@
 //! (Wald, Benthin & Boulos, "Getting Rid of Packets", RT 2008; Embree's BVH8). The nearest
 //! hit is the four-wide walk's bit for bit (the same primitive tests; tested).
 
-use super::bvh::{Bvh4, Entry, Node4, Tally, Walk, slots};
+use super::bvh::{AnyWalk, Bvh4, Entry, Node4, Tally, Walk, slots};
 use super::intersect::{Ray, safe_inverse};
 use std::arch::x86_64::*;
+use std::ops::ControlFlow;
 
 /// Slots of a node.
 const WIDE: usize = 8;
@@ -274,35 +275,17 @@ impl Bvh8 {
             return false;
         }
         let (o, inv) = Self::ray_terms(ray);
-        let stack = &mut *stack.0;
-        let (mut sp, mut node) = (0usize, 0usize);
+        let mut w = AnyWalk::new(&mut *stack.0);
+        let mut node = 0usize;
         loop {
             let n = &self.nodes[node];
             tally.visits += 1;
             let mask = Self::slab(n, &o, &inv, t_max).1;
             let leaves = n.leaves as u32;
-            for slot in slots(mask & leaves) {
-                let first = n.child[slot] as usize;
-                let count = n.count[slot] as usize;
-                tally.tests += count as u64;
-                for &r in &refs[first..first + count] {
-                    if test(r) {
-                        return true;
-                    }
-                }
+            match w.visit(mask, leaves, &n.child, &n.count, refs, tally, &mut test) {
+                ControlFlow::Continue(next) => node = next,
+                ControlFlow::Break(blocked) => return blocked,
             }
-            for slot in slots(mask & !leaves) {
-                stack[sp] = Entry {
-                    node: n.child[slot],
-                    t: 0.0,
-                };
-                sp += 1;
-            }
-            if sp == 0 {
-                return false;
-            }
-            sp -= 1;
-            node = stack[sp].node as usize;
         }
     }
 }

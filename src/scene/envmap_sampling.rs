@@ -83,7 +83,7 @@ pub fn direction(u: f32, v: f32, rotation: f32) -> Vec3 {
 /// The angles in turns (`scene::trig`, whose polynomials the CPU tracer's lanes repeat):
 /// θ = v/2 turns, φ = u + rotation/2π turns, brought into [0, 1].
 #[inline(always)]
-pub fn direction_and_sin(u: f32, v: f32, rotation: f32) -> (Vec3, f32) {
+fn direction_and_sin(u: f32, v: f32, rotation: f32) -> (Vec3, f32) {
     let (sin_t, cos_t) = sin_cos_turns(0.5 * v);
     let phi = u + rotation * FRAC_1_TAU;
     let (sin_p, cos_p) = sin_cos_turns(phi - floor(phi));
@@ -105,7 +105,7 @@ pub fn coordinates(d: Vec3, rotation: f32) -> (f32, f32) {
 /// and per light sample of a map): the same value wherever |x| < 2²³ (exactly representable
 /// integers, which truncation finds), `floorf` elsewhere (NaN, huge); tested bit for bit.
 #[inline(always)]
-pub fn floor(x: f32) -> f32 {
+fn floor(x: f32) -> f32 {
     if x.abs() < 8_388_608.0 {
         // (`copysign`: floorf(-0) is -0.)
         let t = x as i32 as f32;
