@@ -44,10 +44,8 @@ const TWINS: &[Twin] = &[
             "guides",
             "invert_guided",
             "new",
-            // The CPU's lanes ask the cache for every lane's texels and densities before
-            // reading any.
+            // The CPU's lanes ask the cache for every lane's texels before reading any.
             "prefetch",
-            "prefetch_pdf",
             "rgbe_pack",
             "rgbe_unpack",
             "row",

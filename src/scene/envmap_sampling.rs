@@ -450,14 +450,6 @@ impl Distribution {
         self.density_uv(x as usize, y as usize) / (2.0 * PI * PI * sin_t)
     }
 
-    /// Asks the cache for the density `pdf_at(u, v)` reads (`EnvMap::prefetch`).
-    #[inline(always)]
-    pub fn prefetch_pdf(&self, u: f32, v: f32) {
-        let (x, y, _) = self.texel_at(u, v);
-        let w = self.width as usize + 1;
-        prefetch(&self.conditional[y as usize * w + x as usize]);
-    }
-
     /// The guide tables (the marginal's, the rows', row by row) and the buckets of a row's:
     /// what the CPU tracer's lanes gather from.
     pub fn guides(&self) -> (&[u32], &[u32], usize) {

@@ -1632,15 +1632,12 @@ impl Lanes<'_> {
             s.mask(0)
         };
         let ((mut u, mut v), nan) = map::coordinates(s, d, env.rotation);
-        // The texels and densities asked for first, so that the lanes' cache misses overlap.
+        // The texels asked for first, so that their cache misses overlap the density's gathers.
         let (mut us, mut vs) = ([0.0; MAX_LANES], [0.0; MAX_LANES]);
         u.store(&mut us);
         v.store(&mut vs);
         for k in lanes_of(seen.bits()) {
             env.map.prefetch(us[k], vs[k]);
-        }
-        for k in lanes_of(weighed.bits()) {
-            env.map.distribution.prefetch_pdf(us[k], vs[k]);
         }
         let mut w = s.splat(1.0);
         if weighed.any() {
