@@ -1340,6 +1340,11 @@ fn path_step(path: ptr<function, Path>, state: ptr<function, Rng>) -> bool {
     if HAS_PBR_TRANSMISSION && (*path).prev_unsampled {
         drawn = 0.0;
     }
+    // Without light sampling (switched off) no sampler finds them: the lobe's paths are the
+    // only ones, and weigh 1.
+    if !nee {
+        drawn = 0.0;
+    }
     if HAS_MIRROR_NEE {
         (*path).mirror = mirror_hit(hit, ray, surf.point.position, surf.point.normal, drawn, (*path).prev_point);
     }

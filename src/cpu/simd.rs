@@ -836,6 +836,12 @@ impl<S: Isa> M<S> {
 /// Lanes of a 3-vector, by component.
 pub type V3<S> = [F<S>; 3];
 
+/// glam's Vec3A dot in lanes: (x·x′ + y·y′) + z·z′.
+#[inline(always)]
+pub fn dot<S: Isa>(a: V3<S>, b: V3<S>) -> F<S> {
+    (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2]
+}
+
 /// A 3-vector's lanes, as rows by component.
 #[inline(always)]
 pub fn rows<S: Isa>(v: V3<S>) -> [Row; 3] {

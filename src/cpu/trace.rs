@@ -1447,7 +1447,11 @@ impl<'a> Tracer<'a> {
             // The camera ray's density stands for a lobe's at the first hit.
             // A ray drawn through a surface is none that those samplers find (they sample on
             // the side of the normal), nor one drawn inside a volume, where they do not run.
-            let drawn = if bounce == 0 {
+            // Without light sampling (switched off) no sampler finds them: the lobe's paths
+            // are the only ones, and weigh 1.
+            let drawn = if !nee {
+                0.0
+            } else if bounce == 0 {
                 view_pdf
             } else if prev_unsampled {
                 0.0

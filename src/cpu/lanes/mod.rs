@@ -19,7 +19,9 @@
 //! (`map`: its coordinates, its distribution's inversions and density, its bilinear lookup),
 //! with the scalar tracer's own polynomials for the trigonometry (`trig`, `scene::trig`);
 //! the sun's falloff (libm's `powf`) runs lane by lane through the scalar tracer's function,
-//! so that it stays its bits.
+//! so that it stays its bits. So does light sampling through mirror spheres (`mirror`: the
+//! reflection point's Newton steps in lanes, their start through libm lane by lane), from the
+//! surfaces and from the camera.
 //!
 //! The one difference a path can show: where two primitives are hit at the same distance (a
 //! ray through the edge two quads share), the scalar walk keeps the one its BVH order tests
@@ -29,7 +31,7 @@ use super::draws::Draws;
 use super::fixed::FIXED_MAX;
 use super::intersect::{NO_HIT, Ray};
 use super::scene::CpuScene;
-use super::simd::{Avx2, Avx512, F, I, Isa, M, MAX_LANES, Make, Row, V3, lanes_of, rows};
+use super::simd::{Avx2, Avx512, F, I, Isa, M, MAX_LANES, Make, Row, V3, dot, lanes_of, rows};
 use super::trace::{ANY, T_FAR, Tracer};
 use crate::common::Features;
 use crate::common::arrays::{ENV_NONE, ENV_VISIBLE, REF_INDEX};
@@ -63,6 +65,7 @@ macro_rules! each {
 }
 
 mod map;
+mod mirror;
 mod trig;
 
 use map::{Tables, map_radiance};
@@ -173,6 +176,15 @@ pub struct Lanes<'a> {
     sun: Option<Sun>,
     /// The environment map, where the scene has one (then without lights).
     env: Option<Env>,
+    /// The mirror spheres through which light sampling also samples the map
+    /// (`Tracer::sample_mirror`), and per primitive whether it is one (1.0 or 0.0) and its
+    /// radius.
+    mirrors: Vec<Ball>,
+    reflector: Row,
+    mirror_r: Row,
+    /// What `Tracer::sample_view` and `Tracer::pixel_at` read of the camera, where the
+    /// scene has mirror spheres.
+    view: View,
     /// Whether light sampling runs (`trace_path`'s `nee`): a light or the map to sample.
     nee: bool,
     sky_uniform: bool,
@@ -229,6 +241,53 @@ struct Env {
     shown: bool,
 }
 
+/// A mirror sphere that `Tracer::sample_mirror` samples: its row of the tables, its centre
+/// (`sphere_center`) and radius, and what it reflects (its material's specular tint).
+struct Ball {
+    index: usize,
+    center: [f32; 3],
+    r: f32,
+    tint: [f32; 3],
+}
+
+/// The camera as `Tracer::pixel_at` and `Tracer::view_meets` read it, each figure computed
+/// by the scalar tracer's expression: the view's centre on the focus plane and its unit
+/// direction, the image's edges and their squared lengths, the pixel's area there, and the
+/// sine and cosine of the pixel's cone's half-angle.
+#[derive(Default)]
+struct View {
+    centre: [f32; 3],
+    ahead: [f32; 3],
+    h2: f32,
+    v2: f32,
+    area: f32,
+    sin_b: f32,
+    cos_b: f32,
+}
+
+impl View {
+    /// The figures as `Tracer::pixel_at` and `Tracer::view_meets` compute them from `s`'s
+    /// camera.
+    fn of(s: &CpuScene) -> View {
+        let u = &s.u;
+        let (h, v) = (u.cam_horizontal, u.cam_vertical);
+        let centre = u.cam_to_corner + 0.5 * h - 0.5 * v;
+        let (h2, v2) = (h.length_squared(), v.length_squared());
+        let (w, ht) = (u.width as f32, u.height as f32);
+        let (ph, pv) = (h / w, v / ht);
+        let sin_b = ((ph.length_squared() + pv.length_squared()).sqrt() / centre.length()).min(1.0);
+        View {
+            centre: centre.to_array(),
+            ahead: centre.normalize().to_array(),
+            h2,
+            v2,
+            area: (h2 * v2).sqrt() / (w * ht),
+            sin_b,
+            cos_b: (1.0 - sin_b * sin_b).sqrt(),
+        }
+    }
+}
+
 /// The sun of the gradient sky: its direction, its radiance and the exponent of its falloff.
 struct Sun {
     dir: [f32; 3],
@@ -274,8 +333,9 @@ impl<'a> Lanes<'a> {
     /// The lanes for `s` traced with features `f`, where they apply: a CPU with AVX2, one to
     /// `MAX_PRIMITIVES` spheres, quads and boxes, every material an emitter, the lecture's
     /// glass, or its surface (lobes certain or drawn, fuzzed or not), at most `MAX_LAMPS`
-    /// lights, or a map and no light, and neither glTF's BRDF nor the mirror and lens
-    /// samplers; or a walk (`Walk`) of any number of spheres, quads, boxes and triangles
+    /// lights, or a map and no light (with the mirror sampler where the map has mirror
+    /// spheres of the lecture's mirrors), and neither glTF's BRDF nor the lens sampler; or a
+    /// walk (`Walk`) of any number of spheres, quads, boxes and triangles
     /// (textured, smooth or normal-mapped) of materials that differ in at most
     /// `MAX_PRIMITIVES` ways but for their colour, no emitter, no instance, no light. The
     /// camera rays, a lens's included, are made in lanes too.
@@ -283,7 +343,20 @@ impl<'a> Lanes<'a> {
         let narrow = Avx2::new()?;
         let count = s.spheres.len() + s.quads.len() + s.boxes.len();
         let walks = !s.triangles.is_empty() || count > MAX_PRIMITIVES;
-        let plain = !(f.instances || f.pbr || f.mirror_nee || f.lens_nee)
+        // Mirror spheres of the lecture's mirrors, sampled under a map, in a scene of a few
+        // primitives.
+        let mirrored = f.mirror_nee
+            && !walks
+            && s.lenses.is_empty()
+            && s.env.is_some()
+            && s.reflectors.iter().all(|&i| {
+                let m = s
+                    .spheres
+                    .get(i as usize)
+                    .and_then(|b| s.materials.get(b.material as usize));
+                m.is_some_and(|m| !m.pbr && m.smoothness >= 0.0)
+            });
+        let plain = !(f.instances || f.pbr || (f.mirror_nee && !mirrored) || f.lens_nee)
             && (walks || !(f.triangles || f.textures));
         if !plain
             || !s.instances.is_empty()
@@ -345,6 +418,10 @@ impl<'a> Lanes<'a> {
                 seen_directly: s.u.env_mode == ENV_VISIBLE,
                 shown: s.u.env_mode != ENV_NONE,
             }),
+            mirrors: Vec::new(),
+            reflector: row,
+            mirror_r: row,
+            view: View::default(),
             nee: false,
             sun: f.sun.then(|| Sun {
                 dir: s.u.sun_dir.to_array(),
@@ -475,6 +552,21 @@ impl<'a> Lanes<'a> {
             });
         }
         l.nee = f.nee && (!l.lamps.is_empty() || l.env.as_ref().is_some_and(|e| e.pick > 0.0));
+        if f.mirror_nee && l.nee {
+            for &i in &s.reflectors {
+                let b = &s.spheres[i as usize];
+                let k = i as usize;
+                l.reflector[k] = 1.0;
+                l.mirror_r[k] = b.radius;
+                l.mirrors.push(Ball {
+                    index: k,
+                    center: super::trace::sphere_center(b).to_array(),
+                    r: b.radius,
+                    tint: s.materials[b.material as usize].specular_color.to_array(),
+                });
+            }
+            l.view = View::of(s);
+        }
         // The root of the scalar tracer's eight-wide tree, which its walk reads where the
         // settings keep the tree (`Tracer::intersect`).
         let root = match s.bvh8.as_ref().and_then(|b| b.root()) {
@@ -488,6 +580,190 @@ impl<'a> Lanes<'a> {
             root,
         });
         Some(l)
+    }
+
+    /// `Tracer::sample_mirror` for the lanes of `lanes` at points `p` (facing shading normal
+    /// `n`, geometric `ng`, leaving primitive `from`), for the lobe light sampling weighs, or
+    /// from the camera (`view`: the lanes' columns and the row, `Tracer::sample_view`): one of
+    /// the mirror spheres chosen evenly, a direction drawn from the map's distribution, the
+    /// sphere's point that reflects it to p (`mirror::point`), both legs unoccluded, weighed
+    /// against the lobe (`light_weighted`) or the pixel's camera rays (`view_weighted`);
+    /// returns the light (tint not included) and the tests made.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn sample_mirror<S: Isa>(
+        &self,
+        s: S,
+        (p, n, ng): (V3<S>, V3<S>, V3<S>),
+        from: I<S>,
+        lanes: M<S>,
+        view: Option<(I<S>, u32)>,
+        lobe: (&Lobe<S>, (V3<S>, V3<S>)),
+        rng: &mut Draws<S>,
+    ) -> (V3<S>, u64) {
+        let zero = s.zero();
+        let Some(env) = self.env.as_ref() else {
+            return ([zero; 3], 0);
+        };
+        // The sphere: its row, centre, radius and tint.
+        let count = self.mirrors.len();
+        let slot = if count > 1 {
+            (rng.draw(s, lanes) * s.splat(count as f32)).truncate()
+        } else {
+            s.int(0)
+        };
+        let (mut index, mut c, mut r, mut tint) = (s.int(NONE), [zero; 3], zero, [zero; 3]);
+        for (j, b) in self.mirrors.iter().enumerate() {
+            // (The last takes a product rounded up to the count: `min(count − 1)`.)
+            let this = if j + 1 == count {
+                slot.gt(s.int(j as i32 - 1))
+            } else {
+                slot.eq(s.int(j as i32))
+            };
+            index = index.blend(s.int(b.index as i32), this);
+            r = r.blend(s.splat(b.r), this);
+            for k in 0..3 {
+                c[k] = c[k].blend(s.splat(b.center[k]), this);
+                tint[k] = tint[k].blend(s.splat(b.tint[k]), this);
+            }
+        }
+        // A sphere wholly behind the surface reflects nothing onto it, and takes no draw.
+        let cp: V3<S> = each!(|k| c[k] - p[k]);
+        let lanes = lanes.without(dot(n, cp).le(-r));
+        let (u1, u2) = rng.draw2(s, lanes);
+        let tables = Tables::of(&env.map.distribution);
+        let draws = (u1.keep(lanes), u2.keep(lanes));
+        let map::Drawn {
+            dir: w,
+            pdf,
+            uv: (u, v),
+        } = map::sample(s, &env.map.distribution, &tables, draws, env.rotation);
+        let x = mirror::point(s, (p, c, r), w, lanes & pdf.gt(zero));
+        let cos_s = dot(n, x.dir);
+        let spread = mirror::spread(s, r, x.dist, x.cos_i);
+        let mut ok = (x.found & cos_s.gt(zero)) & spread.gt(zero);
+        let mut tests = 0;
+        if ok.any() {
+            // To the sphere (the first thing the ray meets must be it), then from its point
+            // to the map.
+            let origin = offset_ray(s, p, ng);
+            let mut t_mirror = s.splat(NO_HIT);
+            for b in &self.mirrors {
+                let this = ok & index.eq(s.int(b.index as i32));
+                if this.any() {
+                    t_mirror = t_mirror.blend(self.hit(s, b.index, origin, x.dir), this);
+                }
+            }
+            ok = ok & t_mirror.gt(zero);
+            let skip = (from, index);
+            ok = ok.without(self.occluded(s, (origin, x.dir), t_mirror, usize::MAX, skip, ok));
+            let at: V3<S> = each!(|k| p[k] + x.dir[k] * x.dist);
+            let origin = offset_ray(s, at, x.normal);
+            let (none, far) = (s.int(NONE), s.splat(T_FAR));
+            ok = ok.without(self.occluded(s, (origin, w), far, usize::MAX, (index, none), ok));
+            tests = 2 * (lanes.bits().count_ones() as u64) * self.kinds.len() as u64;
+        }
+        let l = map_radiance(s, (&env.map, env.intensity), (u, v), ok);
+        let radiance = each!(|k| l[k] * tint[k]);
+        let pl = pdf / (s.splat(count as f32) * spread);
+        let l = match view {
+            Some(px) => self.view_weighted(s, radiance, (p, x.dir), pl, px),
+            None => light_weighted(s, radiance, (cos_s, x.dir, n), pl, lobe),
+        };
+        (each!(|k| l[k].keep(ok)), tests)
+    }
+
+    /// `Tracer::sample_view` for the paths starting in lanes `m` (the pixels' columns `x`,
+    /// row `y`): the map the camera sees in the mirror spheres, where the pixel may see one
+    /// (`view_meets`), and the density with which the camera ray was drawn, which weighs the
+    /// same paths found by the ray at its first hit.
+    #[inline(always)]
+    fn sample_view<S: Isa>(&self, s: S, p: &mut Paths<S>, m: M<S>, (x, y): (I<S>, u32)) {
+        if !self.nee {
+            return;
+        }
+        let (o, d, zero) = (p.o, p.d, s.zero());
+        if self.max_bounces >= 1 {
+            let meets = m & self.view_meets(s, o, d);
+            if meets.any() {
+                let ahead = lit(s, self.view.ahead);
+                let cosine = Lobe {
+                    gloss: s.mask(0),
+                    mixed: s.mask(0),
+                    r: [zero; 3],
+                    smooth: zero,
+                    p: zero,
+                };
+                let lobe = (&cosine, ([zero; 3], [zero; 3]));
+                let at = (o, ahead, ahead);
+                let view = Some((x, y));
+                let none = s.int(NONE);
+                let (l, _) = self.sample_mirror(s, at, none, meets, view, lobe, &mut p.rng);
+                for (r, l) in p.radiance.iter_mut().zip(l) {
+                    *r = r.blend(*r + l, meets);
+                }
+            }
+        }
+        let (_, _, pc, ahead) = self.pixel_at(s, o, d);
+        p.view_pdf = p.view_pdf.blend(pc.keep(ahead), m);
+    }
+
+    /// `Tracer::pixel_at` in lanes: where the rays from lens points `o` along `d` cross the
+    /// focus plane, in pixels, and the density in solid angle with which the pixel's camera
+    /// rays find them; the lanes whose rays point ahead of the camera.
+    #[inline(always)]
+    fn pixel_at<S: Isa>(&self, s: S, o: V3<S>, d: V3<S>) -> (F<S>, F<S>, F<S>, M<S>) {
+        let (c, v) = (&self.camera, &self.view);
+        let ahead = lit(s, v.ahead);
+        let cos = dot(d, ahead);
+        let lens: V3<S> = each!(|k| o[k] - s.splat(c.origin[k]));
+        let to: V3<S> = each!(|k| s.splat(v.centre[k]) - lens[k]);
+        let dist = dot(to, ahead) / cos;
+        let q: V3<S> = each!(|k| (lens[k] + dist * d[k]) - s.splat(c.corner[k]));
+        let (h, vv) = (lit(s, c.horizontal), lit(s, c.vertical));
+        let x = (dot(q, h) / s.splat(v.h2)) * s.splat(c.size[0]);
+        let y = (-dot(q, vv) / s.splat(v.v2)) * s.splat(c.size[1]);
+        let pc = (dist * dist) / (cos * s.splat(v.area));
+        (x, y, pc, cos.gt(s.zero()))
+    }
+
+    /// `Tracer::view_weighted` in lanes: a light sample of density `pl` reaching lens points
+    /// `o` along `dir`, as an estimate of the lanes' pixels (columns `x`, row `y`): none where
+    /// the direction is not in the pixel, else radiance / (p_c/pl + pl/p_c).
+    #[inline(always)]
+    fn view_weighted<S: Isa>(
+        &self,
+        s: S,
+        radiance: V3<S>,
+        (o, dir): (V3<S>, V3<S>),
+        pl: F<S>,
+        (x, y): (I<S>, u32),
+    ) -> V3<S> {
+        let (px, py, pc, ahead) = self.pixel_at(s, o, dir);
+        let inside = (ahead & pc.gt(s.zero()))
+            & map::floor(s, px).cmp::<_CMP_EQ_OQ>(x.to_float())
+            & map::floor(s, py).cmp::<_CMP_EQ_OQ>(s.splat(y as f32));
+        let w = pc / pl + pl / pc;
+        each!(|k| (radiance[k] / w).keep(inside))
+    }
+
+    /// `Tracer::view_meets` in lanes: whether the pixels of camera rays (o, d) may see one of
+    /// the mirror spheres.
+    #[inline(always)]
+    fn view_meets<S: Isa>(&self, s: S, o: V3<S>, d: V3<S>) -> M<S> {
+        let one = s.splat(1.0);
+        let (sin_b, cos_b) = (s.splat(self.view.sin_b), s.splat(self.view.cos_b));
+        let mut meets = s.mask(0);
+        for b in &self.mirrors {
+            let to: V3<S> = each!(|k| s.splat(b.center[k]) - o[k]);
+            let d2 = dot(to, to);
+            let r2 = s.splat(b.r * b.r);
+            let ratio = r2 / d2;
+            let (sin_a, cos_a) = (ratio.sqrt(), (one - ratio).sqrt());
+            let cone = d2.sqrt() * (cos_a * cos_b - sin_a * sin_b);
+            meets = meets | d2.le(r2) | dot(d, to).ge(cone);
+        }
+        meets
     }
 
     /// Sphere `sp`'s shape in row k of the tables.
@@ -769,6 +1045,9 @@ impl Lanes<'_> {
             prev_pdf: zero,
             prev_point: [zero; 3],
             prev_normal: [zero, one, zero],
+            view_pdf: zero,
+            mirror_pdf: zero,
+            mirror_spread: zero,
             rng: Draws::new(s),
         };
         let mut next = [samples.start; MAX_LANES];
@@ -789,6 +1068,9 @@ impl Lanes<'_> {
                 p.rng.start(s, m, pixel, s.ints(&sample_of), seed);
                 let (o, d) = self.camera(s, m, column, y, &mut p.rng);
                 p.start(s, m, o, d);
+                if !self.mirrors.is_empty() {
+                    self.sample_view(s, &mut p, m, (column, y));
+                }
                 active |= starts;
             }
             if active == 0 {
@@ -897,7 +1179,10 @@ impl Lanes<'_> {
         let missed = live.without(found);
         if missed.any() {
             let sky = match &self.env {
-                Some(env) => self.escaped(s, env, *d, missed, p.bounce, p.prev_pdf),
+                Some(env) => {
+                    let mirrored = (p.mirror_pdf, p.mirror_spread);
+                    self.escaped(s, env, *d, missed, p.bounce, (p.prev_pdf, mirrored))
+                }
                 None => self.sky(s, *d, missed),
             };
             for c in 0..3 {
@@ -928,6 +1213,19 @@ impl Lanes<'_> {
                 (idx, idx, position, n_out, None)
             }
         };
+        // A mirror sphere met from a lobe light sampling weighs, or by the camera ray: what
+        // it reflects from the map next is weighed against `sample_mirror` (`mirror_hit`).
+        if !self.mirrors.is_empty() {
+            let drawn = p.prev_pdf.blend(p.view_pdf, p.bounce.eq(s.int(0)));
+            let on = (hit & flagged(s, &self.reflector, idx)) & drawn.gt(zero);
+            let cos_i = -dot(*d, n_out);
+            let apart: V3<S> = each!(|c| position[c] - p.prev_point[c]);
+            let r = F::pick(&self.mirror_r, idx);
+            let spread = mirror::spread(s, r, dot(apart, apart).sqrt(), cos_i);
+            let met = (on & cos_i.gt(zero)) & spread.gt(zero);
+            p.mirror_pdf = p.mirror_pdf.blend(drawn.keep(met), hit);
+            p.mirror_spread = p.mirror_spread.blend(spread, hit);
+        }
         // An emitter: its light, weighed against light sampling where the last lobe's
         // density is known, and the path ends.
         let emits = flagged(s, &self.emits, idx) & hit;
@@ -1013,9 +1311,22 @@ impl Lanes<'_> {
             let at = (position, ns, nf);
             let (l, t) = self.sample_light(s, at, from, sampled, (&lobe, tints), &mut p.rng);
             *tests += t;
+            let tint = each!(|c| tint[c].blend(one, lobe.mixed));
             for c in 0..3 {
-                let add = (throughput[c] * tint[c].blend(one, lobe.mixed)) * l[c];
+                let add = (throughput[c] * tint[c]) * l[c];
                 radiance[c] = radiance[c].blend(radiance[c] + add, sampled);
+            }
+            // The map in the mirror spheres: its paths scatter here and at the mirror, and
+            // leave it, within the bounces allowed.
+            let room = sampled & s.int(self.max_bounces as i32 - 1).gt(p.bounce);
+            if !self.mirrors.is_empty() && room.any() {
+                let lobe = (&lobe, tints);
+                let (l, t) = self.sample_mirror(s, at, from, room, None, lobe, &mut p.rng);
+                *tests += t;
+                for c in 0..3 {
+                    let add = (throughput[c] * tint[c]) * l[c];
+                    radiance[c] = radiance[c].blend(radiance[c] + add, room);
+                }
             }
         }
         // The lobe's direction (`scatter_surface`): the diffuse one, or blended toward the
@@ -1600,9 +1911,10 @@ impl Lanes<'_> {
     }
 
     /// `Tracer::escaped` under the map, for the rays `d` of the lanes of `lanes` that left the
-    /// scene at bounce `bounce` after a lobe of density `prev_pdf`: the map, looked up lane by
-    /// lane with the scalar tracer's code and weighed against light sampling where that could
-    /// have found the direction; the sky where the map is not seen (by camera rays, where it
+    /// scene at bounce `bounce` after a lobe of density `prev_pdf`: the map, weighed against
+    /// light sampling where that could have found the direction, or, where the ray leaves a
+    /// mirror sphere met from such a lobe (its density and the sphere's spread: `mirrored`),
+    /// against `sample_mirror`; the sky where the map is not seen (by camera rays, where it
     /// is hidden from them).
     #[inline(always)]
     fn escaped<S: Isa>(
@@ -1612,7 +1924,7 @@ impl Lanes<'_> {
         d: V3<S>,
         lanes: M<S>,
         bounce: I<S>,
-        prev_pdf: F<S>,
+        (prev_pdf, (mirror_pdf, spread)): (F<S>, (F<S>, F<S>)),
     ) -> V3<S> {
         let seen = if !env.shown {
             s.mask(0)
@@ -1640,24 +1952,38 @@ impl Lanes<'_> {
             env.map.prefetch(us[k], vs[k]);
         }
         let mut w = s.splat(1.0);
-        if weighed.any() {
+        let mirrored = seen.without(weighed) & mirror_pdf.gt(s.zero());
+        if (weighed | mirrored).any() {
             let tables = Tables::of(&env.map.distribution);
-            let pl = s.splat(env.pick) * map::pdf_at(s, &env.map.distribution, &tables, u, v);
+            let pdf = map::pdf_at(s, &env.map.distribution, &tables, u, v);
+            let pl = s.splat(env.pick) * pdf;
             w = w.blend(power_heuristic(prev_pdf, pl), weighed);
+            // `Tracer::mirror_pdf`.
+            let count = s.splat(self.mirrors.len() as f32);
+            let pm = pdf / (count * spread);
+            w = w.blend(power_heuristic(mirror_pdf, pm), mirrored);
         }
         // A direction with a NaN component: the scalar code's coordinates and weight.
         let odd = seen & nan;
         if odd.any() {
             let (dirs, mut prev, mut weights) = (rows(d), [0.0; MAX_LANES], [0.0; MAX_LANES]);
+            let (mut m_pdf, mut m_spread) = ([0.0; MAX_LANES], [0.0; MAX_LANES]);
             prev_pdf.store(&mut prev);
             w.store(&mut weights);
+            mirror_pdf.store(&mut m_pdf);
+            spread.store(&mut m_spread);
+            let count = self.mirrors.len() as f32;
             for k in lanes_of(odd.bits()) {
                 let dir = glam::Vec3::new(dirs[0][k], dirs[1][k], dirs[2][k]);
                 let (cu, cv) = crate::scene::envmap_sampling::coordinates(dir, env.rotation);
                 (us[k], vs[k]) = (cu, cv);
+                weights[k] = 1.0;
                 if weighs && prev[k] > 0.0 {
                     let pl = env.pick * env.map.distribution.pdf_at(cu, cv);
                     weights[k] = super::trace::power_heuristic(prev[k], pl);
+                } else if m_pdf[k] > 0.0 {
+                    let pl = env.map.distribution.pdf_at(cu, cv) / (count * m_spread[k]);
+                    weights[k] = super::trace::power_heuristic(m_pdf[k], pl);
                 }
             }
             (u, v, w) = (s.load(&us), s.load(&vs), s.load(&weights));
@@ -2037,6 +2363,13 @@ struct Paths<S: Isa> {
     prev_pdf: F<S>,
     prev_point: V3<S>,
     prev_normal: V3<S>,
+    /// Where mirror spheres are sampled: the density with which the camera ray was drawn
+    /// (`Tracer::pixel_at`), which weighs the first hit; and where the ray leaves a mirror
+    /// sphere met from a lobe light sampling weighs (`Tracer::mirror_hit`), that lobe's
+    /// density (else 0) and the sphere's spread there.
+    view_pdf: F<S>,
+    mirror_pdf: F<S>,
+    mirror_spread: F<S>,
     /// The paths' samplers.
     rng: Draws<S>,
 }
@@ -2059,6 +2392,8 @@ impl<S: Isa> Paths<S> {
         self.bounce = self.bounce.blend(s.int(0), m);
         self.skip = self.skip.blend(s.int(NONE), m);
         self.prev_pdf = self.prev_pdf.blend(zero, m);
+        self.view_pdf = self.view_pdf.blend(zero, m);
+        self.mirror_pdf = self.mirror_pdf.blend(zero, m);
     }
 }
 
@@ -2165,12 +2500,6 @@ fn fixed_words<S: Isa>(s: S, x: F<S>) -> (I<S>, I<S>) {
     // c − trunc(c) is `c - whole as f32`: the whole part is an f32 exactly.
     let frac = ((c - c.trunc()) * s.splat(4294967296.0)).truncate_unsigned();
     (whole, frac)
-}
-
-/// glam's Vec3A dot: (x·x′ + y·y′) + z·z′.
-#[inline(always)]
-fn dot<S: Isa>(a: V3<S>, b: V3<S>) -> F<S> {
-    (a[0] * b[0] + a[1] * b[1]) + a[2] * b[2]
 }
 
 /// The textbook cross product, as glam computes it.
@@ -2742,6 +3071,7 @@ smoothness = 0.7
             "walked",
             "mesh",
             "benches/peer/map-dog.toml",
+            "benches/peer/map-mirror.toml",
         ] {
             let scene = scene(name);
             let f = Features::of(&scene);
@@ -2828,8 +3158,8 @@ smoothness = 0.7
     fn lanes_trace_what_they_can_and_leave_out_the_rest() {
         let settings = FrameSettings::new(16, 16, 8, 1);
         let has = std::arch::is_x86_feature_detected!("avx2");
-        // Many materials (more than `MAX_PRIMITIVES` kinds), the mirror and lens samplers,
-        // glTF's BRDF.
+        // Many materials (more than `MAX_PRIMITIVES` kinds), the lens sampler (and glass
+        // among the mirror sampler's spheres), glTF's BRDF.
         for name in ["weekend", "spheres", "outdoor-caustics", "pbr"] {
             let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);
@@ -2854,6 +3184,7 @@ smoothness = 0.7
             "walked",
             "mesh",
             "benches/peer/map-dog.toml",
+            "benches/peer/map-mirror.toml",
         ] {
             let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);
