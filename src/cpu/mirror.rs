@@ -12,8 +12,9 @@
 //! distance d from the mirror subtends `spread` times its own solid angle.
 
 use super::sampling::basis;
+use crate::scene::trig::{FRAC_1_TAU, acos_over_pi, atan2_turns, sin_cos_turns};
 use glam::Vec3A;
-use std::f32::consts::FRAC_PI_2;
+use std::f32::consts::{FRAC_PI_2, PI, TAU};
 
 /// The most Newton steps of `point`: a step the bracket refuses halves it instead, and near
 /// the root the steps converge quadratically; it stops at a step under 10⁻⁶ radians.
@@ -42,8 +43,9 @@ pub struct Reflection {
 /// the point to p: the sines of the angles from n to w and from v to n. Where the point is
 /// lit (|α − φ| < π/2) and p sees it (D cos φ > r), h′ < 0, so the root is unique, in
 /// [max(0, α − π/2), min(α, acos(r / D))], where h goes from ≥ 0 to ≤ 0. Newton steps kept in
-/// that bracket find it; (cos φ, sin φ) turns by each step through polynomials, so that the
-/// loop calls no libm function.
+/// that bracket find it; (cos φ, sin φ) turns by each step through polynomials, and the start's
+/// angles are `scene::trig`'s polynomials too, so that the solver calls no libm function (and
+/// the CPU tracer's lanes repeat it bit for bit: `cpu::lanes`).
 pub fn point(p: Vec3A, c: Vec3A, r: f32, w: Vec3A) -> Option<Reflection> {
     let pc = p - c;
     let d = pc.length();
@@ -56,15 +58,15 @@ pub fn point(p: Vec3A, c: Vec3A, r: f32, w: Vec3A) -> Option<Reflection> {
     let sa = perp.length();
     // w along e1: the root is φ = 0, and any e2 serves.
     let e2 = if sa > 1e-7 { perp / sa } else { basis(e1)[0] };
-    let alpha = sa.atan2(ca);
-    let phi_max = (r / d).acos();
+    let alpha = atan2_turns(sa, ca) * TAU;
+    let phi_max = acos_over_pi(r / d) * PI;
     if alpha.is_nan() || alpha >= phi_max + FRAC_PI_2 {
         return None;
     }
     let (mut lo, mut hi) = ((alpha - FRAC_PI_2).max(0.0), alpha.min(phi_max));
     // Far from the sphere v is nearly e1 and φ nearly α / 2.
     let mut phi = (0.5 * alpha).clamp(lo, hi);
-    let (mut sn, mut cs) = phi.sin_cos();
+    let (mut sn, mut cs) = sin_cos_turns(phi * FRAC_1_TAU);
     for _ in 0..STEPS {
         let l2 = d * d - 2.0 * d * r * cs + r * r;
         let l = l2.sqrt();

@@ -1,13 +1,15 @@
 //! The map in a mirror ball in lanes: `cpu::mirror`'s reflection point (its safeguarded
 //! Newton steps, every lane's to its own end) and spread, operation for operation, so that
 //! each lane's values are the scalar solver's bit for bit (tested here on their own, and with
-//! the paths, `lanes_trace_the_scalar_paths_bit_for_bit`). The solver's start, one atan2, one
-//! acos and one sin_cos of libm, runs lane by lane through the same functions.
+//! the paths, `lanes_trace_the_scalar_paths_bit_for_bit`). The start's angles are the scalar
+//! solver's polynomials (`trig`).
 
+use super::trig::{acos_over_pi, atan2_turns, sin_cos_turns};
 use crate::cpu::sampling::basis;
-use crate::cpu::simd::{F, Isa, M, MAX_LANES, Make, V3, dot, lanes_of, rows};
+use crate::cpu::simd::{F, Isa, M, Make, V3, dot, lanes_of, rows};
+use crate::scene::trig::FRAC_1_TAU;
 use glam::Vec3A;
-use std::f32::consts::FRAC_PI_2;
+use std::f32::consts::{FRAC_PI_2, PI, TAU};
 
 /// `mirror::point`'s most Newton steps.
 const STEPS: u32 = 8;
@@ -43,35 +45,24 @@ pub(super) fn point<S: Isa>(
     let perp: V3<S> = each!(|k| w[k] - ca * e1[k]);
     let sa = dot(perp, perp).sqrt();
     let mut e2: V3<S> = each!(|k| perp[k] / sa);
-    // The start, lane by lane with libm: the angles, the bracket and the first guess.
-    let (sa_r, ca_r, d_r, r_r) = (row(sa), row(ca), row(d), row(r));
-    let mut e2_r = rows(e2);
-    let e1_r = rows(e1);
-    let mut start = [[0.0f32; MAX_LANES]; 5];
-    let mut solved = 0u32;
-    for k in lanes_of(live.bits()) {
-        let (sa, ca) = (sa_r[k], ca_r[k]);
-        if sa <= 1e-7 {
+    // w along e1: the root is φ = 0, and any e2 serves (the scalar `basis`, lane by lane).
+    let along = live.without(sa.gt(s.splat(1e-7)));
+    if along.any() {
+        let (mut e2_r, e1_r) = (rows(e2), rows(e1));
+        for k in lanes_of(along.bits()) {
             let e = basis(Vec3A::new(e1_r[0][k], e1_r[1][k], e1_r[2][k]))[0];
             (e2_r[0][k], e2_r[1][k], e2_r[2][k]) = (e.x, e.y, e.z);
         }
-        let alpha = sa.atan2(ca);
-        let phi_max = (r_r[k] / d_r[k]).acos();
-        if alpha.is_nan() || alpha >= phi_max + FRAC_PI_2 {
-            continue;
-        }
-        let (lo, hi) = ((alpha - FRAC_PI_2).max(0.0), alpha.min(phi_max));
-        let phi = (0.5 * alpha).clamp(lo, hi);
-        let (sn, cs) = phi.sin_cos();
-        for (t, v) in start.iter_mut().zip([lo, hi, phi, sn, cs]) {
-            t[k] = v;
-        }
-        solved |= 1 << k;
+        e2 = each!(|k| s.load(&e2_r[k]));
     }
-    let live = s.mask(solved);
-    e2 = each!(|k| s.load(&e2_r[k]));
-    let (mut lo, mut hi) = (s.load(&start[0]), s.load(&start[1]));
-    let (mut phi, mut sn, mut cs) = (s.load(&start[2]), s.load(&start[3]), s.load(&start[4]));
+    let alpha = atan2_turns(s, sa, ca) * s.splat(TAU);
+    let phi_max = acos_over_pi(s, r / d) * s.splat(PI);
+    let quarter = s.splat(FRAC_PI_2);
+    // (NaN: none, as `alpha.is_nan()`.)
+    let live = live & alpha.lt(phi_max + quarter);
+    let (mut lo, mut hi) = ((alpha - quarter).max(zero), alpha.min(phi_max));
+    let mut phi = (s.splat(0.5) * alpha).max(lo).min(hi);
+    let (mut sn, mut cs) = sin_cos_turns(s, phi * s.splat(FRAC_1_TAU));
     let (two, half, tiny) = (s.splat(2.0), s.splat(0.5), s.splat(1e-6));
     let mut going = live;
     for _ in 0..STEPS {
@@ -131,17 +122,17 @@ pub(super) fn spread<S: Isa>(s: S, r: F<S>, dist: F<S>, cos_i: F<S>) -> F<S> {
     ((s.splat(0.25) * r) * r * cos_i) / ((dist + half_r * cos_i) * (dist * cos_i + half_r))
 }
 
-fn row<S: Isa>(f: F<S>) -> [f32; MAX_LANES] {
-    let mut r = [0.0; MAX_LANES];
-    f.store(&mut r);
-    r
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::cpu::mirror;
-    use crate::cpu::simd::{Avx2, Avx512};
+    use crate::cpu::simd::{Avx2, Avx512, MAX_LANES};
+
+    fn row<S: Isa>(f: F<S>) -> [f32; MAX_LANES] {
+        let mut r = [0.0; MAX_LANES];
+        f.store(&mut r);
+        r
+    }
 
     /// Random points, spheres and directions from a fixed LCG, as `cpu::mirror`'s tests.
     struct Lcg(u64);
