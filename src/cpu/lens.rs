@@ -356,27 +356,7 @@ pub fn transmittance(ior: f32, cos_i: f32, cos_r: f32, inner: u32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Random numbers from a fixed LCG (no `rand` crate in the tests).
-    struct Lcg(u64);
-    impl Lcg {
-        fn f(&mut self) -> f32 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 40) as f32 / (1u64 << 24) as f32
-        }
-        fn unit(&mut self) -> Vec3A {
-            loop {
-                let v = Vec3A::new(self.f(), self.f(), self.f()) * 2.0 - 1.0;
-                let l = v.length();
-                if l > 0.1 && l <= 1.0 {
-                    return v / l;
-                }
-            }
-        }
-    }
+    use crate::cpu::lcg::Lcg;
 
     /// `refine` settles a root, and `fold` a fold, in Newton's few steps: over the frames of
     /// `the_paths_refract_to_the_light` (through the sphere and with a reflection inside), at

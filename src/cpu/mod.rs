@@ -27,6 +27,8 @@ pub mod fixed;
 pub mod intersect;
 #[cfg(target_arch = "x86_64")]
 pub mod lanes;
+#[cfg(test)]
+mod lcg;
 pub mod lens;
 pub mod material;
 pub mod mirror;

@@ -125,6 +125,7 @@ pub(super) fn spread<S: Isa>(s: S, r: F<S>, dist: F<S>, cos_i: F<S>) -> F<S> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cpu::lcg::Lcg;
     use crate::cpu::mirror;
     use crate::cpu::simd::{Avx2, Avx512, MAX_LANES};
 
@@ -132,27 +133,6 @@ mod tests {
         let mut r = [0.0; MAX_LANES];
         f.store(&mut r);
         r
-    }
-
-    /// Random points, spheres and directions from a fixed LCG, as `cpu::mirror`'s tests.
-    struct Lcg(u64);
-    impl Lcg {
-        fn f(&mut self) -> f32 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 40) as f32 / (1u64 << 24) as f32
-        }
-        fn unit(&mut self) -> Vec3A {
-            loop {
-                let v = Vec3A::new(self.f(), self.f(), self.f()) * 2.0 - 1.0;
-                let l = v.length();
-                if l > 0.1 && l <= 1.0 {
-                    return v / l;
-                }
-            }
-        }
     }
 
     fn load3<S: Isa>(s: S, v: &[Vec3A]) -> V3<S> {
