@@ -387,3 +387,46 @@ fn a_target_error_stops_near_it_not_past_it() {
         "stopped at {e} % for a 5 % target: {err}"
     );
 }
+
+#[test]
+fn bench_says_which_loop_the_cpu_tracer_runs_and_why() {
+    // The lanes trace `basic` (a few diffuse spheres under the sky); glTF's BRDF (`pbr`) is
+    // left to the scalar loop, and `bench` says so.
+    #[cfg(target_arch = "x86_64")]
+    let lanes = std::arch::is_x86_feature_detected!("avx2");
+    #[cfg(not(target_arch = "x86_64"))]
+    let lanes = false;
+    for (scene, want) in [
+        (
+            "scenes/basic.toml",
+            if lanes {
+                "cpu loop     paths side by side in"
+            } else {
+                "cpu loop     one path at a time"
+            },
+        ),
+        (
+            "scenes/pbr.toml",
+            if lanes {
+                "cpu loop     one path at a time (not in lanes: glTF's BRDF)"
+            } else {
+                "cpu loop     one path at a time"
+            },
+        ),
+    ] {
+        let (code, out, err) = run(termtrace().args([
+            "bench",
+            scene,
+            "--adapter",
+            "cpu-native",
+            "--width",
+            "16",
+            "--height",
+            "8",
+            "--time",
+            "0.2",
+        ]));
+        assert_eq!(code, 0, "{scene}: {err}");
+        assert!(out.lines().any(|l| l.starts_with(want)), "{scene}: {out}");
+    }
+}

@@ -270,6 +270,9 @@ pub fn run(a: BenchArgs, g: &GlobalArgs) -> anyhow::Result<ExitCode> {
         }
         None => {}
     }
+    if let Some(how) = r.path_loop() {
+        println!("cpu loop     {how}");
+    }
     println!("invalid      {}", snap.invalid_samples());
     drop(r);
     if team.len() > 1 {

@@ -68,4 +68,10 @@ pub trait Engine: Send {
 
     /// Nodes of the BVH and the seconds its build took.
     fn bvh_stats(&self) -> (usize, f64);
+
+    /// How a CPU tracer runs the paths of features `f`, and why (`bench`'s report); None for
+    /// a GPU.
+    fn path_loop(&self, _f: Features) -> Option<String> {
+        None
+    }
 }

@@ -429,6 +429,24 @@ impl Engine for CpuEngine {
         4 * (self.even.len() + self.odd.len()) as u64
     }
 
+    /// Paths side by side in lanes (`lanes::Lanes::try_of`), or one at a time and why.
+    fn path_loop(&self, f: Features) -> Option<String> {
+        #[cfg(target_arch = "x86_64")]
+        let how = match lanes::Lanes::try_of(&self.scene, f) {
+            Ok(l) => {
+                let isa = if l.width() == 16 { "AVX-512" } else { "AVX2" };
+                format!("paths side by side in {} lanes ({isa})", l.width())
+            }
+            Err(why) => format!("one path at a time (not in lanes: {why})"),
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let how = {
+            let _ = f;
+            "one path at a time (the lanes are x86-64's)".to_string()
+        };
+        Some(how)
+    }
+
     fn reset_counters(&mut self) {
         self.counters = Counters::default();
     }

@@ -545,6 +545,11 @@ impl Renderer {
         self.engine.get().bvh_stats()
     }
 
+    /// How the CPU tracer runs the paths, and why (None on a GPU).
+    pub fn path_loop(&self) -> Option<String> {
+        self.engine.get().path_loop(self.features())
+    }
+
     /// Memory held by the accumulation (on the GPU, or the host's).
     pub fn accumulation_bytes(&self) -> u64 {
         self.engine.get().bytes()

@@ -91,6 +91,10 @@ macro_rules! entry {
     };
 }
 
+/// Why a material is left to the scalar loop: glTF's BRDF, or glass where the scene's
+/// features leave glass out.
+const UNTRACED: &str = "a material the lanes do not trace";
+
 /// The most primitives a scene may have here: their parameters are permuted into the lanes
 /// from one register of eight (AVX2's widest permute).
 pub const MAX_PRIMITIVES: usize = 8;
@@ -340,7 +344,12 @@ impl<'a> Lanes<'a> {
     /// `MAX_PRIMITIVES` ways but for their colour, no emitter, no instance, no light. The
     /// camera rays, a lens's included, are made in lanes too.
     pub fn of(s: &'a CpuScene, f: Features) -> Option<Lanes<'a>> {
-        let narrow = Avx2::new()?;
+        Self::try_of(s, f).ok()
+    }
+
+    /// `of`, or why the scene is left to the scalar loop (for `bench`'s report).
+    pub fn try_of(s: &'a CpuScene, f: Features) -> Result<Lanes<'a>, &'static str> {
+        let narrow = Avx2::new().ok_or("the CPU has no AVX2")?;
         let count = s.spheres.len() + s.quads.len() + s.boxes.len();
         let walks = !s.triangles.is_empty() || count > MAX_PRIMITIVES;
         // Mirror spheres of the lecture's mirrors, sampled under a map, in a scene of a few
@@ -356,24 +365,42 @@ impl<'a> Lanes<'a> {
                     .and_then(|b| s.materials.get(b.material as usize));
                 m.is_some_and(|m| !m.pbr && m.smoothness >= 0.0)
             });
-        let plain = !(f.instances || f.pbr || (f.mirror_nee && !mirrored) || f.lens_nee)
-            && (walks || !(f.triangles || f.textures));
-        if !plain
-            || !s.instances.is_empty()
-            || count + s.triangles.len() == 0
-            || s.u.n_lights as usize > MAX_LAMPS
-            || (f.env_map && s.env.is_some() && s.u.n_lights > 0)
-            || (s.shading_normals() && !walks)
-            || (walks && s.u.n_lights > 0)
-        {
-            return None;
+        let refused = [
+            (f.instances || !s.instances.is_empty(), "instanced meshes"),
+            (f.pbr, "glTF's BRDF"),
+            (f.lens_nee, "light sampling through glass balls"),
+            (
+                f.mirror_nee && !mirrored,
+                "light sampling through mirror balls of glass or glTF's, or among many primitives",
+            ),
+            (
+                !walks && (f.triangles || f.textures),
+                "textures on a few primitives",
+            ),
+            (count + s.triangles.len() == 0, "an empty scene"),
+            (s.u.n_lights as usize > MAX_LAMPS, "more than eight lights"),
+            (
+                f.env_map && s.env.is_some() && s.u.n_lights > 0,
+                "lights and a map together",
+            ),
+            (
+                s.shading_normals() && !walks,
+                "shading normals on a few primitives",
+            ),
+            (
+                walks && s.u.n_lights > 0,
+                "lights among triangles or many primitives",
+            ),
+        ];
+        if let Some(&(_, why)) = refused.iter().find(|r| r.0) {
+            return Err(why);
         }
         // A textured material that may emit is left to the scalar tracer.
         let lit_by_texture = |m: u32| {
             super::texture::record(&s.tex, m).is_some_and(|r| super::texture::may_emit(&s.tex, r))
         };
         if walks && !s.tex.is_empty() && (0..s.materials.len() as u32).any(lit_by_texture) {
-            return None;
+            return Err("a texture that emits light");
         }
         let row = [0.0; MAX_LANES];
         let mut l = Lanes {
@@ -487,9 +514,9 @@ impl<'a> Lanes<'a> {
         if walks {
             let mut kept: Vec<Entry> = Vec::new();
             for m in &s.materials {
-                let e = Entry::of(m, f)?;
+                let e = Entry::of(m, f).ok_or(UNTRACED)?;
                 if e.emits != 0.0 {
-                    return None;
+                    return Err("emitters among triangles or many primitives");
                 }
                 let key = Entry {
                     color: [0.0; 3],
@@ -501,7 +528,7 @@ impl<'a> Lanes<'a> {
                         kept.push(key);
                         kept.len() - 1
                     }
-                    None => return None,
+                    None => return Err("more than eight kinds of material, colour aside"),
                 };
                 rows.push(row as i32);
             }
@@ -510,7 +537,8 @@ impl<'a> Lanes<'a> {
             }
         }
         for (k, &mat) in materials.iter().enumerate() {
-            l.put(k, &Entry::of(s.materials.get(mat as usize)?, f)?);
+            let m = s.materials.get(mat as usize).ok_or(UNTRACED)?;
+            l.put(k, &Entry::of(m, f).ok_or(UNTRACED)?);
         }
         // Light sampling runs where the scene has lights and the settings ask for it
         // (`trace_path`'s `nee`).
@@ -539,7 +567,7 @@ impl<'a> Lanes<'a> {
                     let bound = (q.q + 0.5 * (q.u + q.v), 0.25 * (q.u + q.v).length_squared());
                     (s.spheres.len() + i, shape, q.material, bound)
                 }
-                _ => return None,
+                _ => return Err("a light that is neither a sphere nor a quad"),
             };
             let m = &s.materials[material as usize];
             l.lamps.push(Lamp {
@@ -579,7 +607,7 @@ impl<'a> Lanes<'a> {
             normals: s.shading_normals(),
             root,
         });
-        Some(l)
+        Ok(l)
     }
 
     /// `Tracer::sample_mirror` for the lanes of `lanes` at points `p` (facing shading normal
@@ -3160,10 +3188,21 @@ smoothness = 0.7
         let has = std::arch::is_x86_feature_detected!("avx2");
         // Many materials (more than `MAX_PRIMITIVES` kinds), the lens sampler (and glass
         // among the mirror sampler's spheres), glTF's BRDF.
-        for name in ["weekend", "spheres", "outdoor-caustics", "pbr"] {
+        let kinds = "more than eight kinds of material, colour aside";
+        for (name, reason) in [
+            ("weekend", kinds),
+            ("spheres", kinds),
+            ("outdoor-caustics", "light sampling through glass balls"),
+            ("pbr", "glTF's BRDF"),
+        ] {
             let scene = scene(name);
             let s = CpuScene::new(&scene, &settings);
-            assert!(Lanes::of(&s, Features::of(&scene)).is_none(), "{name}");
+            let why = Lanes::try_of(&s, Features::of(&scene)).err();
+            assert_eq!(
+                why,
+                Some(if has { reason } else { "the CPU has no AVX2" }),
+                "{name}"
+            );
         }
         for name in [
             "shell",
