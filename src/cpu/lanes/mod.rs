@@ -181,11 +181,11 @@ pub struct Lanes<'a> {
     /// The environment map, where the scene has one (then without lights).
     env: Option<Env>,
     /// The mirror spheres through which light sampling also samples the map
-    /// (`Tracer::sample_mirror`), and per primitive whether it is one (1.0 or 0.0) and its
-    /// radius.
+    /// (`Tracer::sample_mirror`; their radii are positive, `arrays::mirror_spheres`, so `r`
+    /// holds them), and per primitive whether it is one (1.0 or 0.0). None without light
+    /// sampling.
     mirrors: Vec<Ball>,
     reflector: Row,
-    mirror_r: Row,
     /// What `Tracer::sample_view` and `Tracer::pixel_at` read of the camera, where the
     /// scene has mirror spheres.
     view: View,
@@ -447,7 +447,6 @@ impl<'a> Lanes<'a> {
             }),
             mirrors: Vec::new(),
             reflector: row,
-            mirror_r: row,
             view: View::default(),
             nee: false,
             sun: f.sun.then(|| Sun {
@@ -585,7 +584,6 @@ impl<'a> Lanes<'a> {
                 let b = &s.spheres[i as usize];
                 let k = i as usize;
                 l.reflector[k] = 1.0;
-                l.mirror_r[k] = b.radius;
                 l.mirrors.push(Ball {
                     index: k,
                     center: super::trace::sphere_center(b).to_array(),
@@ -693,12 +691,20 @@ impl<'a> Lanes<'a> {
         }
         let l = map_radiance(s, (&env.map, env.intensity), (u, v), ok);
         let radiance = each!(|k| l[k] * tint[k]);
-        let pl = pdf / (s.splat(count as f32) * spread);
+        let pl = self.mirror_pdf(s, pdf, spread);
         let l = match view {
             Some(px) => self.view_weighted(s, radiance, (p, x.dir), pl, px),
             None => light_weighted(s, radiance, (cos_s, x.dir, n), pl, lobe),
         };
         (each!(|k| l[k].keep(ok)), tests)
+    }
+
+    /// `Tracer::mirror_pdf`: the density, in solid angle at the point that sees it, with which
+    /// `sample_mirror` finds the map's direction of density `pdf` in a mirror sphere of spread
+    /// `spread`.
+    #[inline(always)]
+    fn mirror_pdf<S: Isa>(&self, s: S, pdf: F<S>, spread: F<S>) -> F<S> {
+        pdf / (s.splat(self.mirrors.len() as f32) * spread)
     }
 
     /// `Tracer::sample_view` for the paths starting in lanes `m` (the pixels' columns `x`,
@@ -707,9 +713,6 @@ impl<'a> Lanes<'a> {
     /// same paths found by the ray at its first hit.
     #[inline(always)]
     fn sample_view<S: Isa>(&self, s: S, p: &mut Paths<S>, m: M<S>, (x, y): (I<S>, u32)) {
-        if !self.nee {
-            return;
-        }
         let (o, d, zero) = (p.o, p.d, s.zero());
         if self.max_bounces >= 1 {
             let meets = m & self.view_meets(s, o, d);
@@ -1248,7 +1251,7 @@ impl Lanes<'_> {
             let on = (hit & flagged(s, &self.reflector, idx)) & drawn.gt(zero);
             let cos_i = -dot(*d, n_out);
             let apart: V3<S> = each!(|c| position[c] - p.prev_point[c]);
-            let r = F::pick(&self.mirror_r, idx);
+            let r = F::pick(&self.r, idx);
             let spread = mirror::spread(s, r, dot(apart, apart).sqrt(), cos_i);
             let met = (on & cos_i.gt(zero)) & spread.gt(zero);
             p.mirror_pdf = p.mirror_pdf.blend(drawn.keep(met), hit);
@@ -1984,12 +1987,14 @@ impl Lanes<'_> {
         if (weighed | mirrored).any() {
             let tables = Tables::of(&env.map.distribution);
             let pdf = map::pdf_at(s, &env.map.distribution, &tables, u, v);
-            let pl = s.splat(env.pick) * pdf;
-            w = w.blend(power_heuristic(prev_pdf, pl), weighed);
-            // `Tracer::mirror_pdf`.
-            let count = s.splat(self.mirrors.len() as f32);
-            let pm = pdf / (count * spread);
-            w = w.blend(power_heuristic(mirror_pdf, pm), mirrored);
+            if weighed.any() {
+                let pl = s.splat(env.pick) * pdf;
+                w = w.blend(power_heuristic(prev_pdf, pl), weighed);
+            }
+            if mirrored.any() {
+                let pm = self.mirror_pdf(s, pdf, spread);
+                w = w.blend(power_heuristic(mirror_pdf, pm), mirrored);
+            }
         }
         // A direction with a NaN component: the scalar code's coordinates and weight.
         let odd = seen & nan;
@@ -2000,7 +2005,6 @@ impl Lanes<'_> {
             w.store(&mut weights);
             mirror_pdf.store(&mut m_pdf);
             spread.store(&mut m_spread);
-            let count = self.mirrors.len() as f32;
             for k in lanes_of(odd.bits()) {
                 let dir = glam::Vec3::new(dirs[0][k], dirs[1][k], dirs[2][k]);
                 let (cu, cv) = crate::scene::envmap_sampling::coordinates(dir, env.rotation);
@@ -2010,6 +2014,8 @@ impl Lanes<'_> {
                     let pl = env.pick * env.map.distribution.pdf_at(cu, cv);
                     weights[k] = super::trace::power_heuristic(prev[k], pl);
                 } else if m_pdf[k] > 0.0 {
+                    // `mirror_pdf`, lane by lane.
+                    let count = self.mirrors.len() as f32;
                     let pl = env.map.distribution.pdf_at(cu, cv) / (count * m_spread[k]);
                     weights[k] = super::trace::power_heuristic(m_pdf[k], pl);
                 }
