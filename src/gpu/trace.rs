@@ -28,7 +28,35 @@ use super::{GpuContext, Values, bind_buffers, layout_entry as entry, shader};
 use crate::common::Features;
 use crate::common::layout::DispatchUniforms;
 use std::collections::{HashMap, HashSet};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
+
+/// Pipelines being compiled on background threads now, in the whole process.
+static COMPILING: AtomicUsize = AtomicUsize::new(0);
+
+/// How many pipelines are being compiled on background threads now. A driver's compiler
+/// cannot be stopped, and a process that exits normally under it runs the driver's library
+/// destructors while it still compiles: NVIDIA's (580) then crashes (SIGSEGV) after the
+/// output has been written. `cli::main` leaves without them while this is not zero.
+pub fn compiles_in_flight() -> usize {
+    COMPILING.load(Ordering::SeqCst)
+}
+
+/// Counts one background compile from its start to its end, a panic's included.
+struct InFlight;
+
+impl InFlight {
+    fn start() -> InFlight {
+        COMPILING.fetch_add(1, Ordering::SeqCst);
+        InFlight
+    }
+}
+
+impl Drop for InFlight {
+    fn drop(&mut self) {
+        COMPILING.fetch_sub(1, Ordering::SeqCst);
+    }
+}
 
 /// The `@workgroup_size(x, y, 1)` of the entry point `fn trace`, read from the WGSL so that
 /// the shader stays the one place it is written.
@@ -183,7 +211,9 @@ impl TracePass {
             self.module.clone(),
         );
         let (pipelines, pending) = (self.pipelines.clone(), self.pending.clone());
+        let in_flight = InFlight::start();
         std::thread::spawn(move || {
+            let _in_flight = in_flight;
             let p = compile(&device, &layout, &module, features);
             pipelines
                 .lock()
