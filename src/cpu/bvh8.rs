@@ -40,6 +40,16 @@ pub struct Root {
     pub leaves: u8,
 }
 
+/// A ray's visit of the root made elsewhere (the lanes' first step of the walk), for
+/// `Bvh8::closest_below_root`: the best hit among the root's leaves, the distance it sets,
+/// and the inner slots the ray enters, with their entry distances (by slot).
+pub struct AtRoot {
+    pub best: Option<(f32, u32)>,
+    pub t_best: f32,
+    pub inner: u32,
+    pub near: [f32; WIDE],
+}
+
 /// The eight-wide tree; leaf slots index the four-wide tree's references.
 pub struct Bvh8 {
     nodes: Vec<Node8>,
@@ -238,22 +248,63 @@ impl Bvh8 {
         if self.nodes.is_empty() {
             return None;
         }
+        let w = Walk::new(&mut *stack.0, t_max);
+        self.walk_from(refs, ray, w, Some(0), tally, &mut test)
+    }
+
+    /// `closest` where the root has been visited already, its leaves tested (by the lanes,
+    /// `cpu::lanes`): `at` holds the best hit they found and the root's inner slots to enter,
+    /// with their entry distances. The walk goes on from there as `closest`'s would: the
+    /// same nodes in the same order, so the same hit bit for bit.
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[target_feature(enable = "avx")]
+    pub unsafe fn closest_below_root(
+        &self,
+        refs: &[u32],
+        ray: &Ray,
+        at: &AtRoot,
+        tally: &mut Tally,
+        stack: &mut Stack8,
+        mut test: impl FnMut(u32, f32) -> f32,
+    ) -> Option<(f32, u32)> {
+        let Some(n) = self.nodes.first() else {
+            return at.best;
+        };
+        let mut w = Walk::new(&mut *stack.0, at.t_best);
+        w.best = at.best;
+        let inner = at.inner & !(n.leaves as u32);
+        let next = w.visit(
+            inner, 0, &at.near, &n.child, &n.count, refs, tally, &mut test,
+        );
+        self.walk_from(refs, ray, w, next, tally, &mut test)
+    }
+
+    /// The closest-hit walk from node `node` on (none: the walk is over).
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn walk_from(
+        &self,
+        refs: &[u32],
+        ray: &Ray,
+        mut w: Walk<'_>,
+        mut node: Option<usize>,
+        tally: &mut Tally,
+        test: &mut impl FnMut(u32, f32) -> f32,
+    ) -> Option<(f32, u32)> {
         let (o, inv) = Self::ray_terms(ray);
-        let mut w = Walk::new(&mut *stack.0, t_max);
-        let mut node = 0usize;
-        loop {
-            let n = &self.nodes[node];
+        while let Some(at) = node {
+            let n = &self.nodes[at];
             tally.visits += 1;
             let (near, mask) = Self::slab(n, &o, &inv, w.t_best);
             let mut t = [0.0f32; WIDE];
             // SAFETY: eight floats.
             unsafe { _mm256_storeu_ps(t.as_mut_ptr(), near) };
             let leaves = n.leaves as u32;
-            match w.visit(mask, leaves, &t, &n.child, &n.count, refs, tally, &mut test) {
-                Some(next) => node = next,
-                None => return w.best,
-            }
+            node = w.visit(mask, leaves, &t, &n.child, &n.count, refs, tally, test);
         }
+        w.best
     }
 
     /// `Bvh4::any` over the eight-wide nodes: whether `test` finds any primitive before
@@ -274,15 +325,59 @@ impl Bvh8 {
         if self.nodes.is_empty() {
             return false;
         }
-        let (o, inv) = Self::ray_terms(ray);
+        let w = AnyWalk::new(&mut *stack.0);
+        self.any_from(refs, ray, t_max, w, 0, tally, &mut test)
+    }
+
+    /// `any` where the root has been visited already (by the lanes, `cpu::lanes`): `slots`
+    /// are the root's slots the ray enters before t_max, less the leaves already tested.
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[target_feature(enable = "avx")]
+    pub unsafe fn any_below_root(
+        &self,
+        refs: &[u32],
+        ray: &Ray,
+        (t_max, slots): (f32, u32),
+        tally: &mut Tally,
+        stack: &mut Stack8,
+        mut test: impl FnMut(u32) -> bool,
+    ) -> bool {
+        let Some(n) = self.nodes.first() else {
+            return false;
+        };
         let mut w = AnyWalk::new(&mut *stack.0);
-        let mut node = 0usize;
+        let leaves = n.leaves as u32;
+        match w.visit(slots, leaves, &n.child, &n.count, refs, tally, &mut test) {
+            ControlFlow::Continue(next) => {
+                self.any_from(refs, ray, t_max, w, next, tally, &mut test)
+            }
+            ControlFlow::Break(blocked) => blocked,
+        }
+    }
+
+    /// The any-hit walk from node `node` on.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn any_from(
+        &self,
+        refs: &[u32],
+        ray: &Ray,
+        t_max: f32,
+        mut w: AnyWalk<'_>,
+        mut node: usize,
+        tally: &mut Tally,
+        test: &mut impl FnMut(u32) -> bool,
+    ) -> bool {
+        let (o, inv) = Self::ray_terms(ray);
         loop {
             let n = &self.nodes[node];
             tally.visits += 1;
             let mask = Self::slab(n, &o, &inv, t_max).1;
             let leaves = n.leaves as u32;
-            match w.visit(mask, leaves, &n.child, &n.count, refs, tally, &mut test) {
+            match w.visit(mask, leaves, &n.child, &n.count, refs, tally, test) {
                 ControlFlow::Continue(next) => node = next,
                 ControlFlow::Break(blocked) => return blocked,
             }

@@ -448,6 +448,37 @@ impl<'a> Tracer<'a> {
         )
     }
 
+    /// `occluded` where the lanes have visited the eight-wide tree's root: `slots` are its
+    /// slots the ray enters before t_max, less the leaves the lanes tested
+    /// (`Bvh8::any_below_root`). A scene of no instances whose tree is eight wide.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub(super) fn occluded_below_root(
+        &mut self,
+        ray: &Ray,
+        t_max: f32,
+        (skip, from): (u32, u32),
+        slots: u32,
+    ) -> bool {
+        let s = self.s;
+        let b8 = s
+            .bvh8
+            .as_ref()
+            .expect("the lanes' root is an eight-wide tree's");
+        // SAFETY: `bvh8` exists only where the CPU has AVX.
+        unsafe {
+            b8.any_below_root(
+                &s.bvh.refs,
+                ray,
+                (t_max, slots),
+                &mut self.tally,
+                &mut self.stack8,
+                #[inline(always)]
+                |r| r != skip && r != from && hit_primitive::<ANY>(s, r, ray, t_max) > 0.0,
+            )
+        }
+    }
+
     /// A glTF material's texture maps applied at a textured hit (`None` elsewhere: the
     /// material as it is), and where they were read, for the normal map (trace.wgsl's
     /// `material_at`).
@@ -1708,6 +1739,39 @@ impl Tracer<'_> {
     #[inline(always)]
     pub(super) fn nearest(&mut self, ray: &Ray, skip: u32) -> Option<(f32, u32)> {
         self.intersect::<ANY>(ray, skip).map(|h| (h.t, h.r))
+    }
+
+    /// `nearest` where the lanes have visited the eight-wide tree's root (`at`): the walk
+    /// from the root's inner slots on (`Bvh8::closest_below_root`), the same hit. A scene of
+    /// no instances whose tree is eight wide (the lanes' `Root` exists only then).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub(super) fn nearest_below_root(
+        &mut self,
+        ray: &Ray,
+        skip: u32,
+        at: &super::bvh8::AtRoot,
+    ) -> Option<(f32, u32)> {
+        let s = self.s;
+        let b8 = s
+            .bvh8
+            .as_ref()
+            .expect("the lanes' root is an eight-wide tree's");
+        let mut skipped = 0;
+        // SAFETY: `bvh8` exists only where the CPU has AVX.
+        let hit = unsafe {
+            b8.closest_below_root(
+                &s.bvh.refs,
+                ray,
+                at,
+                &mut self.tally,
+                &mut self.stack8,
+                #[inline(always)]
+                |r, t| hit_except::<ANY>(s, r, ray, t, skip, &mut skipped),
+            )
+        };
+        self.tally.tests -= skipped;
+        hit
     }
 
     /// `trace_path`'s surface at the hit (t, r) of `ray` (`surface_at`, `material_at` and

@@ -216,6 +216,9 @@ struct Walk<'a> {
     normals: bool,
     /// The tree's root, tested in lanes, where the scalar walk reads an eight-wide tree.
     root: Option<Root>,
+    /// Per sphere of the scene (by reference index), 1 where its normal points out (a
+    /// positive radius), for `leaving`; one 0 where the scene has none.
+    outward: Vec<u32>,
 }
 
 /// The camera as `Tracer::camera_ray` reads it (`GpuUniforms`): the image's size, the
@@ -604,6 +607,14 @@ impl<'a> Lanes<'a> {
             rows,
             normals: s.shading_normals(),
             root,
+            outward: if s.spheres.is_empty() {
+                vec![0]
+            } else {
+                s.spheres
+                    .iter()
+                    .map(|b| u32::from(b.radius > 0.0))
+                    .collect()
+            },
         });
         Ok(l)
     }
@@ -818,7 +829,9 @@ impl<'a> Lanes<'a> {
 /// scalar test bit for bit), in the walk's order (leaves first, slot by slot; a nearer hit
 /// replaces the best). A lane whose ray enters no other slot nearer than its best hit (an
 /// inner node, a leaf of other primitives) ends its walk there: the ground of an outdoor
-/// scene, the sky. The others walk the whole tree on their own (`Tracer::nearest`). So each
+/// scene, the sky. The others walk on, each on its own, from the root's inner slots they
+/// enter (`Tracer::nearest_below_root`, `Tracer::occluded_below_root`: the root is not
+/// visited twice), or from the root where a ray enters a leaf of other primitives. So each
 /// lane's hit is the scalar walk's, and most rays that miss a model never leave the lanes.
 struct Root {
     /// The valid slots, in the walk's order.
@@ -829,6 +842,8 @@ struct Root {
 /// tables, reference), none where they walk it (an inner node, or a leaf of other
 /// primitives or of more spheres than the tables hold).
 struct RootSlot {
+    /// Its slot in the root node.
+    slot: usize,
     min: [f32; 3],
     max: [f32; 3],
     spheres: Vec<RootSphere>,
@@ -871,6 +886,7 @@ impl Root {
                 }
             }
             slots.push(RootSlot {
+                slot,
                 min: from_fn(|c| r.min[c][slot]),
                 max: from_fn(|c| r.max[c][slot]),
                 spheres,
@@ -892,6 +908,44 @@ impl RootSlot {
         let near = (t0[0].min(t1[0]).max(t0[1].min(t1[1]))).max(t0[2].min(t1[2]).max(s.zero()));
         let far = (t0[0].max(t1[0]).min(t0[1].max(t1[1]))).min(t0[2].max(t1[2]).min(t_max));
         (near, near.le(far))
+    }
+}
+
+/// The lanes whose rays walk the tree from the root's inner slots on (`Walk::closest`),
+/// and what the root's visit in lanes gave them: each valid slot's entry distances and the
+/// lanes that enter it (as `root.slots`).
+struct Below<'a, S: Isa> {
+    lanes: M<S>,
+    near: &'a [F<S>; 8],
+    entered: &'a [M<S>; 8],
+    root: &'a Root,
+}
+
+impl<S: Isa> Below<'_, S> {
+    /// Lane k's visit of the root, for `Tracer::nearest_below_root`: its best hit (t, r)
+    /// among the root's leaves (`NONE`: none, t then `T_FAR`), and the inner slots it
+    /// enters with their distances (`near`, `entered`: `self`'s, stored by slot).
+    #[inline(always)]
+    fn at_root(
+        &self,
+        k: usize,
+        (t, r): (f32, i32),
+        near: &[[f32; MAX_LANES]; 8],
+        entered: &[u32; 8],
+    ) -> super::bvh8::AtRoot {
+        let mut at = super::bvh8::AtRoot {
+            best: (r != NONE).then_some((t, r as u32)),
+            t_best: t,
+            inner: 0,
+            near: [0.0; 8],
+        };
+        for (j, slot) in self.root.slots.iter().enumerate() {
+            if !slot.leaf && entered[j] >> k & 1 != 0 {
+                at.inner |= 1 << slot.slot;
+                at.near[slot.slot] = near[j][k];
+            }
+        }
+        at
     }
 }
 
@@ -2140,12 +2194,12 @@ impl Walk<'_> {
     ) -> (F<S>, I<S>, M<S>) {
         let Some(root) = &self.root else {
             let (t, r) = (s.splat(T_FAR), s.int(NONE));
-            return self.walked(s, (o, d), skip, lanes, (t, r));
+            return self.walked(s, (o, d), skip, lanes, (t, r), None);
         };
         let inv = inverse(s, d);
         let far = s.splat(T_FAR);
         let (mut best, mut index) = (far, s.int(NONE));
-        let (mut walked, mut tests) = (s.mask(0), 0);
+        let (mut leafy, mut tests) = (s.mask(0), 0);
         let mut near = [far; 8];
         let mut entered = [s.mask(0); 8];
         for (j, slot) in root.slots.iter().enumerate() {
@@ -2158,7 +2212,7 @@ impl Walk<'_> {
                 continue;
             }
             if slot.spheres.is_empty() {
-                walked = walked | entered[j];
+                leafy = leafy | entered[j];
                 continue;
             }
             for &RootSphere { k, r, .. } in &slot.spheres {
@@ -2170,22 +2224,33 @@ impl Walk<'_> {
                 tests += (entered[j].without(skip.eq(rr))).bits().count_ones() as u64;
             }
         }
-        // Then the inner nodes nearer than the best hit: walked.
+        // Then the inner nodes nearer than the best hit: walked, from the root's inner
+        // slots on where the lanes have tested all the leaves a ray enters, else from the
+        // root (a leaf of other primitives: the scalar walk tests the leaves in slot order).
+        let mut inner = s.mask(0);
         for (j, slot) in root.slots.iter().enumerate() {
             if !slot.leaf {
-                walked = walked | (entered[j] & near[j].lt(best));
+                inner = inner | (entered[j] & near[j].lt(best));
             }
         }
-        let done = lanes.without(walked);
+        let walked = leafy | inner;
+        let below = inner.without(leafy);
         {
             let tally = &mut self.tracer.borrow_mut().tally;
-            tally.visits += done.bits().count_ones() as u64;
+            tally.visits += lanes.without(leafy).bits().count_ones() as u64;
             tally.tests += tests;
         }
-        self.walked(s, (o, d), skip, walked, (best, index))
+        let below = Below {
+            lanes: below,
+            near: &near,
+            entered: &entered,
+            root,
+        };
+        self.walked(s, (o, d), skip, walked, (best, index), Some(below))
     }
 
-    /// `closest`'s lanes of `lanes` walked on their own (`Tracer::nearest`): their hits
+    /// `closest`'s lanes of `lanes` walked on their own (`Tracer::nearest`; those of
+    /// `below` from the root's inner slots on, their best hit so far (t, r)): their hits
     /// replace (t, r) there; and the lanes that hit.
     #[inline(always)]
     fn walked<S: Isa>(
@@ -2195,6 +2260,7 @@ impl Walk<'_> {
         skip: I<S>,
         lanes: M<S>,
         (t, r): (F<S>, I<S>),
+        below: Option<Below<'_, S>>,
     ) -> (F<S>, I<S>, M<S>) {
         let (mut t, mut r) = (t, r);
         if lanes.any() {
@@ -2204,9 +2270,25 @@ impl Walk<'_> {
             let (mut ts, mut refs) = ([0.0; MAX_LANES], [NONE; MAX_LANES]);
             t.store(&mut ts);
             r.store(&mut refs);
+            let (mut near, mut entered) = ([[0.0; MAX_LANES]; 8], [0u32; 8]);
+            let below_bits = below.as_ref().map_or(0, |b| b.lanes.bits());
+            if let Some(b) = below.as_ref().filter(|_| below_bits != 0) {
+                for j in 0..b.root.slots.len() {
+                    b.near[j].store(&mut near[j]);
+                    entered[j] = b.entered[j].bits();
+                }
+            }
             let mut tracer = self.tracer.borrow_mut();
             for k in lanes_of(lanes.bits()) {
-                (ts[k], refs[k]) = match tracer.nearest(&ray_of(&o, &d, k), skips[k] as u32) {
+                let ray = ray_of(&o, &d, k);
+                let hit = match below.as_ref().filter(|_| below_bits >> k & 1 != 0) {
+                    Some(b) => {
+                        let at = b.at_root(k, (ts[k], refs[k]), &near, &entered);
+                        tracer.nearest_below_root(&ray, skips[k] as u32, &at)
+                    }
+                    None => tracer.nearest(&ray, skips[k] as u32),
+                };
+                (ts[k], refs[k]) = match hit {
                     Some(hit) => (hit.0, hit.1 as i32),
                     None => (T_FAR, NONE),
                 };
@@ -2303,10 +2385,14 @@ impl Walk<'_> {
         lanes: M<S>,
     ) -> M<S> {
         let (mut blocked, mut walked) = (s.mask(0), lanes);
+        // By lane, the root's slots it enters that the lanes do not test (the root visited:
+        // the scalar walk goes on below it).
+        let mut rest = None;
         if let Some(root) = &self.root {
             let inv = inverse(s, d);
             walked = s.mask(0);
             let mut tests = 0;
+            let mut slots = [0u32; MAX_LANES];
             for slot in &root.slots {
                 let entered = slot.slab(s, (o, inv), t_max).1 & lanes;
                 if !entered.any() {
@@ -2314,6 +2400,9 @@ impl Walk<'_> {
                 }
                 if slot.spheres.is_empty() {
                     walked = walked | entered;
+                    for k in lanes_of(entered.bits()) {
+                        slots[k] |= 1 << slot.slot;
+                    }
                     continue;
                 }
                 for &RootSphere { k, r, .. } in &slot.spheres {
@@ -2325,8 +2414,9 @@ impl Walk<'_> {
             }
             walked = walked.without(blocked);
             let tally = &mut self.tracer.borrow_mut().tally;
-            tally.visits += lanes.without(walked).bits().count_ones() as u64;
+            tally.visits += lanes.bits().count_ones() as u64;
             tally.tests += tests;
+            rest = Some(slots);
         }
         if !walked.any() {
             return blocked;
@@ -2340,7 +2430,12 @@ impl Walk<'_> {
         let mut tracer = self.tracer.borrow_mut();
         for k in lanes_of(walked.bits()) {
             let ray = ray_of(&o, &d, k);
-            if tracer.occluded::<ANY>(&ray, far[k], alsos[k] as u32, froms[k] as u32) {
+            let (also, from) = (alsos[k] as u32, froms[k] as u32);
+            let blocks = match &rest {
+                Some(slots) => tracer.occluded_below_root(&ray, far[k], (also, from), slots[k]),
+                None => tracer.occluded::<ANY>(&ray, far[k], also, from),
+            };
+            if blocks {
                 hit |= 1 << k;
             }
         }
@@ -2351,14 +2446,13 @@ impl Walk<'_> {
     /// lanes of `lanes` (`NONE` in the others).
     #[inline(always)]
     fn leaving<S: Isa>(&self, s: S, r: I<S>, out: M<S>, lanes: M<S>) -> I<S> {
-        let mut refs = [0; MAX_LANES];
-        r.store(&mut refs);
-        let mut left = [NONE; MAX_LANES];
-        let (out, tracer) = (out.bits(), self.tracer.borrow());
-        for k in lanes_of(lanes.bits()) {
-            left[k] = tracer.leaving(refs[k] as u32, out >> k & 1 != 0) as i32;
-        }
-        s.ints(&left)
+        // A reference's kind is in its top two bits: 0 a sphere, 2 a triangle.
+        let kind = r.shr(30);
+        let sphere = kind.eq(s.int(0));
+        let index = r.and(s.int(REF_INDEX as i32)).blend(s.int(0), !sphere);
+        let outward = I::gather(&self.outward, index).eq(s.int(1));
+        let none = sphere.without(!out.xor(outward)) | kind.eq(s.int(2)).without(out);
+        s.int(NONE).blend(r, lanes.without(none))
     }
 }
 
