@@ -167,11 +167,11 @@ impl<'s> AnyWalk<'s> {
         for slot in slots(mask & leaves) {
             let first = child[slot] as usize;
             tally.tests += count[slot] as u64;
-            if refs[first..first + count[slot] as usize]
-                .iter()
-                .any(|&r| test(r))
-            {
-                return ControlFlow::Break(true);
+            // (A loop, not `Iterator::any`, which the compiler left out of line.)
+            for &r in &refs[first..first + count[slot] as usize] {
+                if test(r) {
+                    return ControlFlow::Break(true);
+                }
             }
         }
         for slot in slots(mask & !leaves) {
