@@ -5,6 +5,7 @@ mod args;
 mod bench;
 mod check;
 mod converge;
+mod leave;
 mod merge;
 mod render;
 
@@ -204,26 +205,9 @@ pub fn main() -> ExitCode {
     };
     if crate::gpu::trace::compiles_in_flight() > 0 {
         let status = (0..=u8::MAX).find(|&k| ExitCode::from(k) == code);
-        exit(status.unwrap_or(1));
+        leave::exit(status.unwrap_or(1));
     }
     code
-}
-
-/// Ends the process with `status`. Where a GPU pipeline is still being compiled on another
-/// thread (`gpu::trace::compiles_in_flight`: the tuner's generic pipeline, which NVIDIA's
-/// driver can take a minute over), it ends at once (`_exit`) after flushing stdout: a normal
-/// exit runs the driver's library destructors under its compiler, and NVIDIA's (580) then
-/// crashed with SIGSEGV after the render had been written. The outputs are in place by then
-/// (written and renamed), and the operating system frees the rest.
-pub(crate) fn exit(status: u8) -> ! {
-    use std::io::Write;
-    let _ = std::io::stdout().flush();
-    let _ = std::io::stderr().flush();
-    if crate::gpu::trace::compiles_in_flight() == 0 {
-        std::process::exit(i32::from(status));
-    }
-    // SAFETY: `_exit` only ends the process; nothing runs after it.
-    unsafe { libc::_exit(i32::from(status)) }
 }
 
 /// An error and its causes on one line, each cause left out where a message above already

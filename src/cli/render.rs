@@ -83,7 +83,7 @@ fn install_ctrlc() {
     let _ = ctrlc::set_handler(|| {
         if INTERRUPTED.swap(true, Ordering::SeqCst) {
             eprintln!("\ninterrupted twice: exiting without saving");
-            super::exit(130);
+            super::leave::exit(130);
         }
     });
 }
