@@ -184,6 +184,9 @@ const TWINS: &[Twin] = &[
             "intersect",
             "leaving",
             "new",
+            // The CPU lanes' shadow rays, walked on from the root they visited together (the
+            // GPU walks one invocation's ray from its root).
+            "occluded_below_root",
             "trace_path",
             "walk_closest",
         ],
