@@ -116,10 +116,18 @@ pub fn point(p: Vec3A, c: Vec3A, r: f32, w: Vec3A) -> Option<Reflection> {
 #[inline(always)]
 fn turn(x: f32) -> (f32, f32) {
     let x2 = x * x;
-    let s = x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0))));
-    let c = 1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0)));
+    let [s6, s20, s42, s72] = TURN_SIN;
+    let [c2, c12, c30, c56] = TURN_COS;
+    let s = x * (1.0 - x2 * s6 * (1.0 - x2 * s20 * (1.0 - x2 * s42 * (1.0 - x2 * s72))));
+    let c = 1.0 - x2 * c2 * (1.0 - x2 * c12 * (1.0 - x2 * c30 * (1.0 - x2 * c56)));
     (s, c)
 }
+
+/// `turn`'s factors, 1/6, 1/20, 1/42, 1/72 for the sine and 1/2, 1/12, 1/30, 1/56 for the
+/// cosine, multiplied rather than divided by: seven divisions a Newton step were most of the
+/// solve's time in the CPU tracer's lanes (BENCHMARKS.md, "The walk below the root").
+pub(crate) const TURN_SIN: [f32; 4] = [1.0 / 6.0, 1.0 / 20.0, 1.0 / 42.0, 1.0 / 72.0];
+pub(crate) const TURN_COS: [f32; 4] = [1.0 / 2.0, 1.0 / 12.0, 1.0 / 30.0, 1.0 / 56.0];
 
 /// The solid angle a point at distance `dist` from a mirror sphere of radius `r` sees a
 /// distant source's reflection subtend, per unit solid angle of the source, at incidence

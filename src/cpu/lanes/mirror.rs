@@ -5,6 +5,7 @@
 //! solver's polynomials (`trig`).
 
 use super::trig::{acos_over_pi, atan2_turns, sin_cos_turns};
+use crate::cpu::mirror::{TURN_COS, TURN_SIN};
 use crate::cpu::sampling::basis;
 use crate::cpu::simd::{F, Isa, M, Make, V3, dot, lanes_of, rows};
 use crate::scene::trig::FRAC_1_TAU;
@@ -108,10 +109,12 @@ pub(super) fn point<S: Isa>(
 fn turn<S: Isa>(s: S, x: F<S>) -> (F<S>, F<S>) {
     let one = s.splat(1.0);
     let x2 = x * x;
-    let (s6, s20, s42, s72) = (s.splat(6.0), s.splat(20.0), s.splat(42.0), s.splat(72.0));
-    let (c2, c12, c30, c56) = (s.splat(2.0), s.splat(12.0), s.splat(30.0), s.splat(56.0));
-    let sin = x * (one - (x2 / s6) * (one - (x2 / s20) * (one - (x2 / s42) * (one - x2 / s72))));
-    let cos = one - (x2 / c2) * (one - (x2 / c12) * (one - (x2 / c30) * (one - x2 / c56)));
+    let [s6, s20, s42, s72] = TURN_SIN;
+    let (s6, s20, s42, s72) = (s.splat(s6), s.splat(s20), s.splat(s42), s.splat(s72));
+    let [c2, c12, c30, c56] = TURN_COS;
+    let (c2, c12, c30, c56) = (s.splat(c2), s.splat(c12), s.splat(c30), s.splat(c56));
+    let sin = x * (one - (x2 * s6) * (one - (x2 * s20) * (one - (x2 * s42) * (one - x2 * s72))));
+    let cos = one - (x2 * c2) * (one - (x2 * c12) * (one - (x2 * c30) * (one - x2 * c56)));
     (sin, cos)
 }
 
