@@ -1,5 +1,18 @@
 //! How the process ends: at once where a GPU driver is still compiling on another thread.
 
+use std::process::ExitCode;
+
+/// The code `main` returns for a command that ended with `code`, or, where a GPU pipeline is
+/// still being compiled on another thread, the process ended at once with it (`exit`).
+pub fn finish(code: ExitCode) -> ExitCode {
+    if crate::gpu::trace::compiles_in_flight() == 0 {
+        return code;
+    }
+    // (`ExitCode` does not give its number back.)
+    let status = (0..=u8::MAX).find(|&k| ExitCode::from(k) == code);
+    exit(status.unwrap_or(1))
+}
+
 /// Ends the process with `status`. Where a GPU pipeline is still being compiled on another
 /// thread (`gpu::trace::compiles_in_flight`: the tuner's generic pipeline, which NVIDIA's
 /// driver can take a minute over), it ends at once (`_exit`) after flushing stdout: a normal

@@ -203,11 +203,7 @@ pub fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     };
-    if crate::gpu::trace::compiles_in_flight() > 0 {
-        let status = (0..=u8::MAX).find(|&k| ExitCode::from(k) == code);
-        leave::exit(status.unwrap_or(1));
-    }
-    code
+    leave::finish(code)
 }
 
 /// An error and its causes on one line, each cause left out where a message above already

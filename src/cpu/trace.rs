@@ -167,6 +167,19 @@ fn hit_except<const P: u32>(
     hit_primitive::<P>(s, r, ray, t_max)
 }
 
+/// Whether primitive `r`, neither `skip` nor `from`, blocks a shadow ray before t_max
+/// (`Tracer::occluded`'s test, whichever walk asks it).
+#[inline(always)]
+fn blocks<const P: u32>(
+    s: &CpuScene,
+    r: u32,
+    ray: &Ray,
+    t_max: f32,
+    (skip, from): (u32, u32),
+) -> bool {
+    r != skip && r != from && hit_primitive::<P>(s, r, ray, t_max) > 0.0
+}
+
 /// A mirror sphere met right after a lobe light sampling weighs (`Tracer::mirror_hit`).
 #[derive(Clone, Copy)]
 struct MirrorHit {
@@ -413,7 +426,7 @@ impl<'a> Tracer<'a> {
         if !self.f.bvh {
             return self
                 .all_refs()
-                .any(|r| r != skip && r != from && hit_primitive::<P>(s, r, ray, t_max) > 0.0);
+                .any(|r| blocks::<P>(s, r, ray, t_max, (skip, from)));
         }
         #[cfg(target_arch = "x86_64")]
         if let (Some(few), Some(b8)) = (&s.few, &s.bvh8) {
@@ -434,7 +447,7 @@ impl<'a> Tracer<'a> {
                     &mut self.tally,
                     &mut self.stack8,
                     #[inline(always)]
-                    |r| r != skip && r != from && hit_primitive::<P>(s, r, ray, t_max) > 0.0,
+                    |r| blocks::<P>(s, r, ray, t_max, (skip, from)),
                 )
             };
         }
@@ -444,7 +457,7 @@ impl<'a> Tracer<'a> {
             &mut self.tally,
             &mut self.stack,
             #[inline(always)]
-            |r| r != skip && r != from && hit_primitive::<P>(s, r, ray, t_max) > 0.0,
+            |r| blocks::<P>(s, r, ray, t_max, (skip, from)),
         )
     }
 
@@ -474,7 +487,7 @@ impl<'a> Tracer<'a> {
                 &mut self.tally,
                 &mut self.stack8,
                 #[inline(always)]
-                |r| r != skip && r != from && hit_primitive::<ANY>(s, r, ray, t_max) > 0.0,
+                |r| blocks::<ANY>(s, r, ray, t_max, (skip, from)),
             )
         }
     }

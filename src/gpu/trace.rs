@@ -37,7 +37,7 @@ static COMPILING: AtomicUsize = AtomicUsize::new(0);
 /// How many pipelines are being compiled on background threads now. A driver's compiler
 /// cannot be stopped, and a process that exits normally under it runs the driver's library
 /// destructors while it still compiles: NVIDIA's (580) then crashes (SIGSEGV) after the
-/// output has been written. `cli::main` leaves without them while this is not zero.
+/// output has been written. `cli::leave` ends the process without them while this is not zero.
 pub fn compiles_in_flight() -> usize {
     COMPILING.load(Ordering::SeqCst)
 }
