@@ -179,6 +179,9 @@ const TWINS: &[Twin] = &[
         ],
         rust_only: &[
             "all_refs",
+            // `occluded`'s primitive test, shared by the host's four walks (WGSL's one walk
+            // tests in place).
+            "blocks",
             "camera_hits",
             "hit_except",
             "intersect",
