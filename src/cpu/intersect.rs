@@ -35,7 +35,9 @@ pub struct Cuboid {
     pub material: u32,
 }
 
+/// repr(C): the CPU tracer's lanes gather its fields by word (`lanes::surface`).
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 pub struct Triangle {
     pub v0: Vec3A,
     pub e1: Vec3A,

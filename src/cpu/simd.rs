@@ -772,6 +772,15 @@ impl<S: Isa> I<S> {
             I(S::gather(t.as_ptr().cast(), S::iminu(idx.0, last)))
         }
     }
+    /// Each lane's word `idx` from `base`.
+    ///
+    /// # Safety
+    /// Every lane's index must point to an initialized word of the allocation `base` is in.
+    #[inline(always)]
+    pub unsafe fn gather_from(base: *const u32, idx: Self) -> Self {
+        // SAFETY: `idx` exists, so the CPU has `S`; the caller's promise for the rest.
+        I(unsafe { S::gather(base.cast(), idx.0) })
+    }
     #[inline(always)]
     pub fn reverse_bits(self) -> Self {
         I(unsafe { S::reverse_bits(self.0) })

@@ -66,6 +66,7 @@ macro_rules! each {
 
 mod map;
 mod mirror;
+mod surface;
 mod trig;
 
 use map::{Tables, map_radiance};
@@ -219,6 +220,8 @@ struct Walk<'a> {
     /// Per sphere of the scene (by reference index), 1 where its normal points out (a
     /// positive radius), for `leaving`; one 0 where the scene has none.
     outward: Vec<u32>,
+    /// The tables of the surfaces met on triangles, where the scene has triangles.
+    triangles: Option<surface::Triangles<'a>>,
 }
 
 /// The camera as `Tracer::camera_ray` reads it (`GpuUniforms`): the image's size, the
@@ -604,6 +607,7 @@ impl<'a> Lanes<'a> {
         };
         l.walk = walks.then(|| Walk {
             tracer: RefCell::new(Tracer::new(s, f)),
+            triangles: surface::Triangles::of(s, &rows),
             rows,
             normals: s.shading_normals(),
             root,
@@ -2338,6 +2342,21 @@ impl Walk<'_> {
                 m.normal = each!(|c| n[c].keep(on));
                 m.shading = each!(|c| (-n[c]).blend(n[c], facing).keep(on));
                 rest = rest.without(on);
+            }
+        }
+        // Triangles in lanes, where `surface` covers them.
+        if let Some(tris) = &self.triangles {
+            let on = rest & r.shr(30).eq(s.int(3));
+            if on.any() {
+                let index = r.and(s.int(REF_INDEX as i32));
+                let (met, slow) = tris.met(s, (o, d), t, index, on);
+                let done = on.without(slow);
+                m.material = m.material.blend(met.material, done);
+                m.position = each!(|c| m.position[c].blend(met.position[c], done));
+                m.normal = each!(|c| m.normal[c].blend(met.normal[c], done));
+                m.color = each!(|c| m.color[c].blend(met.color[c], done));
+                m.shading = each!(|c| m.shading[c].blend(met.shading[c], done));
+                rest = rest.without(done);
             }
         }
         if !rest.any() {
