@@ -870,3 +870,33 @@ pub fn lanes_of(mut bits: u32) -> impl Iterator<Item = usize> {
         (k < 32).then_some(k as usize)
     })
 }
+
+/// The textbook cross product, as glam computes it.
+#[inline(always)]
+pub fn cross<S: Isa>(a: V3<S>, c: V3<S>) -> V3<S> {
+    [
+        a[1] * c[2] - a[2] * c[1],
+        a[2] * c[0] - a[0] * c[2],
+        a[0] * c[1] - a[1] * c[0],
+    ]
+}
+
+/// glam's `normalize`: v / |v|.
+#[inline(always)]
+pub fn normalize<S: Isa>(v: V3<S>) -> V3<S> {
+    let root = dot(v, v).sqrt();
+    [v[0] / root, v[1] / root, v[2] / root]
+}
+
+/// `sampling::normalize_or`: v / |v|, or `fallback` where |v|² < 10⁻¹².
+#[inline(always)]
+pub fn normalize_or<S: Isa>(s: S, v: V3<S>, fallback: V3<S>) -> V3<S> {
+    let l2 = dot(v, v);
+    let short = l2.lt(s.splat(1e-12));
+    let root = l2.sqrt();
+    [
+        (v[0] / root).blend(fallback[0], short),
+        (v[1] / root).blend(fallback[1], short),
+        (v[2] / root).blend(fallback[2], short),
+    ]
+}

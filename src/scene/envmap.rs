@@ -121,20 +121,6 @@ impl EnvMap {
         super::envmap_sampling::bilinear(self.width, self.height, u, v, |x, y| self.texel(x, y))
     }
 
-    /// Asks the cache for the texels `radiance_at(u, v)` reads (a hint, which changes no
-    /// value): the CPU tracer's lanes ask for every lane's before looking any up, so that the
-    /// lanes' misses overlap (a lookup was 30 % of `outdoor`'s time in lanes, most of it
-    /// waiting on them).
-    #[inline(always)]
-    pub fn prefetch(&self, u: f32, v: f32) {
-        let (w, h) = (self.width as usize, self.height as usize);
-        let x = ((u * w as f32 - 0.5).max(0.0) as usize).min(w - 1);
-        let y = ((v * h as f32 - 0.5).max(0.0) as usize).min(h - 1);
-        let y1 = (y + 1).min(h - 1);
-        super::envmap_sampling::prefetch(&self.rgbe[y * w + x]);
-        super::envmap_sampling::prefetch(&self.rgbe[y1 * w + x]);
-    }
-
     /// Every texel decoded, row-major.
     pub fn texels(&self) -> Vec<[f32; 3]> {
         unpack_all(&self.rgbe)

@@ -230,6 +230,34 @@ pub(super) fn map_radiance<S: Isa>(
     out
 }
 
+/// Asks the cache for the texels `map_radiance` reads at (u, v) in the lanes of `lanes`
+/// (rows y and y + 1 of column x; a hint, which changes no value) before any is looked up, so
+/// that the lanes' misses overlap: a lookup was 30 % of `outdoor`'s time in lanes, most of it
+/// waiting on them. The texels' indices are made in lanes, then asked for one by one.
+#[inline(always)]
+pub(super) fn prefetch<S: Isa>(s: S, map: &EnvMap, (u, v): (F<S>, F<S>), lanes: M<S>) {
+    let (w, h) = (map.width as i32, map.height as i32);
+    let half = s.splat(0.5);
+    // (max first: a NaN coordinate becomes 0.)
+    let x = (u * s.splat(w as f32) - half).max(s.zero()).truncate();
+    let y = (v * s.splat(h as f32) - half).max(s.zero()).truncate();
+    let (x, y) = (
+        x.blend(s.int(w - 1), x.gt(s.int(w - 1))),
+        y.blend(s.int(h - 1), y.gt(s.int(h - 1))),
+    );
+    let below = (y + s.int(1)).blend(s.int(h - 1), y.gt(s.int(h - 2)));
+    let (mut top, mut bottom) = ([0; MAX_LANES], [0; MAX_LANES]);
+    (y * s.int(w) + x).store(&mut top);
+    (below * s.int(w) + x).store(&mut bottom);
+    // (A huge coordinate truncates to a negative index: clamped into the map.)
+    let last = map.rgbe.len() - 1;
+    for k in lanes_of(lanes.bits()) {
+        let (a, b) = (top[k].max(0) as usize, bottom[k].max(0) as usize);
+        crate::scene::envmap_sampling::prefetch(&map.rgbe[a.min(last)]);
+        crate::scene::envmap_sampling::prefetch(&map.rgbe[b.min(last)]);
+    }
+}
+
 /// `envmap_sampling::floor` in lanes: the truncation, one less where it rounded up.
 #[inline(always)]
 pub(super) fn floor<S: Isa>(s: S, x: F<S>) -> F<S> {

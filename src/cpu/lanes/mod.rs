@@ -31,7 +31,10 @@ use super::draws::Draws;
 use super::fixed::FIXED_MAX;
 use super::intersect::{NO_HIT, Ray};
 use super::scene::CpuScene;
-use super::simd::{Avx2, Avx512, F, I, Isa, M, MAX_LANES, Make, Row, V3, dot, lanes_of, rows};
+use super::simd::{
+    Avx2, Avx512, F, I, Isa, M, MAX_LANES, Make, Row, V3, cross, dot, lanes_of, normalize,
+    normalize_or, rows,
+};
 use super::trace::{ANY, T_FAR, Tracer};
 use crate::common::Features;
 use crate::common::arrays::{ENV_NONE, ENV_VISIBLE, REF_INDEX};
@@ -41,6 +44,7 @@ use std::arch::x86_64::{_CMP_EQ_OQ, _CMP_NGE_UQ, _CMP_NLE_UQ, _CMP_NLT_UQ};
 use std::array::from_fn;
 use std::cell::RefCell;
 use std::f32::consts::PI;
+use surface::Met;
 
 /// `[e(0), e(1), e(2)]`, written out. The lanes' code takes no closures: one
 /// (`std::array::from_fn`'s, `map`'s) is compiled apart from the instruction set that its
@@ -1972,12 +1976,7 @@ impl Lanes<'_> {
             uv: (u, v),
         } = map::sample(s, &env.map.distribution, &tables, draws, env.rotation);
         // Looked up after the shadow rays, where it is not occluded.
-        let (mut us, mut vs) = ([0.0; MAX_LANES], [0.0; MAX_LANES]);
-        u.store(&mut us);
-        v.store(&mut vs);
-        for k in lanes_of(lanes.bits()) {
-            env.map.prefetch(us[k], vs[k]);
-        }
+        map::prefetch(s, &env.map, (u, v), lanes);
         let cos_s = dot(n, dir);
         let mut ok = (lanes & pdf.gt(zero)) & cos_s.gt(zero);
         // With shading normals, a direction below the geometric surface is not lit
@@ -2034,12 +2033,7 @@ impl Lanes<'_> {
         };
         let ((mut u, mut v), nan) = map::coordinates(s, d, env.rotation);
         // The texels asked for first, so that their cache misses overlap the density's gathers.
-        let (mut us, mut vs) = ([0.0; MAX_LANES], [0.0; MAX_LANES]);
-        u.store(&mut us);
-        v.store(&mut vs);
-        for k in lanes_of(seen.bits()) {
-            env.map.prefetch(us[k], vs[k]);
-        }
+        map::prefetch(s, &env.map, (u, v), seen);
         let mut w = s.splat(1.0);
         let mirrored = seen.without(weighed) & mirror_pdf.gt(s.zero());
         if (weighed | mirrored).any() {
@@ -2057,6 +2051,9 @@ impl Lanes<'_> {
         // A direction with a NaN component: the scalar code's coordinates and weight.
         let odd = seen & nan;
         if odd.any() {
+            let (mut us, mut vs) = ([0.0; MAX_LANES], [0.0; MAX_LANES]);
+            u.store(&mut us);
+            v.store(&mut vs);
             let (dirs, mut prev, mut weights) = (rows(d), [0.0; MAX_LANES], [0.0; MAX_LANES]);
             let (mut m_pdf, mut m_spread) = ([0.0; MAX_LANES], [0.0; MAX_LANES]);
             prev_pdf.store(&mut prev);
@@ -2171,16 +2168,6 @@ impl Lanes<'_> {
         }
         sky
     }
-}
-
-/// What a walk's rays met, in lanes (`Tracer::met`'s): the material, the point, the
-/// geometric normal (outward), the colour there and the shading normal on the rays' side.
-struct Met<S: Isa> {
-    material: I<S>,
-    position: V3<S>,
-    normal: V3<S>,
-    color: V3<S>,
-    shading: V3<S>,
 }
 
 impl Walk<'_> {
@@ -2649,16 +2636,6 @@ fn fixed_words<S: Isa>(s: S, x: F<S>) -> (I<S>, I<S>) {
     (whole, frac)
 }
 
-/// The textbook cross product, as glam computes it.
-#[inline(always)]
-fn cross<S: Isa>(a: V3<S>, c: V3<S>) -> V3<S> {
-    [
-        a[1] * c[2] - a[2] * c[1],
-        a[2] * c[0] - a[0] * c[2],
-        a[0] * c[1] - a[1] * c[0],
-    ]
-}
-
 /// `light_weighted` in lanes: `radiance` arriving from `dir` (cos_s against the shading
 /// normal `n`), drawn with density `pl`, times the lobe's f·cos, weighed by the power heuristic
 /// against the lobe's density: the cosine lobe's (cos_s/π, its tint the caller's), the glossy
@@ -2712,22 +2689,6 @@ fn gloss_pdf<S: Isa>(s: S, w: V3<S>, n: V3<S>, r: V3<S>, sm: F<S>) -> F<S> {
     let t1 = ((d1 * l1) * l1).keep(l1.gt(zero) & d1.gt(zero));
     let t2 = ((d2 * l2) * l2).keep(l2.gt(zero) & d2.gt(zero));
     ((t1 + t2) / ((s.splat(PI) * t) * q)).keep(valid)
-}
-
-/// glam's `normalize`: v / |v|.
-#[inline(always)]
-fn normalize<S: Isa>(v: V3<S>) -> V3<S> {
-    let root = dot(v, v).sqrt();
-    each!(|c| v[c] / root)
-}
-
-/// `sampling::normalize_or`: v / |v|, or `fallback` where |v|² < 10⁻¹².
-#[inline(always)]
-fn normalize_or<S: Isa>(s: S, v: V3<S>, fallback: V3<S>) -> V3<S> {
-    let l2 = dot(v, v);
-    let short = l2.lt(s.splat(1e-12));
-    let root = l2.sqrt();
-    each!(|c| (v[c] / root).blend(fallback[c], short))
 }
 
 /// `sampling::random_unit_vector` from its draws u and v.

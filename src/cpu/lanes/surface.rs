@@ -8,14 +8,23 @@
 //! `Tracer::met`.
 
 use super::map::floor;
-use super::{Met, cross, normalize, normalize_or};
 use crate::common::textures::{
     FLAG_BASE, FLAG_NORMAL, FRAME_WORDS, FRAMES, MATERIALS, NONE, SRGB_LUT, TRANSFORMS, UV_BASE,
 };
 use crate::cpu::intersect::Triangle;
 use crate::cpu::scene::CpuScene;
-use crate::cpu::simd::{F, I, Isa, M, Make, V3, dot};
+use crate::cpu::simd::{F, I, Isa, M, Make, V3, cross, dot, normalize, normalize_or};
 use std::arch::x86_64::_CMP_UNORD_Q;
+
+/// What a walk's rays met, in lanes (`Tracer::met`'s): the material, the point, the
+/// geometric normal (outward), the colour there and the shading normal on the rays' side.
+pub(super) struct Met<S: Isa> {
+    pub(super) material: I<S>,
+    pub(super) position: V3<S>,
+    pub(super) normal: V3<S>,
+    pub(super) color: V3<S>,
+    pub(super) shading: V3<S>,
+}
 
 /// `texture::UV_LIMIT`.
 const UV_LIMIT: f32 = 1048576.0;
