@@ -13,7 +13,7 @@ use crate::common::textures::{
 };
 use crate::cpu::intersect::Triangle;
 use crate::cpu::scene::CpuScene;
-use crate::cpu::simd::{F, I, Isa, M, Make, V3, cross, dot, normalize, normalize_or};
+use crate::cpu::simd::{F, I, Isa, M, MAX_LANES, Make, V3, cross, dot, normalize, normalize_or};
 use std::arch::x86_64::_CMP_UNORD_Q;
 
 /// What a walk's rays met, in lanes (`Tracer::met`'s): the material, the point, the
@@ -119,15 +119,29 @@ impl<'a> Triangles<'a> {
         let third = s.splat(1.0 / 3.0);
         let (b1, b2) = (b1.blend(third, !on), b2.blend(third, !on));
         let mut slow = s.mask(0);
-        let mut color: V3<S> = each!(|c| I::gather(&self.color[c], material).float_of_bits());
+        // A material the same in every lane (a model of one material, most often): its
+        // words read once, not gathered.
+        let mut mats = [0; MAX_LANES];
+        material.store(&mut mats);
+        let first = mats[lanes.bits().trailing_zeros() as usize];
+        let one = (!lanes.without(material.eq(s.int(first))).any()).then_some(first as u32);
+        let mut color: V3<S> = match one {
+            Some(m) => each!(|c| s.splat(f32::from_bits(self.color[c][m as usize]))),
+            None => each!(|c| I::gather(&self.color[c], material).float_of_bits()),
+        };
         if !self.tex.is_empty() {
-            let rec = I::gather(self.tex, material + s.int(MATERIALS as i32 + 1));
+            let at = (
+                one.map(|m| MATERIALS as u32 + 1 + m),
+                material + s.int(MATERIALS as i32 + 1),
+            );
+            let rec = self.words(s, at, 0);
             let textured = lanes.without(rec.eq(s.int(NONE as i32)));
             if textured.any() {
                 let rec = rec.blend(s.int(0), !textured);
-                let flags = I::gather(self.tex, rec);
+                let rec = (one.map(|m| self.tex[MATERIALS + 1 + m as usize]), rec);
+                let flags = self.words(s, rec, 0);
                 let uv = self.uv(s, i, (b1, b2));
-                let factor: V3<S> = each!(|c| self.f(rec + s.int(4 + c as i32)));
+                let factor: V3<S> = each!(|c| self.words(s, rec, 4 + c as i32).float_of_bits());
                 let mut base = factor;
                 let sampled = textured
                     & flags
@@ -164,13 +178,26 @@ impl<'a> Triangles<'a> {
             n
         };
         let met = Met {
-            material: I::gather(&self.rows, material),
+            material: match one {
+                Some(m) => s.int(self.rows[m as usize] as i32),
+                None => I::gather(&self.rows, material),
+            },
             position,
             normal,
             color,
             shading,
         };
         (met, slow & lanes)
+    }
+
+    /// Texture words `at` + k of the lanes: read once where `at` is the same in every lane
+    /// (`one`, its value), else gathered.
+    #[inline(always)]
+    fn words<S: Isa>(&self, s: S, (one, at): (Option<u32>, I<S>), k: i32) -> I<S> {
+        match one {
+            Some(w) => s.int(self.tex[(w as i32 + k) as usize] as i32),
+            None => I::gather(self.tex, at + s.int(k)),
+        }
     }
 
     /// Texture words `at` to `at` + 2, as floats.
@@ -205,19 +232,22 @@ impl<'a> Triangles<'a> {
     fn base_colour<S: Isa>(
         &self,
         s: S,
-        rec: I<S>,
+        rec: (Option<u32>, I<S>),
         (u, v): (F<S>, F<S>),
         lanes: M<S>,
     ) -> (V3<S>, M<S>) {
-        let m = rec + s.int(TRANSFORMS as i32);
-        let [a, b, c] = self.tex_vector(s, m);
-        let [d, e, f] = self.tex_vector(s, m + s.int(3));
+        let m = TRANSFORMS as i32;
+        let [a, b, c] = each!(|j| self.words(s, rec, m + j as i32).float_of_bits());
+        let [d, e, f] = each!(|j| self.words(s, rec, m + 3 + j as i32).float_of_bits());
         let (u, v) = ((a * u + b * v) + c, (d * u + e * v) + f);
         let nan = u.cmp::<_CMP_UNORD_Q>(v);
         let limit = s.splat(UV_LIMIT);
         let (u, v) = (u.max(-limit).min(limit), v.max(-limit).min(limit));
-        let h = I::gather(self.tex, rec + s.int(1));
-        let (w, ht) = (I::gather(self.tex, h), I::gather(self.tex, h + s.int(1)));
+        let h = (
+            rec.0.map(|r| self.tex[r as usize + 1]),
+            self.words(s, rec, 1),
+        );
+        let (w, ht) = (self.words(s, h, 0), self.words(s, h, 1));
         let x = u * w.to_float() - s.splat(0.5);
         let y = v * ht.to_float() - s.splat(0.5);
         let (x0, y0) = (floor(s, x), floor(s, y));
@@ -230,7 +260,7 @@ impl<'a> Triangles<'a> {
         let ok = lanes.without(off);
         let (x0, y0) = (x0.keep(ok), y0.keep(ok));
         let (ix, iy) = (x0.truncate(), y0.truncate());
-        let base = I::gather(self.tex, h + s.int(4)) + iy * w + ix;
+        let base = self.words(s, h, 4) + iy * w + ix;
         let (t00, t10) = (self.texel(s, base), self.texel(s, base + s.int(1)));
         let (t01, t11) = (self.texel(s, base + w), self.texel(s, base + w + s.int(1)));
         let out = each!(|c| {
