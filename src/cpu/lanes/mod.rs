@@ -207,9 +207,10 @@ pub struct Lanes<'a> {
 }
 
 /// A scene of triangles, or of more than `MAX_PRIMITIVES` primitives: each lane's ray walks
-/// the scalar tracer's tree, and what it meets there (the surface, a texture's colour, the
-/// shading normal) is the scalar tracer's, lane by lane (`Tracer::nearest`, `Tracer::met`,
-/// `Tracer::occluded`); the rest of the path runs in lanes. A lane's walk is one ray's, as
+/// the scalar tracer's tree (`Tracer::nearest`, `Tracer::occluded`, below the root the lanes
+/// test); what it meets there (the surface, a texture's colour, the shading normal) is made
+/// in lanes on triangles (`surface`) and the root's spheres, else by the scalar tracer lane
+/// by lane (`Tracer::met`); the rest of the path runs in lanes. A lane's walk is one ray's, as
 /// Embree's single-ray kernels walk the incoherent rays of a path tracer (Wald et al.,
 /// "Embree: A Kernel Framework for Efficient CPU Ray Tracing", SIGGRAPH 2014).
 struct Walk<'a> {
