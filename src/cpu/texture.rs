@@ -14,7 +14,7 @@ use crate::common::textures::{
 use glam::{Vec2, Vec3A, Vec4};
 
 /// Coordinates are clamped to this before texel arithmetic (texture.wgsl: TEX_UV_LIMIT).
-const UV_LIMIT: f32 = 1048576.0;
+pub(super) const UV_LIMIT: f32 = 1048576.0;
 /// The least tangent-space z a normal map's normal keeps (texture.wgsl: TEX_NORMAL_MIN_Z).
 const NORMAL_MIN_Z: f32 = 0.01;
 

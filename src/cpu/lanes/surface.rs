@@ -14,6 +14,7 @@ use crate::common::textures::{
 use crate::cpu::intersect::Triangle;
 use crate::cpu::scene::CpuScene;
 use crate::cpu::simd::{F, I, Isa, M, MAX_LANES, Make, V3, cross, dot, normalize, normalize_or};
+use crate::cpu::texture::UV_LIMIT;
 use std::arch::x86_64::_CMP_UNORD_Q;
 
 /// What a walk's rays met, in lanes (`Tracer::met`'s): the material, the point, the
@@ -26,8 +27,6 @@ pub(super) struct Met<S: Isa> {
     pub(super) shading: V3<S>,
 }
 
-/// `texture::UV_LIMIT`.
-const UV_LIMIT: f32 = 1048576.0;
 /// Words of a `Triangle` (repr(C)): v0, e1 and e2 at words 0, 4 and 8, the material at 12.
 const TRIANGLE_WORDS: i32 = (size_of::<Triangle>() / 4) as i32;
 
@@ -134,11 +133,10 @@ impl<'a> Triangles<'a> {
                 one.map(|m| MATERIALS as u32 + 1 + m),
                 material + s.int(MATERIALS as i32 + 1),
             );
-            let rec = self.words(s, at, 0);
-            let textured = lanes.without(rec.eq(s.int(NONE as i32)));
+            let rec = self.base(s, at, 0);
+            let textured = lanes.without(rec.1.eq(s.int(NONE as i32)));
             if textured.any() {
-                let rec = rec.blend(s.int(0), !textured);
-                let rec = (one.map(|m| self.tex[MATERIALS + 1 + m as usize]), rec);
+                let rec = (rec.0, rec.1.blend(s.int(0), !textured));
                 let flags = self.words(s, rec, 0);
                 let uv = self.uv(s, i, (b1, b2));
                 let factor: V3<S> = each!(|c| self.words(s, rec, 4 + c as i32).float_of_bits());
@@ -200,6 +198,19 @@ impl<'a> Triangles<'a> {
         }
     }
 
+    /// Texture words `at` + k as the start of further reads (`words`): the word where `at` is
+    /// the same in every lane, and the lanes' words.
+    #[inline(always)]
+    fn base<S: Isa>(&self, s: S, at: (Option<u32>, I<S>), k: i32) -> (Option<u32>, I<S>) {
+        match at.0 {
+            Some(w) => {
+                let word = self.tex[(w as i32 + k) as usize];
+                (Some(word), s.int(word as i32))
+            }
+            None => (None, I::gather(self.tex, at.1 + s.int(k))),
+        }
+    }
+
     /// Texture words `at` to `at` + 2, as floats.
     #[inline(always)]
     fn tex_vector<S: Isa>(&self, s: S, at: I<S>) -> V3<S> {
@@ -243,10 +254,7 @@ impl<'a> Triangles<'a> {
         let nan = u.cmp::<_CMP_UNORD_Q>(v);
         let limit = s.splat(UV_LIMIT);
         let (u, v) = (u.max(-limit).min(limit), v.max(-limit).min(limit));
-        let h = (
-            rec.0.map(|r| self.tex[r as usize + 1]),
-            self.words(s, rec, 1),
-        );
+        let h = self.base(s, rec, 1);
         let (w, ht) = (self.words(s, h, 0), self.words(s, h, 1));
         let x = u * w.to_float() - s.splat(0.5);
         let y = v * ht.to_float() - s.splat(0.5);
