@@ -98,15 +98,30 @@ impl<'s> Walk<'s> {
         tally: &mut Tally,
         test: &mut impl FnMut(u32, f32) -> f32,
     ) -> Option<usize> {
+        let mut leaf = |first, n, t_best| nearest_in(&refs[first..first + n], t_best, test);
+        self.visit_leaves(mask, leaves, near, child, count, tally, &mut leaf)
+    }
+
+    /// [`Walk::visit`], a leaf's primitives tested by `leaf` (its first reference, their
+    /// count, the best distance so far): the first at the nearest distance below that, as
+    /// [`nearest_in`] finds it.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn visit_leaves(
+        &mut self,
+        mask: u32,
+        leaves: u32,
+        near: &[f32],
+        child: &[u32],
+        count: &[u16],
+        tally: &mut Tally,
+        leaf: &mut impl FnMut(usize, usize, f32) -> Option<(f32, u32)>,
+    ) -> Option<usize> {
         for slot in slots(mask & leaves) {
-            let first = child[slot] as usize;
             tally.tests += count[slot] as u64;
-            for &r in &refs[first..first + count[slot] as usize] {
-                let th = test(r, self.t_best);
-                if th > 0.0 {
-                    self.t_best = th;
-                    self.best = Some((th, r));
-                }
+            if let Some((th, r)) = leaf(child[slot] as usize, count[slot] as usize, self.t_best) {
+                self.t_best = th;
+                self.best = Some((th, r));
             }
         }
         let mut next: Option<Entry> = None;
@@ -164,14 +179,34 @@ impl<'s> AnyWalk<'s> {
         tally: &mut Tally,
         test: &mut impl FnMut(u32) -> bool,
     ) -> ControlFlow<bool, usize> {
-        for slot in slots(mask & leaves) {
-            let first = child[slot] as usize;
-            tally.tests += count[slot] as u64;
-            // (A loop, not `Iterator::any`, which the compiler left out of line.)
-            for &r in &refs[first..first + count[slot] as usize] {
+        // (A loop, not `Iterator::any`, which the compiler left out of line.)
+        let mut leaf = |first: usize, n: usize| {
+            for &r in &refs[first..first + n] {
                 if test(r) {
-                    return ControlFlow::Break(true);
+                    return true;
                 }
+            }
+            false
+        };
+        self.visit_leaves(mask, leaves, child, count, tally, &mut leaf)
+    }
+
+    /// [`AnyWalk::visit`], a leaf's primitives tested by `leaf` (its first reference and
+    /// their count): whether one blocks.
+    #[inline(always)]
+    pub fn visit_leaves(
+        &mut self,
+        mask: u32,
+        leaves: u32,
+        child: &[u32],
+        count: &[u16],
+        tally: &mut Tally,
+        leaf: &mut impl FnMut(usize, usize) -> bool,
+    ) -> ControlFlow<bool, usize> {
+        for slot in slots(mask & leaves) {
+            tally.tests += count[slot] as u64;
+            if leaf(child[slot] as usize, count[slot] as usize) {
+                return ControlFlow::Break(true);
             }
         }
         for slot in slots(mask & !leaves) {
@@ -187,6 +222,25 @@ impl<'s> AnyWalk<'s> {
         self.sp -= 1;
         ControlFlow::Continue(self.stack[self.sp].node as usize)
     }
+}
+
+/// The first of primitives `refs` at the nearest distance below `t_best` (`test` as in
+/// [`Walk::visit`]), tested in order, each against the best so far.
+#[inline(always)]
+pub(super) fn nearest_in(
+    refs: &[u32],
+    mut t_best: f32,
+    test: &mut impl FnMut(u32, f32) -> f32,
+) -> Option<(f32, u32)> {
+    let mut best = None;
+    for &r in refs {
+        let th = test(r, t_best);
+        if th > 0.0 {
+            t_best = th;
+            best = Some((th, r));
+        }
+    }
+    best
 }
 
 /// The slots whose bits are set in `mask`, lowest first.

@@ -5,8 +5,9 @@
 //! (Wald, Benthin & Boulos, "Getting Rid of Packets", RT 2008; Embree's BVH8). The nearest
 //! hit is the four-wide walk's bit for bit (the same primitive tests; tested).
 
-use super::bvh::{AnyWalk, Bvh4, Entry, Node4, Tally, Walk, slots};
+use super::bvh::{AnyWalk, Bvh4, Entry, Node4, Tally, Walk, nearest_in, slots};
 use super::intersect::{Ray, safe_inverse};
+use super::tri8::{Leaves, Ray8};
 use std::arch::x86_64::*;
 use std::ops::ControlFlow;
 
@@ -249,16 +250,50 @@ impl Bvh8 {
             return None;
         }
         let w = Walk::new(&mut *stack.0, t_max);
-        self.walk_from(refs, ray, w, Some(0), tally, &mut test)
+        let mut leaf = |first, n, t_best| nearest_in(&refs[first..first + n], t_best, &mut test);
+        self.walk_from(ray, w, Some(0), tally, &mut leaf)
     }
 
-    /// `closest` where the root has been visited already, its leaves tested (by the lanes,
+    /// `closest`, the leaves of plain triangles tested eight at a time where `leaves` has
+    /// their columns (`Tri8::closest`: the same hit), primitive `leaves.skip` left out.
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx")]
+    pub unsafe fn closest_in(
+        &self,
+        refs: &[u32],
+        ray: &Ray,
+        t_max: f32,
+        tally: &mut Tally,
+        stack: &mut Stack8,
+        leaves: &mut Leaves<'_>,
+        mut test: impl FnMut(u32, f32) -> f32,
+    ) -> Option<(f32, u32)> {
+        if self.nodes.is_empty() {
+            return None;
+        }
+        let w = Walk::new(&mut *stack.0, t_max);
+        let r8 = Ray8::of(ray);
+        let mut leaf = |first, n, t_best| match leaves.tris {
+            Some(tris) if tris.plain(first, n) => {
+                let skip = (leaves.skip, &mut leaves.skipped);
+                tris.closest((first, n), &r8, t_best, skip)
+            }
+            _ => nearest_in(&refs[first..first + n], t_best, &mut test),
+        };
+        self.walk_from(ray, w, Some(0), tally, &mut leaf)
+    }
+
+    /// `closest_in` where the root has been visited already, its leaves tested (by the lanes,
     /// `cpu::lanes`): `at` holds the best hit they found and the root's inner slots to enter,
     /// with their entry distances. The walk goes on from there as `closest`'s would: the
     /// same nodes in the same order, so the same hit bit for bit.
     ///
     /// # Safety
     /// The CPU must have AVX.
+    #[allow(clippy::too_many_arguments)]
     #[target_feature(enable = "avx")]
     pub unsafe fn closest_below_root(
         &self,
@@ -267,6 +302,7 @@ impl Bvh8 {
         at: &AtRoot,
         tally: &mut Tally,
         stack: &mut Stack8,
+        leaves: &mut Leaves<'_>,
         mut test: impl FnMut(u32, f32) -> f32,
     ) -> Option<(f32, u32)> {
         let Some(n) = self.nodes.first() else {
@@ -275,23 +311,29 @@ impl Bvh8 {
         let mut w = Walk::new(&mut *stack.0, at.t_best);
         w.best = at.best;
         let inner = at.inner & !(n.leaves as u32);
-        let next = w.visit(
-            inner, 0, &at.near, &n.child, &n.count, refs, tally, &mut test,
-        );
-        self.walk_from(refs, ray, w, next, tally, &mut test)
+        let r8 = Ray8::of(ray);
+        let mut leaf = |first, count, t_best| match leaves.tris {
+            Some(tris) if tris.plain(first, count) => {
+                let skip = (leaves.skip, &mut leaves.skipped);
+                tris.closest((first, count), &r8, t_best, skip)
+            }
+            _ => nearest_in(&refs[first..first + count], t_best, &mut test),
+        };
+        let next = w.visit_leaves(inner, 0, &at.near, &n.child, &n.count, tally, &mut leaf);
+        self.walk_from(ray, w, next, tally, &mut leaf)
     }
 
-    /// The closest-hit walk from node `node` on (none: the walk is over).
+    /// The closest-hit walk from node `node` on (none: the walk is over), each leaf's
+    /// primitives tested by `leaf` (`Walk::visit_leaves`).
     #[inline]
     #[target_feature(enable = "avx")]
     fn walk_from(
         &self,
-        refs: &[u32],
         ray: &Ray,
         mut w: Walk<'_>,
         mut node: Option<usize>,
         tally: &mut Tally,
-        test: &mut impl FnMut(u32, f32) -> f32,
+        leaf: &mut impl FnMut(usize, usize, f32) -> Option<(f32, u32)>,
     ) -> Option<(f32, u32)> {
         let (o, inv) = Self::ray_terms(ray);
         while let Some(at) = node {
@@ -302,7 +344,7 @@ impl Bvh8 {
             // SAFETY: eight floats.
             unsafe { _mm256_storeu_ps(t.as_mut_ptr(), near) };
             let leaves = n.leaves as u32;
-            node = w.visit(mask, leaves, &t, &n.child, &n.count, refs, tally, test);
+            node = w.visit_leaves(mask, leaves, &t, &n.child, &n.count, tally, leaf);
         }
         w.best
     }
@@ -326,14 +368,47 @@ impl Bvh8 {
             return false;
         }
         let w = AnyWalk::new(&mut *stack.0);
-        self.any_from(refs, ray, t_max, w, 0, tally, &mut test)
+        let mut leaf = |first: usize, n: usize| any_in(&refs[first..first + n], &mut test);
+        self.any_from(ray, t_max, w, (0, None), tally, &mut leaf)
     }
 
-    /// `any` where the root has been visited already (by the lanes, `cpu::lanes`): `slots`
+    /// `any`, the leaves of plain triangles tested eight at a time where `leaves` has their
+    /// columns (`Tri8::any`), primitives `leaves.skip` and `leaves.from` left out.
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[allow(clippy::too_many_arguments)]
+    #[target_feature(enable = "avx")]
+    pub unsafe fn any_in(
+        &self,
+        refs: &[u32],
+        ray: &Ray,
+        t_max: f32,
+        tally: &mut Tally,
+        stack: &mut Stack8,
+        leaves: &Leaves<'_>,
+        mut test: impl FnMut(u32) -> bool,
+    ) -> bool {
+        if self.nodes.is_empty() {
+            return false;
+        }
+        let w = AnyWalk::new(&mut *stack.0);
+        let r8 = Ray8::of(ray);
+        let mut leaf = |first: usize, n: usize| match leaves.tris {
+            Some(tris) if tris.plain(first, n) => {
+                tris.any((first, n), &r8, t_max, (leaves.skip, leaves.from))
+            }
+            _ => any_in(&refs[first..first + n], &mut test),
+        };
+        self.any_from(ray, t_max, w, (0, None), tally, &mut leaf)
+    }
+
+    /// `any_in` where the root has been visited already (by the lanes, `cpu::lanes`): `slots`
     /// are the root's slots the ray enters before t_max, less the leaves already tested.
     ///
     /// # Safety
     /// The CPU must have AVX.
+    #[allow(clippy::too_many_arguments)]
     #[target_feature(enable = "avx")]
     pub unsafe fn any_below_root(
         &self,
@@ -342,47 +417,63 @@ impl Bvh8 {
         (t_max, slots): (f32, u32),
         tally: &mut Tally,
         stack: &mut Stack8,
+        leaves: &Leaves<'_>,
         mut test: impl FnMut(u32) -> bool,
     ) -> bool {
-        let Some(n) = self.nodes.first() else {
+        if self.nodes.is_empty() {
             return false;
-        };
-        let mut w = AnyWalk::new(&mut *stack.0);
-        let leaves = n.leaves as u32;
-        match w.visit(slots, leaves, &n.child, &n.count, refs, tally, &mut test) {
-            ControlFlow::Continue(next) => {
-                self.any_from(refs, ray, t_max, w, next, tally, &mut test)
-            }
-            ControlFlow::Break(blocked) => blocked,
         }
+        let w = AnyWalk::new(&mut *stack.0);
+        let r8 = Ray8::of(ray);
+        let mut leaf = |first: usize, count: usize| match leaves.tris {
+            Some(tris) if tris.plain(first, count) => {
+                tris.any((first, count), &r8, t_max, (leaves.skip, leaves.from))
+            }
+            _ => any_in(&refs[first..first + count], &mut test),
+        };
+        // (The root's slots given, not tested: `leaf` called from one place stays inline.)
+        self.any_from(ray, t_max, w, (0, Some(slots)), tally, &mut leaf)
     }
 
-    /// The any-hit walk from node `node` on.
-    #[allow(clippy::too_many_arguments)]
+    /// The any-hit walk from node `node` on (its slots entered `given`, where they are),
+    /// each leaf's primitives tested by `leaf` (`AnyWalk::visit_leaves`).
     #[inline]
     #[target_feature(enable = "avx")]
     fn any_from(
         &self,
-        refs: &[u32],
         ray: &Ray,
         t_max: f32,
         mut w: AnyWalk<'_>,
-        mut node: usize,
+        (mut node, mut given): (usize, Option<u32>),
         tally: &mut Tally,
-        test: &mut impl FnMut(u32) -> bool,
+        leaf: &mut impl FnMut(usize, usize) -> bool,
     ) -> bool {
         let (o, inv) = Self::ray_terms(ray);
         loop {
             let n = &self.nodes[node];
-            tally.visits += 1;
-            let mask = Self::slab(n, &o, &inv, t_max).1;
+            let mask = given.take().unwrap_or_else(|| {
+                tally.visits += 1;
+                Self::slab(n, &o, &inv, t_max).1
+            });
             let leaves = n.leaves as u32;
-            match w.visit(mask, leaves, &n.child, &n.count, refs, tally, test) {
+            match w.visit_leaves(mask, leaves, &n.child, &n.count, tally, leaf) {
                 ControlFlow::Continue(next) => node = next,
                 ControlFlow::Break(blocked) => return blocked,
             }
         }
     }
+}
+
+/// Whether `test` finds any of primitives `refs` (a loop, not `Iterator::any`, which the
+/// compiler left out of line).
+#[inline(always)]
+fn any_in(refs: &[u32], test: &mut impl FnMut(u32) -> bool) -> bool {
+    for &r in refs {
+        if test(r) {
+            return true;
+        }
+    }
+    false
 }
 
 #[cfg(test)]

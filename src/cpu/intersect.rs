@@ -241,7 +241,7 @@ pub fn box_surface(bx: &Cuboid, ray: &Ray, t: f32) -> SurfacePoint {
 }
 
 /// Barycentric slack so that a ray through a shared edge hits at least one triangle.
-const TRIANGLE_SLACK: f32 = 1e-6;
+pub(super) const TRIANGLE_SLACK: f32 = 1e-6;
 
 /// Ray/triangle, two-sided (Möller & Trumbore, JGT 1997).
 #[inline]

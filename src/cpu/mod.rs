@@ -42,6 +42,8 @@ pub mod scene;
 mod simd;
 pub mod texture;
 pub mod trace;
+#[cfg(target_arch = "x86_64")]
+pub mod tri8;
 
 use crate::common::Resolved;
 use crate::common::accum::{ACCUM_WORDS, AccumData, Sums, decode};

@@ -156,6 +156,10 @@ pub struct CpuScene {
     /// A scene of a few quads and boxes: all of them tested at once instead of the walk.
     #[cfg(target_arch = "x86_64")]
     pub few: Option<super::few::Few>,
+    /// The triangles by component in the order of the tree's references, for the leaves
+    /// tested eight at a time (`cpu::tri8`), where the tree is eight wide.
+    #[cfg(target_arch = "x86_64")]
+    pub tri8: Option<super::tri8::Tri8>,
     /// The texture words (`common::textures`; empty when no material has maps), and whether
     /// any material cuts out.
     pub tex: Vec<u32>,
@@ -218,6 +222,8 @@ impl CpuScene {
             bvh8,
             #[cfg(target_arch = "x86_64")]
             few: None,
+            #[cfg(target_arch = "x86_64")]
+            tri8: None,
             node_count: nodes.len(),
             build_seconds,
             origin,
@@ -227,7 +233,28 @@ impl CpuScene {
         c.take(&p);
         c.take_textures(scene);
         c.take_few();
+        #[cfg(target_arch = "x86_64")]
+        {
+            c.tri8 = c
+                .bvh8
+                .as_ref()
+                .and_then(|_| super::tri8::Tri8::new(&c.bvh.refs, &c.triangles));
+        }
         c
+    }
+
+    /// How the eight-wide walks test their leaves (`cpu::tri8`): triangles eight at a time,
+    /// but where a material cuts out (its texture test is the scalar one's), and `skip` and
+    /// `from` left out.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub fn leaves(&self, skip: u32, from: u32) -> super::tri8::Leaves<'_> {
+        super::tri8::Leaves {
+            tris: self.tri8.as_ref().filter(|_| !self.cutouts),
+            skip,
+            from,
+            skipped: 0,
+        }
     }
 
     /// The test of every primitive at once, where the scene is a few quads and boxes.
@@ -266,7 +293,7 @@ impl CpuScene {
             return;
         }
         // The geometry is unchanged: the triangles stay (10⁶ of them take 0.2 s to make), and
-        // so do the trees and `few`, made of the same quads and boxes.
+        // so do the trees, `few` and `tri8`, made of the same primitives.
         let p = Primitives::without_meshes(scene, self.origin, s.nee);
         self.u = Uniforms::of(&scene_uniforms(scene, s, self.origin));
         self.env = scene.environment.as_ref().map(|e| e.map.clone());

@@ -376,6 +376,7 @@ impl<'a> Tracer<'a> {
         let mut skipped = 0;
         let hit = self.walk_closest(
             ray,
+            skip,
             #[inline(always)]
             |r, t| hit_except::<P>(s, r, ray, t, skip, &mut skipped),
         );
@@ -390,24 +391,35 @@ impl<'a> Tracer<'a> {
         hit.map(|(t, r)| hit_of(t, r))
     }
 
-    /// The nearest hit the BVH walk finds, `test` giving a primitive's: through the
-    /// eight-wide nodes where the CPU has AVX, else the four-wide ones.
+    /// The nearest hit the BVH walk finds, `test` giving a primitive's (but `skip`'s): through
+    /// the eight-wide nodes where the CPU has AVX (their leaves of triangles tested eight at a
+    /// time, `CpuScene::leaves`), else the four-wide ones. The tests `skip` took are taken
+    /// off the tally here where eight at a time, by `test` elsewhere.
     #[inline(always)]
-    fn walk_closest(&mut self, ray: &Ray, test: impl FnMut(u32, f32) -> f32) -> Option<(f32, u32)> {
+    fn walk_closest(
+        &mut self,
+        ray: &Ray,
+        skip: u32,
+        test: impl FnMut(u32, f32) -> f32,
+    ) -> Option<(f32, u32)> {
         let s = self.s;
         #[cfg(target_arch = "x86_64")]
         if let Some(b8) = &s.bvh8 {
+            let mut leaves = s.leaves(skip, NONE);
             // SAFETY: `bvh8` exists only where the CPU has AVX.
-            return unsafe {
-                b8.closest(
+            let hit = unsafe {
+                b8.closest_in(
                     &s.bvh.refs,
                     ray,
                     T_FAR,
                     &mut self.tally,
                     &mut self.stack8,
+                    &mut leaves,
                     test,
                 )
             };
+            self.tally.tests -= leaves.skipped;
+            return hit;
         }
         s.bvh
             .closest(ray, T_FAR, &mut self.tally, &mut self.stack, test)
@@ -440,12 +452,13 @@ impl<'a> Tracer<'a> {
         if let Some(b8) = &s.bvh8 {
             // SAFETY: `bvh8` exists only where the CPU has AVX.
             return unsafe {
-                b8.any(
+                b8.any_in(
                     &s.bvh.refs,
                     ray,
                     t_max,
                     &mut self.tally,
                     &mut self.stack8,
+                    &s.leaves(skip, from),
                     #[inline(always)]
                     |r| blocks::<P>(s, r, ray, t_max, (skip, from)),
                 )
@@ -486,6 +499,7 @@ impl<'a> Tracer<'a> {
                 (t_max, slots),
                 &mut self.tally,
                 &mut self.stack8,
+                &s.leaves(skip, from),
                 #[inline(always)]
                 |r| blocks::<ANY>(s, r, ray, t_max, (skip, from)),
             )
@@ -1771,6 +1785,7 @@ impl Tracer<'_> {
             .as_ref()
             .expect("the lanes' root is an eight-wide tree's");
         let mut skipped = 0;
+        let mut leaves = s.leaves(skip, NONE);
         // SAFETY: `bvh8` exists only where the CPU has AVX.
         let hit = unsafe {
             b8.closest_below_root(
@@ -1779,11 +1794,12 @@ impl Tracer<'_> {
                 at,
                 &mut self.tally,
                 &mut self.stack8,
+                &mut leaves,
                 #[inline(always)]
                 |r, t| hit_except::<ANY>(s, r, ray, t, skip, &mut skipped),
             )
         };
-        self.tally.tests -= skipped;
+        self.tally.tests -= skipped + leaves.skipped;
         hit
     }
 
