@@ -403,6 +403,8 @@ impl<'a> Tracer<'a> {
         test: impl FnMut(u32, f32) -> f32,
     ) -> Option<(f32, u32)> {
         let s = self.s;
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = skip;
         #[cfg(target_arch = "x86_64")]
         if let Some(b8) = &s.bvh8 {
             let mut leaves = s.leaves(skip, NONE);
