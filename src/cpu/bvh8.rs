@@ -244,14 +244,11 @@ impl Bvh8 {
         t_max: f32,
         tally: &mut Tally,
         stack: &mut Stack8,
-        mut test: impl FnMut(u32, f32) -> f32,
+        test: impl FnMut(u32, f32) -> f32,
     ) -> Option<(f32, u32)> {
-        if self.nodes.is_empty() {
-            return None;
-        }
-        let w = Walk::new(&mut *stack.0, t_max);
-        let mut leaf = |first, n, t_best| nearest_in(&refs[first..first + n], t_best, &mut test);
-        self.walk_from(ray, w, Some(0), tally, &mut leaf)
+        let mut one_by_one = Leaves::one_by_one();
+        // SAFETY: as this function's.
+        unsafe { self.closest_in(refs, ray, t_max, tally, stack, &mut one_by_one, test) }
     }
 
     /// `closest`, the leaves of plain triangles tested eight at a time where `leaves` has
@@ -269,20 +266,14 @@ impl Bvh8 {
         tally: &mut Tally,
         stack: &mut Stack8,
         leaves: &mut Leaves<'_>,
-        mut test: impl FnMut(u32, f32) -> f32,
+        test: impl FnMut(u32, f32) -> f32,
     ) -> Option<(f32, u32)> {
         if self.nodes.is_empty() {
             return None;
         }
         let w = Walk::new(&mut *stack.0, t_max);
         let r8 = Ray8::of(ray);
-        let mut leaf = |first, n, t_best| match leaves.tris {
-            Some(tris) if tris.plain(first, n) => {
-                let skip = (leaves.skip, &mut leaves.skipped);
-                tris.closest((first, n), &r8, t_best, skip)
-            }
-            _ => nearest_in(&refs[first..first + n], t_best, &mut test),
-        };
+        let mut leaf = closest_leaf(refs, leaves, &r8, test);
         self.walk_from(ray, w, Some(0), tally, &mut leaf)
     }
 
@@ -303,7 +294,7 @@ impl Bvh8 {
         tally: &mut Tally,
         stack: &mut Stack8,
         leaves: &mut Leaves<'_>,
-        mut test: impl FnMut(u32, f32) -> f32,
+        test: impl FnMut(u32, f32) -> f32,
     ) -> Option<(f32, u32)> {
         let Some(n) = self.nodes.first() else {
             return at.best;
@@ -312,13 +303,7 @@ impl Bvh8 {
         w.best = at.best;
         let inner = at.inner & !(n.leaves as u32);
         let r8 = Ray8::of(ray);
-        let mut leaf = |first, count, t_best| match leaves.tris {
-            Some(tris) if tris.plain(first, count) => {
-                let skip = (leaves.skip, &mut leaves.skipped);
-                tris.closest((first, count), &r8, t_best, skip)
-            }
-            _ => nearest_in(&refs[first..first + count], t_best, &mut test),
-        };
+        let mut leaf = closest_leaf(refs, leaves, &r8, test);
         let next = w.visit_leaves(inner, 0, &at.near, &n.child, &n.count, tally, &mut leaf);
         self.walk_from(ray, w, next, tally, &mut leaf)
     }
@@ -362,14 +347,10 @@ impl Bvh8 {
         t_max: f32,
         tally: &mut Tally,
         stack: &mut Stack8,
-        mut test: impl FnMut(u32) -> bool,
+        test: impl FnMut(u32) -> bool,
     ) -> bool {
-        if self.nodes.is_empty() {
-            return false;
-        }
-        let w = AnyWalk::new(&mut *stack.0);
-        let mut leaf = |first: usize, n: usize| any_in(&refs[first..first + n], &mut test);
-        self.any_from(ray, t_max, w, (0, None), tally, &mut leaf)
+        let one_by_one = Leaves::one_by_one();
+        self.any_given(refs, ray, (t_max, None), tally, stack, &one_by_one, test)
     }
 
     /// `any`, the leaves of plain triangles tested eight at a time where `leaves` has their
@@ -387,20 +368,9 @@ impl Bvh8 {
         tally: &mut Tally,
         stack: &mut Stack8,
         leaves: &Leaves<'_>,
-        mut test: impl FnMut(u32) -> bool,
+        test: impl FnMut(u32) -> bool,
     ) -> bool {
-        if self.nodes.is_empty() {
-            return false;
-        }
-        let w = AnyWalk::new(&mut *stack.0);
-        let r8 = Ray8::of(ray);
-        let mut leaf = |first: usize, n: usize| match leaves.tris {
-            Some(tris) if tris.plain(first, n) => {
-                tris.any((first, n), &r8, t_max, (leaves.skip, leaves.from))
-            }
-            _ => any_in(&refs[first..first + n], &mut test),
-        };
-        self.any_from(ray, t_max, w, (0, None), tally, &mut leaf)
+        self.any_given(refs, ray, (t_max, None), tally, stack, leaves, test)
     }
 
     /// `any_in` where the root has been visited already (by the lanes, `cpu::lanes`): `slots`
@@ -418,6 +388,23 @@ impl Bvh8 {
         tally: &mut Tally,
         stack: &mut Stack8,
         leaves: &Leaves<'_>,
+        test: impl FnMut(u32) -> bool,
+    ) -> bool {
+        self.any_given(refs, ray, (t_max, Some(slots)), tally, stack, leaves, test)
+    }
+
+    /// `any_in`, the root's slots entered `given` where they are (`any_below_root`).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    #[target_feature(enable = "avx")]
+    fn any_given(
+        &self,
+        refs: &[u32],
+        ray: &Ray,
+        (t_max, given): (f32, Option<u32>),
+        tally: &mut Tally,
+        stack: &mut Stack8,
+        leaves: &Leaves<'_>,
         mut test: impl FnMut(u32) -> bool,
     ) -> bool {
         if self.nodes.is_empty() {
@@ -425,14 +412,14 @@ impl Bvh8 {
         }
         let w = AnyWalk::new(&mut *stack.0);
         let r8 = Ray8::of(ray);
-        let mut leaf = |first: usize, count: usize| match leaves.tris {
-            Some(tris) if tris.plain(first, count) => {
-                tris.any((first, count), &r8, t_max, (leaves.skip, leaves.from))
+        let mut leaf = |first: usize, n: usize| match leaves.tris {
+            Some(tris) if tris.plain(first, n) => {
+                tris.any((first, n), &r8, t_max, (leaves.skip, leaves.from))
             }
-            _ => any_in(&refs[first..first + count], &mut test),
+            _ => any_in(&refs[first..first + n], &mut test),
         };
         // (The root's slots given, not tested: `leaf` called from one place stays inline.)
-        self.any_from(ray, t_max, w, (0, Some(slots)), tally, &mut leaf)
+        self.any_from(ray, t_max, w, (0, given), tally, &mut leaf)
     }
 
     /// The any-hit walk from node `node` on (its slots entered `given`, where they are),
@@ -461,6 +448,26 @@ impl Bvh8 {
                 ControlFlow::Break(blocked) => return blocked,
             }
         }
+    }
+}
+
+/// The closest-hit walks' test of a leaf (`Walk::visit_leaves`): eight at a time where
+/// `leaves` has the columns of its plain triangles (`Tri8::closest`, the ray `r8`), else one
+/// by one with `test`.
+#[inline]
+#[target_feature(enable = "avx")]
+fn closest_leaf<'a>(
+    refs: &'a [u32],
+    leaves: &'a mut Leaves<'_>,
+    r8: &'a Ray8,
+    mut test: impl FnMut(u32, f32) -> f32 + 'a,
+) -> impl FnMut(usize, usize, f32) -> Option<(f32, u32)> + 'a {
+    move |first, n, t_best| match leaves.tris {
+        Some(tris) if tris.plain(first, n) => {
+            let skip = (leaves.skip, &mut leaves.skipped);
+            tris.closest((first, n), r8, t_best, skip)
+        }
+        _ => nearest_in(&refs[first..first + n], t_best, &mut test),
     }
 }
 

@@ -267,6 +267,18 @@ pub struct Leaves<'a> {
     pub skipped: u64,
 }
 
+impl Leaves<'_> {
+    /// Every leaf tested one by one, by the walk's own test (which leaves out what it will).
+    pub fn one_by_one() -> Leaves<'static> {
+        Leaves {
+            tris: None,
+            skip: u32::MAX,
+            from: u32::MAX,
+            skipped: 0,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
