@@ -3,8 +3,9 @@
 //!
 //! It reads the scene the GPU reads (`common::arrays`: the same primitives, lights and
 //! BVH, the latter collapsed to four-wide nodes in `cpu::bvh`, and to eight-wide ones in
-//! `cpu::bvh8` for single rays on a CPU with AVX, and where that is one node of a few quads
-//! and boxes, tested all at once in `cpu::few`), traces the same random streams (a group
+//! `cpu::bvh8` for single rays on a CPU with AVX, their leaves' triangles tested eight at a
+//! time in `cpu::tri8`, and where that is one node of a few quads and boxes, tested all at
+//! once in `cpu::few`), traces the same random streams (a group
 //! of eight pixels' samplers made at once: `rng::Rng::group`; where the scene is at most
 //! eight spheres, quads and boxes of the lecture's certain lobes, lit by the sky and at most
 //! one light, their paths side by side in vector lanes, sixteen on AVX-512, eight on AVX2,
