@@ -57,12 +57,7 @@ impl Tri8 {
     /// The columns of the references `refs` (kind in the top bits: 3 a triangle, unless
     /// it is an instance's) to `triangles`; None where no reference is a plain triangle.
     pub fn new(refs: &[u32], triangles: &[Triangle]) -> Option<Tri8> {
-        let plain = |r: u32| {
-            r >> 30 == 3 && r & crate::common::arrays::INSTANCE_BIT == 0 && {
-                let i = (r & REF_INDEX) as usize;
-                i < triangles.len()
-            }
-        };
+        let plain = |r: u32| r >> 30 == 3 && r & crate::common::arrays::INSTANCE_BIT == 0;
         if !refs.iter().any(|&r| plain(r)) {
             return None;
         }
@@ -104,9 +99,6 @@ impl Tri8 {
     }
 
     /// `hit_triangle` of the eight references from `first` on, against bound `t_max`.
-    ///
-    /// # Safety
-    /// The CPU must have AVX.
     #[inline]
     #[target_feature(enable = "avx")]
     fn hits(&self, first: usize, ray: &Ray8, t_max: f32) -> Hits {
@@ -147,9 +139,9 @@ impl Tri8 {
         }
     }
 
-    /// The first of the `n` triangles from reference `first` on (all plain: `plain`) at the nearest
-    /// distance below `t_best`, as `bvh::nearest_in` finds it with `hit_triangle`, `skip`
-    /// left out (and counted in `skipped`).
+    /// The first of the `n` triangles from reference `first` on (all plain: `plain`) at the
+    /// nearest distance below `t_best`, as `bvh::nearest_in` finds it with `hit_triangle`,
+    /// `skip` left out (and counted in `skipped`).
     ///
     /// # Safety
     /// The CPU must have AVX.
